@@ -1,0 +1,42 @@
+# Every dependency comes from Debian 12 packages installed by scripts/setup.sh.
+find_package(Threads REQUIRED)
+find_package(Eigen3 3.4 REQUIRED NO_MODULE)
+find_package(yaml-cpp REQUIRED)
+find_package(HDF5 REQUIRED COMPONENTS C)
+find_package(GTest REQUIRED)
+find_package(OpenMP REQUIRED COMPONENTS CXX)
+
+# LCM 1.3.1 ships no CMake config and its .pc file needs glib; the headers do not.
+find_path(LCM_INCLUDE_DIR lcm/lcm-cpp.hpp REQUIRED)
+find_library(LCM_LIBRARY lcm REQUIRED)
+find_program(LCM_GEN lcm-gen REQUIRED)
+add_library(lcm::lcm UNKNOWN IMPORTED)
+set_target_properties(lcm::lcm PROPERTIES
+  IMPORTED_LOCATION ${LCM_LIBRARY}
+  INTERFACE_INCLUDE_DIRECTORIES ${LCM_INCLUDE_DIR})
+
+# HDF5 as one imported target.
+add_library(hdf5::c INTERFACE IMPORTED)
+set_target_properties(hdf5::c PROPERTIES
+  INTERFACE_INCLUDE_DIRECTORIES "${HDF5_C_INCLUDE_DIRS}"
+  INTERFACE_LINK_LIBRARIES "${HDF5_C_LIBRARIES}"
+  INTERFACE_COMPILE_DEFINITIONS "${HDF5_C_DEFINITIONS}")
+
+# Warnings for the project's own targets.
+function(soil_warnings target)
+  target_compile_options(${target} PRIVATE -Wall -Wextra -Wno-unused-parameter)
+endfunction()
+
+# A GoogleTest executable registered with ctest; tests are discovered one by one.
+include(GoogleTest)
+function(soil_add_gtest name)
+  cmake_parse_arguments(T "" "TIMEOUT" "SOURCES;LIBS;LABELS" ${ARGN})
+  add_executable(${name} ${T_SOURCES})
+  target_link_libraries(${name} PRIVATE ${T_LIBS} GTest::gtest GTest::gtest_main)
+  soil_warnings(${name})
+  if(NOT T_TIMEOUT)
+    set(T_TIMEOUT 300)
+  endif()
+  gtest_discover_tests(${name} DISCOVERY_TIMEOUT 60
+    PROPERTIES TIMEOUT ${T_TIMEOUT} LABELS "${T_LABELS}")
+endfunction()

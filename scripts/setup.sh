@@ -1,0 +1,24 @@
+#!/usr/bin/env bash
+# Installs every Debian 12 package the project builds, tests and plots with.
+# Idempotent; run as root (CI and the README's commands call it).
+set -euo pipefail
+packages=(
+  build-essential cmake pkg-config git
+  liblcm-dev liblcm-bin libglib2.0-dev
+  libeigen3-dev libassimp-dev libhdf5-dev libyaml-cpp-dev
+  libgtest-dev libgmock-dev libomp-dev
+  libsimbody-dev
+  python3-matplotlib python3-h5py python3-numpy
+  iproute2 util-linux
+)
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+  echo "setup: installing ${missing[*]}"
+  export DEBIAN_FRONTEND=noninteractive
+  apt-get update -qq
+  apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+fi
+echo "setup: all packages present"
