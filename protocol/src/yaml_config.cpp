@@ -1,0 +1,216 @@
+#include "cosim/yaml_config.hpp"
+
+#include <sstream>
+
+namespace cosim::config {
+namespace {
+
+std::string list(std::initializer_list<std::string_view> items) {
+  std::string out;
+  for (auto item : items) {
+    if (!out.empty()) out += ", ";
+    out += item;
+  }
+  return out;
+}
+
+std::string describe(const YAML::Node& value) {
+  if (!value.IsDefined() || value.IsNull()) return "null";
+  if (value.IsScalar()) return value.Scalar();
+  if (value.IsSequence()) return "a list";
+  return "a map";
+}
+
+YAML::Node required(const YAML::Node& node, std::string_view path, const std::string& key,
+                    const char* what) {
+  if (!node.IsMap() || !node[key])
+    throw ConfigError(join_path(path, key) + ": missing (expected " + what + ")");
+  return node[key];
+}
+
+}  // namespace
+
+std::string join_path(std::string_view parent, std::string_view key) {
+  if (parent.empty()) return std::string(key);
+  return std::string(parent) + "." + std::string(key);
+}
+
+YAML::Node load_file(const std::string& path) {
+  try {
+    return YAML::LoadFile(path);
+  } catch (const YAML::BadFile&) {
+    throw ConfigError("cannot read config file '" + path + "': check the path");
+  } catch (const YAML::ParserException& e) {
+    std::ostringstream msg;
+    msg << path << ":" << e.mark.line + 1 << ":" << e.mark.column + 1
+        << ": not valid YAML: " << e.msg;
+    throw ConfigError(msg.str());
+  }
+}
+
+void apply_override(YAML::Node& root, const std::string& assignment) {
+  const auto eq = assignment.find('=');
+  if (eq == std::string::npos || eq == 0)
+    throw ConfigError("--set '" + assignment + "': expected dotted.key=value");
+  const std::string key = assignment.substr(0, eq);
+  YAML::Node value;
+  try {
+    value = YAML::Load(assignment.substr(eq + 1));
+  } catch (const YAML::ParserException& e) {
+    throw ConfigError("--set " + key + ": value is not valid YAML: " + e.msg);
+  }
+  std::vector<std::string> parts;
+  std::size_t start = 0;
+  while (true) {
+    const auto dot = key.find('.', start);
+    parts.push_back(key.substr(start, dot - start));
+    if (dot == std::string::npos) break;
+    start = dot + 1;
+  }
+  for (const auto& part : parts)
+    if (part.empty()) throw ConfigError("--set '" + assignment + "': empty key segment");
+  if (!root || root.IsNull()) root = YAML::Node(YAML::NodeType::Map);
+  // yaml-cpp nodes are handles: walking with operator[] on copies edits the same tree.
+  std::vector<YAML::Node> chain{root};
+  for (std::size_t i = 0; i + 1 < parts.size(); ++i) {
+    YAML::Node child = chain.back()[parts[i]];
+    if (child.IsDefined() && !child.IsNull() && !child.IsMap())
+      throw ConfigError("--set " + key + ": '" + parts[i] + "' is not a map");
+    if (!child.IsDefined() || child.IsNull()) {
+      chain.back()[parts[i]] = YAML::Node(YAML::NodeType::Map);
+      child = chain.back()[parts[i]];
+    }
+    chain.push_back(child);
+  }
+  chain.back()[parts.back()] = value;
+}
+
+void check_keys(const YAML::Node& node, std::string_view path,
+                std::initializer_list<std::string_view> allowed) {
+  if (!node.IsMap())
+    throw ConfigError(std::string(path.empty() ? "config" : path) + ": expected a map, got " +
+                      describe(node));
+  for (const auto& kv : node) {
+    const auto key = kv.first.as<std::string>();
+    bool ok = false;
+    for (auto a : allowed) ok = ok || a == key;
+    if (!ok)
+      throw ConfigError(join_path(path, key) + ": unknown key '" + key + "' (allowed: " +
+                        list(allowed) + ")");
+  }
+}
+
+void check_keys(const YAML::Node& node, std::string_view path,
+                const std::vector<std::string>& allowed) {
+  if (!node.IsMap())
+    throw ConfigError(std::string(path.empty() ? "config" : path) + ": expected a map, got " +
+                      describe(node));
+  for (const auto& kv : node) {
+    const auto key = kv.first.as<std::string>();
+    bool ok = false;
+    std::string names;
+    for (const auto& a : allowed) {
+      ok = ok || a == key;
+      names += (names.empty() ? "" : ", ") + a;
+    }
+    if (!ok)
+      throw ConfigError(join_path(path, key) + ": unknown key '" + key + "' (allowed: " +
+                        names + ")");
+  }
+}
+
+double get_double(const YAML::Node& node, std::string_view path, const std::string& key) {
+  const auto value = required(node, path, key, "a number");
+  double out = 0;
+  if (!value.IsScalar() || !YAML::convert<double>::decode(value, out) || !std::isfinite(out))
+    throw ConfigError(join_path(path, key) + ": expected a finite number, got '" +
+                      describe(value) + "'");
+  return out;
+}
+
+double get_double_or(const YAML::Node& node, std::string_view path, const std::string& key,
+                     double fallback) {
+  if (!node.IsMap() || !node[key]) return fallback;
+  return get_double(node, path, key);
+}
+
+double get_positive(const YAML::Node& node, std::string_view path, const std::string& key) {
+  const double v = get_double(node, path, key);
+  if (!(v > 0))
+    throw ConfigError(join_path(path, key) + ": must be > 0, got " + describe(node[key]));
+  return v;
+}
+
+double get_positive_or(const YAML::Node& node, std::string_view path, const std::string& key,
+                       double fallback) {
+  if (!node.IsMap() || !node[key]) return fallback;
+  return get_positive(node, path, key);
+}
+
+long long get_int(const YAML::Node& node, std::string_view path, const std::string& key) {
+  const auto value = required(node, path, key, "an integer");
+  long long out = 0;
+  if (!value.IsScalar() || !YAML::convert<long long>::decode(value, out))
+    throw ConfigError(join_path(path, key) + ": expected an integer, got '" + describe(value) +
+                      "'");
+  return out;
+}
+
+long long get_int_or(const YAML::Node& node, std::string_view path, const std::string& key,
+                     long long fallback) {
+  if (!node.IsMap() || !node[key]) return fallback;
+  return get_int(node, path, key);
+}
+
+bool get_bool_or(const YAML::Node& node, std::string_view path, const std::string& key,
+                 bool fallback) {
+  if (!node.IsMap() || !node[key]) return fallback;
+  bool out = false;
+  if (!node[key].IsScalar() || !YAML::convert<bool>::decode(node[key], out))
+    throw ConfigError(join_path(path, key) + ": expected true or false, got '" +
+                      describe(node[key]) + "'");
+  return out;
+}
+
+std::string get_string(const YAML::Node& node, std::string_view path, const std::string& key) {
+  const auto value = required(node, path, key, "a string");
+  if (!value.IsScalar())
+    throw ConfigError(join_path(path, key) + ": expected a string, got " + describe(value));
+  return value.Scalar();
+}
+
+std::string get_string_or(const YAML::Node& node, std::string_view path, const std::string& key,
+                          const std::string& fallback) {
+  if (!node.IsMap() || !node[key]) return fallback;
+  return get_string(node, path, key);
+}
+
+std::string get_choice(const YAML::Node& node, std::string_view path, const std::string& key,
+                       std::initializer_list<std::string_view> allowed,
+                       const std::string& fallback) {
+  const std::string value = fallback.empty() ? get_string(node, path, key)
+                                             : get_string_or(node, path, key, fallback);
+  for (auto a : allowed)
+    if (a == value) return value;
+  throw ConfigError(join_path(path, key) + ": '" + value + "' is not allowed (allowed: " +
+                    list(allowed) + ")");
+}
+
+std::vector<double> get_vector(const YAML::Node& node, std::string_view path,
+                               const std::string& key, std::size_t size) {
+  const auto value = required(node, path, key, "a list of numbers");
+  const auto where = join_path(path, key);
+  if (!value.IsSequence() || value.size() != size)
+    throw ConfigError(where + ": expected a list of " + std::to_string(size) + " numbers, got " +
+                      describe(value));
+  std::vector<double> out(size);
+  for (std::size_t i = 0; i < size; ++i) {
+    if (!value[i].IsScalar() || !YAML::convert<double>::decode(value[i], out[i]) ||
+        !std::isfinite(out[i]))
+      throw ConfigError(where + "[" + std::to_string(i) + "]: expected a finite number, got '" +
+                        describe(value[i]) + "'");
+  }
+  return out;
+}
+
+}  // namespace cosim::config
