@@ -1,0 +1,28 @@
+// Where messages travel: the bus URL and the channel names of a session.
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+namespace cosim {
+
+constexpr int32_t kProtocolVersion = 1;
+constexpr const char* kDefaultBusUrl = "udpm://239.255.76.67:7667?ttl=0";
+
+// The URL given (non-empty), else $LCM_DEFAULT_URL, else kDefaultBusUrl.
+std::string resolve_bus_url(const std::string& configured);
+
+namespace channel {
+std::string announce();                                   // participants -> all
+std::string configure(const std::string& participant);    // master -> one free participant
+std::string ready(int64_t session, const std::string& participant);
+std::string request(int64_t session, const std::string& participant);
+std::string reply(int64_t session, const std::string& participant);
+std::string heartbeat(int64_t session);                   // everyone in the session
+std::string terminate(int64_t session);
+}  // namespace channel
+
+// A random non-zero 63-bit session id.
+int64_t new_session_id();
+
+}  // namespace cosim

@@ -1,0 +1,107 @@
+// The master side of the protocol: a Transport configures participants and exchanges step
+// requests and replies with them. LcmTransport does it over the bus with per-participant
+// timeouts and resends; InProcessTransport calls ParticipantCore objects directly (same
+// encoding, same validation) for tests and analysis tools.
+#pragma once
+
+#include <functional>
+#include <map>
+#include <memory>
+#include <set>
+#include <stdexcept>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "cosim/participant.hpp"
+#include "cosim/signal.hpp"
+#include "cosim/time.hpp"
+
+namespace cosim {
+
+// A participant failed, refused a step or stopped answering. participant() names it.
+class LinkError : public std::runtime_error {
+ public:
+  LinkError(std::string participant, const std::string& message)
+      : std::runtime_error(message), participant_(std::move(participant)) {}
+  const std::string& participant() const { return participant_; }
+
+ private:
+  std::string participant_;
+};
+
+// A participant refused its configuration: the message names its parameter.
+class ParticipantConfigError : public LinkError {
+ public:
+  using LinkError::LinkError;
+};
+
+struct LinkSettings {
+  double timeout_s = 2.0;  // silence (no reply, no busy heartbeat) before a resend
+  int retries = 3;         // resends before giving up
+};
+
+// Messages a test asks the transport to lose, once each: (participant, step_index).
+struct FaultPlan {
+  std::set<std::pair<std::string, int64_t>> drop_request;
+  std::set<std::pair<std::string, int64_t>> drop_reply;
+};
+
+struct ParticipantInfo {
+  Ports inputs, outputs;
+  Ticks inner_step = 0;
+  bool can_repeat = false;
+  Signals initial_outputs;
+};
+
+struct ExchangeStats {
+  uint64_t resends = 0;
+  uint64_t dropped_by_plan = 0;
+  uint64_t ignored_replies = 0;  // duplicates, other steps, other sessions
+};
+
+// A reply as the master uses it, validated against the participant's declaration.
+struct StepAnswer {
+  Signals outputs;
+  std::optional<Signals> average;
+  std::vector<std::pair<std::string, double>> diagnostics;
+  double compute_seconds = 0;
+  double round_trip_seconds = 0;
+};
+
+class Transport {
+ public:
+  virtual ~Transport() = default;
+  virtual int64_t session() const = 0;
+  // Configures every participant; raises ParticipantConfigError for a refusal and LinkError
+  // for a participant that does not answer within timeout_s.
+  virtual std::map<std::string, ParticipantInfo> connect(const std::vector<configure_t>& configs,
+                                                         double timeout_s) = 0;
+  // Sends the requests (all at once) and returns their validated answers, in order.
+  virtual std::vector<StepAnswer> exchange(const std::vector<step_request_t>& requests) = 0;
+  virtual void terminate(bool error, const std::string& reason) = 0;
+  virtual std::string describe() const = 0;
+
+  const ExchangeStats& stats() const { return stats_; }
+  void set_fault_plan(FaultPlan plan) { faults_ = std::move(plan); }
+  // Called while waiting; may raise LinkError (for example when a launched process died).
+  void set_liveness_check(std::function<void()> check) { liveness_ = std::move(check); }
+
+ protected:
+  // Validates a reply for `request` against the declared outputs; raises LinkError.
+  StepAnswer accept(const step_request_t& request, const step_reply_t& reply,
+                    const ParticipantInfo& info, double round_trip) const;
+  ParticipantInfo accept_ready(const ready_t& ready) const;
+
+  ExchangeStats stats_;
+  FaultPlan faults_;
+  std::function<void()> liveness_;
+};
+
+std::unique_ptr<Transport> make_lcm_transport(const std::string& url, int64_t session,
+                                              std::map<std::string, LinkSettings> links);
+// participants: name -> core; the cores must outlive the transport.
+std::unique_ptr<Transport> make_in_process_transport(
+    int64_t session, std::map<std::string, ParticipantCore*> participants);
+
+}  // namespace cosim

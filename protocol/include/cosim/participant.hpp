@@ -1,0 +1,119 @@
+// The participant side of the protocol. A machine or soil model implements Model (a thin
+// adapter over the model, which itself knows nothing of the bus); ParticipantCore holds the
+// protocol logic (configure, step identity, cached replies, validation) independent of the
+// transport; run_participant serves a Model on the LCM bus.
+#pragma once
+
+#include <cosim/configure_t.hpp>
+#include <cosim/ready_t.hpp>
+#include <cosim/step_reply_t.hpp>
+#include <cosim/step_request_t.hpp>
+
+#include <yaml-cpp/yaml.h>
+
+#include <atomic>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "cosim/polynomial.hpp"
+#include "cosim/signal.hpp"
+#include "cosim/time.hpp"
+
+namespace cosim {
+
+struct RunInfo {
+  std::string participant;
+  Ticks t_start = 0;
+  Ticks t_end = 0;
+  Ticks macro_step = 0;
+};
+
+// What a model sees of one macro step.
+class StepInputs {
+ public:
+  StepInputs(Ticks t_start, Ticks t_end, const Polynomials& inputs)
+      : t_start_(t_start), t_end_(t_end), inputs_(inputs) {}
+  Ticks t_start() const { return t_start_; }
+  Ticks t_end() const { return t_end_; }
+  // The input `name` at time t (t_start <= t <= t_end), from its polynomial.
+  Value at(const std::string& name, Ticks t) const;
+  const InputPolynomial& polynomial(const std::string& name) const;
+
+ private:
+  Ticks t_start_, t_end_;
+  const Polynomials& inputs_;
+};
+
+struct StepResult {
+  Signals outputs;                  // at t_end
+  std::optional<Signals> average;   // over the step, when asked
+  std::vector<std::pair<std::string, double>> diagnostics;
+};
+
+// Raised by a model for an input it cannot accept (the step is refused, the state kept).
+struct InputError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+class Model {
+ public:
+  virtual ~Model() = default;
+  // Reads and validates the participant's parameters; raises config::ConfigError.
+  virtual void configure(const YAML::Node& parameters, const RunInfo& run) = 0;
+  virtual Ports inputs() const = 0;
+  virtual Ports outputs() const = 0;
+  virtual Ticks inner_step() const = 0;
+  virtual Signals initial_outputs() = 0;
+  // Advances the model over [in.t_start(), in.t_end()].
+  virtual StepResult step(const StepInputs& in, bool want_average) = 0;
+  // Models that can go back to the start of the current step support iterations and rollback.
+  virtual bool can_repeat() const { return false; }
+  virtual void save_snapshot() {}
+  virtual void restore_snapshot() {}
+};
+
+class ParticipantCore {
+ public:
+  ParticipantCore(std::string name, Model& model);
+
+  const std::string& name() const { return name_; }
+  bool bound() const { return session_ != 0; }
+  int64_t session() const { return session_; }
+  int64_t busy_step() const { return busy_step_.load(); }   // -1 when idle
+  int64_t last_step() const { return last_step_; }
+  Ticks time() const { return t_now_; }
+  uint64_t ignored_messages() const { return ignored_; }
+
+  // Binds to the session on success. A repeated configure of the bound session gets the
+  // same answer; a configure from another session while bound is ignored (nullopt).
+  std::optional<ready_t> configure(const configure_t& message);
+  // nullopt for messages that are not for us (other session or participant) or stale.
+  std::optional<step_reply_t> handle(const step_request_t& request);
+
+ private:
+  step_reply_t run_step(const step_request_t& request);
+  step_reply_t refuse(const step_request_t& request, int8_t status, const std::string& message);
+
+  std::string name_;
+  Model& model_;
+  int64_t session_ = 0;
+  RunInfo run_;
+  Ports inputs_, outputs_;
+  std::optional<ready_t> ready_;
+  int64_t last_step_ = -1;     // last completed step index
+  int32_t last_iteration_ = -1;
+  Ticks t_now_ = 0;            // end of the last completed step
+  Ticks t_before_last_ = 0;    // its start, for repeats
+  std::optional<step_reply_t> cached_;
+  std::atomic<int64_t> busy_step_{-1};
+  uint64_t ignored_ = 0;
+};
+
+// Serves `model` on the bus until the master terminates the session. Command line:
+//   NAME [--name NAME] [--bus URL] [--idle-timeout SECONDS] [--wait SECONDS]
+// Returns the process exit code.
+int run_participant(Model& model, const std::string& default_name, int argc, char** argv);
+
+}  // namespace cosim

@@ -1,0 +1,42 @@
+#include "cosim/bus.hpp"
+
+#include <cstdio>
+#include <cstdlib>
+#include <random>
+
+namespace cosim {
+
+std::string resolve_bus_url(const std::string& configured) {
+  if (!configured.empty()) return configured;
+  if (const char* env = std::getenv("LCM_DEFAULT_URL"); env && *env) return env;
+  return kDefaultBusUrl;
+}
+
+namespace {
+std::string session_prefix(int64_t session) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "COSIM_%016llx_", static_cast<unsigned long long>(session));
+  return buf;
+}
+}  // namespace
+
+namespace channel {
+// Channel names stay below LCM's 63 characters: names are at most 32 characters.
+std::string announce() { return "COSIM_ANNOUNCE"; }
+std::string configure(const std::string& p) { return "COSIM_CFG_" + p; }
+std::string ready(int64_t s, const std::string& p) { return session_prefix(s) + p + "_RDY"; }
+std::string request(int64_t s, const std::string& p) { return session_prefix(s) + p + "_REQ"; }
+std::string reply(int64_t s, const std::string& p) { return session_prefix(s) + p + "_REP"; }
+std::string heartbeat(int64_t s) { return session_prefix(s) + "HB"; }
+std::string terminate(int64_t s) { return session_prefix(s) + "END"; }
+}  // namespace channel
+
+int64_t new_session_id() {
+  std::random_device rd;
+  std::mt19937_64 gen((static_cast<uint64_t>(rd()) << 32) ^ rd());
+  int64_t id = 0;
+  while (id == 0) id = static_cast<int64_t>(gen() >> 1);
+  return id;
+}
+
+}  // namespace cosim

@@ -1,0 +1,189 @@
+#include "cosim/participant.hpp"
+
+#include <chrono>
+#include <cmath>
+#include <exception>
+
+#include "cosim/bus.hpp"
+#include "cosim/yaml_config.hpp"
+
+namespace cosim {
+
+Value StepInputs::at(const std::string& name, Ticks t) const {
+  const double s = static_cast<double>(t - t_start_) / static_cast<double>(t_end_ - t_start_);
+  return polynomial(name).evaluate(s);
+}
+
+const InputPolynomial& StepInputs::polynomial(const std::string& name) const {
+  auto it = inputs_.find(name);
+  if (it == inputs_.end()) throw std::out_of_range("no input named '" + name + "'");
+  return it->second;
+}
+
+ParticipantCore::ParticipantCore(std::string name, Model& model)
+    : name_(std::move(name)), model_(model) {
+  require_valid_name(name_, "participant name");
+}
+
+std::optional<ready_t> ParticipantCore::configure(const configure_t& m) {
+  if (m.participant != name_) return std::nullopt;
+  if (bound()) {
+    if (m.session_id == session_ && ready_) return ready_;  // the master resent: same answer
+    ++ignored_;
+    return std::nullopt;
+  }
+  ready_t r{};
+  r.protocol_version = kProtocolVersion;
+  r.session_id = m.session_id;
+  r.participant = name_;
+  r.ok = false;
+  try {
+    if (m.protocol_version != kProtocolVersion)
+      throw ProtocolError("protocol version " + std::to_string(m.protocol_version) +
+                          " from the master, this participant speaks " +
+                          std::to_string(kProtocolVersion) + ": rebuild both from one source");
+    if (m.session_id == 0) throw ProtocolError("session id 0 is reserved");
+    if (m.macro_step_ns <= 0 || m.t_end_ns <= m.t_start_ns || m.t_start_ns < 0)
+      throw ProtocolError("configure: times must satisfy 0 <= t_start < t_end and macro_step > 0");
+    YAML::Node params;
+    try {
+      params = m.parameters_yaml.empty() ? YAML::Node(YAML::NodeType::Map)
+                                         : YAML::Load(m.parameters_yaml);
+    } catch (const YAML::Exception& e) {
+      throw config::ConfigError(std::string("parameters are not valid YAML: ") + e.what());
+    }
+    if (params.IsNull()) params = YAML::Node(YAML::NodeType::Map);
+    run_ = RunInfo{name_, m.t_start_ns, m.t_end_ns, m.macro_step_ns};
+    model_.configure(params, run_);
+    inputs_ = model_.inputs();
+    outputs_ = model_.outputs();
+    const Ticks inner = model_.inner_step();
+    if (inner <= 0) throw ProtocolError("model reports a non-positive inner step");
+    const Signals initial = model_.initial_outputs();
+    check_against_ports(initial, outputs_, "initial outputs");
+    for (const auto& [n, s] : initial) validate_value(s.kind, s.value, "initial output '" + n + "'");
+    r.inner_step_ns = inner;
+    r.can_repeat = model_.can_repeat();
+    r.inputs = to_message(inputs_);
+    r.n_inputs = static_cast<int32_t>(r.inputs.size());
+    r.outputs = to_message(outputs_);
+    r.n_outputs = static_cast<int32_t>(r.outputs.size());
+    r.initial_outputs = to_message(initial);
+    r.ok = true;
+    session_ = m.session_id;
+    t_now_ = t_before_last_ = m.t_start_ns;
+    ready_ = r;
+  } catch (const std::exception& e) {
+    r.error = e.what();
+  }
+  return r;
+}
+
+step_reply_t ParticipantCore::refuse(const step_request_t& q, int8_t status,
+                                     const std::string& message) {
+  step_reply_t r{};
+  r.session_id = session_;
+  r.participant = name_;
+  r.step_index = q.step_index;
+  r.iteration = q.iteration;
+  r.attempt = q.attempt;
+  r.t_start_ns = q.t_start_ns;
+  r.t_end_ns = q.t_end_ns;
+  r.status = status;
+  r.message = message;
+  return r;
+}
+
+std::optional<step_reply_t> ParticipantCore::handle(const step_request_t& q) {
+  if (!bound() || q.session_id != session_ || q.participant != name_) {
+    ++ignored_;
+    return std::nullopt;
+  }
+  // A repeated request for the step just done: answer from the cache, never step twice.
+  if (cached_ && q.step_index == last_step_ && q.iteration == last_iteration_) {
+    step_reply_t r = *cached_;
+    r.attempt = q.attempt;
+    return r;
+  }
+  const bool next = q.step_index == last_step_ + 1;
+  const bool redo = q.step_index == last_step_ && q.iteration > last_iteration_;
+  if (q.step_index < last_step_ || (q.step_index == last_step_ && q.iteration < last_iteration_)) {
+    ++ignored_;  // a late duplicate of something already answered
+    return std::nullopt;
+  }
+  if (!next && !redo)
+    return refuse(q, step_reply_t::REJECTED,
+                  "step " + std::to_string(q.step_index) + " requested, but the next step is " +
+                      std::to_string(last_step_ + 1));
+  if (redo && !model_.can_repeat())
+    return refuse(q, step_reply_t::REJECTED, "this participant cannot repeat a step");
+  const Ticks expected_start = redo ? t_before_last_ : t_now_;
+  if (q.t_start_ns != expected_start || q.t_end_ns <= q.t_start_ns || q.t_end_ns > run_.t_end)
+    return refuse(q, step_reply_t::REJECTED,
+                  "step " + std::to_string(q.step_index) + " spans [" +
+                      std::to_string(q.t_start_ns) + ", " + std::to_string(q.t_end_ns) +
+                      "] ns but must start at " + std::to_string(expected_start) +
+                      " ns and end after it, no later than " + std::to_string(run_.t_end));
+  if ((q.t_end_ns - q.t_start_ns) % model_.inner_step() != 0)
+    return refuse(q, step_reply_t::REJECTED,
+                  "step length " + std::to_string(q.t_end_ns - q.t_start_ns) +
+                      " ns is not a multiple of the inner step " +
+                      std::to_string(model_.inner_step()) + " ns");
+  return run_step(q);
+}
+
+step_reply_t ParticipantCore::run_step(const step_request_t& q) {
+  Polynomials inputs;
+  try {
+    inputs = from_message(q.inputs, "step " + std::to_string(q.step_index));
+    Signals kinds;  // check names and kinds against the declaration
+    for (const auto& [n, p] : inputs) kinds[n] = Signal{p.kind, {}};
+    check_against_ports(kinds, inputs_, "step " + std::to_string(q.step_index) + " inputs");
+  } catch (const ProtocolError& e) {
+    return refuse(q, step_reply_t::REJECTED, e.what());
+  }
+  const bool redo = q.step_index == last_step_;
+  busy_step_ = q.step_index;
+  const auto started = std::chrono::steady_clock::now();
+  StepResult result;
+  try {
+    if (redo)
+      model_.restore_snapshot();
+    else if (model_.can_repeat())
+      model_.save_snapshot();
+    result = model_.step(StepInputs(q.t_start_ns, q.t_end_ns, inputs), q.want_average);
+    check_against_ports(result.outputs, outputs_, "outputs");
+    for (const auto& [n, s] : result.outputs) validate_value(s.kind, s.value, "output '" + n + "'");
+    if (q.want_average && result.average) {
+      check_against_ports(*result.average, outputs_, "averages");
+      for (const auto& [n, s] : *result.average) validate_value(s.kind, s.value, "average '" + n + "'");
+    }
+    for (const auto& [n, v] : result.diagnostics)
+      if (!valid_name(n)) throw ProtocolError("diagnostic name '" + n + "' is not valid");
+  } catch (const InputError& e) {
+    busy_step_ = -1;
+    if (model_.can_repeat()) model_.restore_snapshot();
+    return refuse(q, step_reply_t::REJECTED, e.what());
+  } catch (const std::exception& e) {
+    busy_step_ = -1;
+    return refuse(q, step_reply_t::FAILED, e.what());
+  }
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+  step_reply_t r = refuse(q, step_reply_t::OK, "");
+  r.outputs = to_message(result.outputs);
+  r.has_average = q.want_average && result.average.has_value();
+  if (r.has_average) r.average = to_message(*result.average);
+  for (const auto& [n, v] : result.diagnostics) r.diagnostics.push_back({n, v});
+  r.n_diagnostics = static_cast<int32_t>(r.diagnostics.size());
+  r.compute_seconds = seconds;
+  if (!redo) t_before_last_ = q.t_start_ns;
+  t_now_ = q.t_end_ns;
+  last_step_ = q.step_index;
+  last_iteration_ = q.iteration;
+  cached_ = r;
+  busy_step_ = -1;
+  return r;
+}
+
+}  // namespace cosim

@@ -1,0 +1,190 @@
+// Serves a Model on the LCM bus. One thread handles LCM (as LCM requires); a second only
+// publishes heartbeats so the master can tell a long step from a dead participant.
+#include <cosim/announce_t.hpp>
+#include <cosim/heartbeat_t.hpp>
+#include <cosim/terminate_t.hpp>
+#include <unistd.h>
+
+#include <chrono>
+#include <csignal>
+#include <cstring>
+#include <iostream>
+#include <lcm/lcm-cpp.hpp>
+#include <mutex>
+#include <thread>
+
+#include "cosim/bus.hpp"
+#include "cosim/participant.hpp"
+
+namespace cosim {
+namespace {
+
+std::atomic<bool> g_stop{false};
+void on_signal(int) { g_stop = true; }
+
+using Clock = std::chrono::steady_clock;
+
+struct Server {
+  lcm::LCM& lcm;
+  ParticipantCore& core;
+  bool finished = false;
+  bool error = false;
+  Clock::time_point last_master = Clock::now();
+  lcm::Subscription* req_sub = nullptr;
+
+  void on_configure(const lcm::ReceiveBuffer*, const std::string&, const configure_t* m) {
+    const bool was_bound = core.bound();
+    auto ready = core.configure(*m);
+    if (!ready) return;
+    lcm.publish(channel::ready(m->session_id, core.name()), &*ready);
+    if (!ready->ok) {
+      std::cerr << core.name() << ": configuration refused: " << ready->error << "\n";
+      return;
+    }
+    last_master = Clock::now();
+    if (!was_bound) {
+      req_sub = lcm.subscribe(channel::request(core.session(), core.name()), &Server::on_request, this);
+      lcm.subscribe(channel::heartbeat(core.session()), &Server::on_heartbeat, this);
+      lcm.subscribe(channel::terminate(core.session()), &Server::on_terminate, this);
+      std::cerr << core.name() << ": joined session " << std::hex << core.session() << std::dec
+                << "\n";
+    }
+  }
+  void on_request(const lcm::ReceiveBuffer*, const std::string&, const step_request_t* q) {
+    last_master = Clock::now();
+    auto reply = core.handle(*q);
+    if (!reply) return;
+    if (reply->status != step_reply_t::OK)
+      std::cerr << core.name() << ": step " << q->step_index << ": " << reply->message << "\n";
+    lcm.publish(channel::reply(core.session(), core.name()), &*reply);
+  }
+  void on_heartbeat(const lcm::ReceiveBuffer*, const std::string&, const heartbeat_t* h) {
+    if (h->session_id == core.session() && h->sender == "master") last_master = Clock::now();
+  }
+  void on_terminate(const lcm::ReceiveBuffer*, const std::string&, const terminate_t* t) {
+    if (t->session_id != core.session()) return;
+    finished = true;
+    error = t->error;
+    if (t->error) std::cerr << core.name() << ": master ended the session: " << t->reason << "\n";
+  }
+};
+
+void usage(const std::string& name) {
+  std::cerr << "usage: " << name
+            << " [--name NAME] [--bus URL] [--idle-timeout SECONDS] [--wait SECONDS]\n"
+               "  --name          participant name the master's config uses (default "
+            << name
+            << ")\n"
+               "  --bus           LCM URL (default: $LCM_DEFAULT_URL, else "
+            << kDefaultBusUrl
+            << ")\n"
+               "  --idle-timeout  exit if the master is silent this long once joined (60)\n"
+               "  --wait          exit if no master configures us within this time (0: never)\n";
+}
+
+}  // namespace
+
+int run_participant(Model& model, const std::string& default_name, int argc, char** argv) {
+  std::string name = default_name, url;
+  double idle_timeout = 60.0, wait = 0.0;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    auto value = [&](const char* flag) -> std::string {
+      if (i + 1 >= argc) throw std::invalid_argument(std::string(flag) + " needs a value");
+      return argv[++i];
+    };
+    try {
+      if (a == "--name") name = value("--name");
+      else if (a == "--bus") url = value("--bus");
+      else if (a == "--idle-timeout") idle_timeout = std::stod(value("--idle-timeout"));
+      else if (a == "--wait") wait = std::stod(value("--wait"));
+      else if (a == "--help" || a == "-h") { usage(default_name); return 0; }
+      else throw std::invalid_argument("unknown argument '" + a + "'");
+    } catch (const std::exception& e) {
+      std::cerr << default_name << ": " << e.what() << "\n";
+      usage(default_name);
+      return 2;
+    }
+  }
+  if (!(idle_timeout > 0) || !(wait >= 0)) {
+    std::cerr << default_name << ": --idle-timeout must be > 0 and --wait >= 0\n";
+    return 2;
+  }
+  if (!valid_name(name)) {
+    std::cerr << default_name << ": --name '" << name
+              << "' is not valid (1 to 32 characters of A-Z, a-z, 0-9, _)\n";
+    return 2;
+  }
+  url = resolve_bus_url(url);
+  lcm::LCM lcm(url);  // created first: LCM's select() cannot take fds >= 1024
+  if (!lcm.good()) {
+    std::cerr << name << ": cannot open the bus '" << url
+              << "' (for multicast on loopback: ip route add 224.0.0.0/4 dev lo)\n";
+    return 1;
+  }
+  std::signal(SIGTERM, on_signal);
+  std::signal(SIGINT, on_signal);
+
+  ParticipantCore core(name, model);
+  Server server{lcm, core};
+  lcm.subscribe(channel::configure(name), &Server::on_configure, &server);
+
+  char host[256] = {0};
+  gethostname(host, sizeof host - 1);
+  std::atomic<bool> running{true};
+  std::thread beat([&] {
+    // LCM's publish is thread-safe; this thread never calls handle().
+    while (running) {
+      if (core.bound()) {
+        heartbeat_t h{};
+        h.session_id = core.session();
+        h.sender = core.name();
+        const int64_t busy = core.busy_step();
+        h.state = busy >= 0 ? heartbeat_t::BUSY : heartbeat_t::IDLE;
+        h.step_index = busy >= 0 ? busy : core.last_step();
+        h.sim_time_ns = core.time();
+        lcm.publish(channel::heartbeat(core.session()), &h);
+      } else {
+        announce_t a{};
+        a.protocol_version = kProtocolVersion;
+        a.participant = core.name();
+        a.host = host;
+        a.pid = static_cast<int32_t>(getpid());
+        lcm.publish(channel::announce(), &a);
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(250));
+    }
+  });
+
+  const auto started = Clock::now();
+  int code = 0;
+  while (!server.finished && !g_stop) {
+    const int r = lcm.handleTimeout(100);
+    if (r < 0) {
+      std::cerr << name << ": the bus failed (lcm handle returned " << r << ")\n";
+      code = 1;
+      break;
+    }
+    const auto now = Clock::now();
+    if (!core.bound() && wait > 0 &&
+        std::chrono::duration<double>(now - started).count() > wait) {
+      std::cerr << name << ": no master configured '" << name << "' within " << wait
+                << " s on " << url << "\n";
+      code = 3;
+      break;
+    }
+    if (core.bound() &&
+        std::chrono::duration<double>(now - server.last_master).count() > idle_timeout) {
+      std::cerr << name << ": the master has been silent for " << idle_timeout
+                << " s; leaving the session (raise --idle-timeout if that is expected)\n";
+      code = 3;
+      break;
+    }
+  }
+  running = false;
+  beat.join();
+  if (server.finished && server.error) code = 1;
+  return code;
+}
+
+}  // namespace cosim

@@ -1,0 +1,196 @@
+#include "cosim/polynomial.hpp"
+
+#include <Eigen/Dense>
+#include <cmath>
+#include <stdexcept>
+
+namespace cosim {
+
+std::vector<double> to_tangent(SignalKind kind, const Value& v, const Quat& reference) {
+  if (kind != SignalKind::Kinematics) return v;
+  const Vec3 r = quat_relative(reference, Quat{v[3], v[4], v[5], v[6]});
+  return {v[0], v[1], v[2], r[0], r[1], r[2], v[7], v[8], v[9], v[10], v[11], v[12]};
+}
+
+Value from_tangent(SignalKind kind, const std::vector<double>& t, const Quat& reference) {
+  if (kind != SignalKind::Kinematics) return t;
+  const Quat q = quat_normalized(quat_multiply(reference, quat_exp(Vec3{t[3], t[4], t[5]})));
+  return {t[0], t[1], t[2], q[0], q[1], q[2], q[3], t[6], t[7], t[8], t[9], t[10], t[11]};
+}
+
+Value InputPolynomial::evaluate(double s) const {
+  const int n = tangent_size(kind);
+  std::vector<double> t(n, 0.0);
+  // Horner's rule per component.
+  for (int j = n_coefficients - 1; j >= 0; --j)
+    for (int c = 0; c < n; ++c) t[c] = t[c] * s + coefficients[j * n + c];
+  return from_tangent(kind, t, orientation_reference);
+}
+
+InputPolynomial InputPolynomial::constant(SignalKind kind, const Value& value) {
+  InputPolynomial p;
+  p.kind = kind;
+  if (kind == SignalKind::Kinematics)
+    p.orientation_reference = quat_normalized({value[3], value[4], value[5], value[6]});
+  p.coefficients = to_tangent(kind, value, p.orientation_reference);
+  return p;
+}
+
+InputPolynomial fit_polynomial(SignalKind kind, const std::vector<double>& s,
+                               const std::vector<Value>& values, int order,
+                               std::size_t reference_sample) {
+  const int m = static_cast<int>(s.size());
+  if (order < 0 || order > kMaxPolynomialOrder)
+    throw std::invalid_argument("polynomial order must be 0.." +
+                                std::to_string(kMaxPolynomialOrder));
+  if (m < order + 1 || values.size() != s.size() || reference_sample >= s.size())
+    throw std::invalid_argument("fit_polynomial: need at least order + 1 samples");
+  InputPolynomial p;
+  p.kind = kind;
+  p.n_coefficients = order + 1;
+  if (kind == SignalKind::Kinematics) {
+    const Value& r = values[reference_sample];
+    p.orientation_reference = quat_normalized({r[3], r[4], r[5], r[6]});
+  }
+  const int n = tangent_size(kind);
+  Eigen::MatrixXd V(m, order + 1);
+  Eigen::MatrixXd Y(m, n);
+  for (int i = 0; i < m; ++i) {
+    double power = 1.0;
+    for (int j = 0; j <= order; ++j, power *= s[i]) V(i, j) = power;
+    const auto t = to_tangent(kind, values[i], p.orientation_reference);
+    for (int c = 0; c < n; ++c) Y(i, c) = t[c];
+  }
+  Eigen::MatrixXd C;
+  if (m == order + 1) {
+    Eigen::FullPivLU<Eigen::MatrixXd> lu(V);
+    if (!lu.isInvertible()) throw std::invalid_argument("fit_polynomial: repeated sample times");
+    C = lu.solve(Y);
+  } else {
+    Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(V);
+    if (qr.rank() < order + 1) throw std::invalid_argument("fit_polynomial: repeated sample times");
+    C = qr.solve(Y);
+  }
+  p.coefficients.resize(static_cast<std::size_t>((order + 1) * n));
+  for (int j = 0; j <= order; ++j)
+    for (int c = 0; c < n; ++c) p.coefficients[j * n + c] = C(j, c);
+  return p;
+}
+
+namespace {
+
+std::vector<std::vector<double>> rows(const InputPolynomial& p, int offset) {
+  const int n = tangent_size(p.kind);
+  std::vector<std::vector<double>> out(p.n_coefficients, std::vector<double>(3));
+  for (int j = 0; j < p.n_coefficients; ++j)
+    for (int c = 0; c < 3; ++c) out[j][c] = p.coefficients[j * n + offset + c];
+  return out;
+}
+
+void put_rows(InputPolynomial& p, int offset, const std::vector<std::vector<double>>& r,
+              const std::string& what) {
+  const int n = tangent_size(p.kind);
+  if (static_cast<int>(r.size()) != p.n_coefficients)
+    throw ProtocolError(what + ": coefficient rows do not match n_coefficients");
+  for (int j = 0; j < p.n_coefficients; ++j) {
+    if (r[j].size() != 3) throw ProtocolError(what + ": coefficient row is not 3 numbers");
+    for (int c = 0; c < 3; ++c) p.coefficients[j * n + offset + c] = r[j][c];
+  }
+}
+
+void check_order(int32_t n, const std::string& what) {
+  if (n < 1 || n > kMaxPolynomialOrder + 1)
+    throw ProtocolError(what + ": n_coefficients is " + std::to_string(n) + ", allowed 1.." +
+                        std::to_string(kMaxPolynomialOrder + 1));
+}
+
+void check_finite(const InputPolynomial& p, const std::string& what) {
+  for (double c : p.coefficients)
+    if (!std::isfinite(c)) throw ProtocolError(what + ": a coefficient is NaN or infinite");
+}
+
+}  // namespace
+
+polynomial_set_t to_message(const Polynomials& polynomials) {
+  polynomial_set_t m{};
+  for (const auto& [name, p] : polynomials) {
+    switch (p.kind) {
+      case SignalKind::Scalar:
+        m.scalars.push_back({name, p.n_coefficients, p.coefficients});
+        break;
+      case SignalKind::Kinematics: {
+        kinematics_polynomial_t k{};
+        k.name = name;
+        for (int i = 0; i < 4; ++i) k.orientation_reference[i] = p.orientation_reference[i];
+        k.n_coefficients = p.n_coefficients;
+        k.position = rows(p, 0);
+        k.rotation_vector = rows(p, 3);
+        k.linear_velocity = rows(p, 6);
+        k.angular_velocity = rows(p, 9);
+        m.kinematics.push_back(k);
+        break;
+      }
+      case SignalKind::Wrench: {
+        wrench_polynomial_t w{};
+        w.name = name;
+        w.n_coefficients = p.n_coefficients;
+        w.force = rows(p, 0);
+        w.torque = rows(p, 3);
+        w.reference_point = rows(p, 6);
+        m.wrenches.push_back(w);
+        break;
+      }
+    }
+  }
+  m.n_scalars = static_cast<int32_t>(m.scalars.size());
+  m.n_kinematics = static_cast<int32_t>(m.kinematics.size());
+  m.n_wrenches = static_cast<int32_t>(m.wrenches.size());
+  return m;
+}
+
+Polynomials from_message(const polynomial_set_t& m, const std::string& what) {
+  Polynomials out;
+  auto start = [&](const std::string& name, SignalKind kind, int32_t n) -> InputPolynomial& {
+    const std::string where = what + " input '" + name + "'";
+    require_valid_name(name, where);
+    if (out.count(name)) throw ProtocolError(where + ": appears twice");
+    check_order(n, where);
+    InputPolynomial& p = out[name];
+    p.kind = kind;
+    p.n_coefficients = n;
+    p.coefficients.assign(static_cast<std::size_t>(n * tangent_size(kind)), 0.0);
+    return p;
+  };
+  for (const auto& s : m.scalars) {
+    auto& p = start(s.name, SignalKind::Scalar, s.n_coefficients);
+    p.coefficients = s.coefficients;
+    check_finite(p, what + " input '" + s.name + "'");
+  }
+  for (const auto& k : m.kinematics) {
+    const std::string where = what + " input '" + k.name + "'";
+    auto& p = start(k.name, SignalKind::Kinematics, k.n_coefficients);
+    put_rows(p, 0, k.position, where);
+    put_rows(p, 3, k.rotation_vector, where);
+    put_rows(p, 6, k.linear_velocity, where);
+    put_rows(p, 9, k.angular_velocity, where);
+    check_finite(p, where);
+    const Quat q{k.orientation_reference[0], k.orientation_reference[1],
+                 k.orientation_reference[2], k.orientation_reference[3]};
+    const double n = quat_norm(q);
+    if (!std::isfinite(n) || std::abs(n - 1.0) > 1e-6)
+      throw ProtocolError(where + ": orientation_reference is not a unit quaternion (norm " +
+                          std::to_string(n) + "); normalize it before sending");
+    p.orientation_reference = q;
+  }
+  for (const auto& w : m.wrenches) {
+    const std::string where = what + " input '" + w.name + "'";
+    auto& p = start(w.name, SignalKind::Wrench, w.n_coefficients);
+    put_rows(p, 0, w.force, where);
+    put_rows(p, 3, w.torque, where);
+    put_rows(p, 6, w.reference_point, where);
+    check_finite(p, where);
+  }
+  return out;
+}
+
+}  // namespace cosim
