@@ -1,0 +1,81 @@
+// The master's configuration: read once from YAML (+ --set overrides), validated strictly,
+// then checked against what the participants declare before the first step.
+#pragma once
+
+#include <cosim/link.hpp>
+#include <cosim/time.hpp>
+#include <cosim/yaml_config.hpp>
+
+#include <map>
+#include <string>
+#include <vector>
+
+namespace master {
+
+using cosim::Ticks;
+
+enum class Scheme { Jacobi, GaussSeidel };
+
+struct PredictorSpec {
+  int order = 0;    // 0..3
+  int samples = 1;  // past samples used; order + 1 interpolates, more is a least-squares fit
+};
+
+struct Endpoint {
+  std::string participant, signal;
+  std::string str() const { return participant + "." + signal; }
+};
+
+struct ConnectionSpec {
+  Endpoint from, to;
+  PredictorSpec predictor;
+  std::string predictor_name;  // named predictor it uses, or "" for inline
+};
+
+struct PowerSpec {
+  std::string name;
+  Endpoint force, velocity;
+};
+
+struct ParticipantSpec {
+  std::string name;
+  std::vector<std::string> launch;  // empty: started by the user
+  cosim::LinkSettings link;
+  std::string parameters_yaml;
+};
+
+struct OutputSpec {
+  std::string file;      // HDF5; "" for none
+  std::string csv_file;  // "" for none
+  std::string progress = "auto";  // auto (when stderr is a terminal), on, off
+};
+
+struct Config {
+  std::string bus_url;
+  Ticks t_start = 0, t_end = 0, macro_step = 0;
+  Scheme scheme = Scheme::Jacobi;
+  std::vector<std::string> order;  // Gauss-Seidel sequence
+  int startup_iterations = 2;
+  double connect_timeout = 30;
+  std::vector<ParticipantSpec> participants;
+  std::vector<ConnectionSpec> connections;
+  std::vector<PowerSpec> power;
+  OutputSpec output;
+  cosim::FaultPlan faults;
+  std::string source_text;     // the file as read
+  std::string effective_yaml;  // after --set
+
+  const ParticipantSpec& participant(const std::string& name) const;
+};
+
+// Parses and validates everything that does not need the participants. source_text is stored
+// verbatim in the output. Raises cosim::config::ConfigError naming the key.
+Config parse_config(const YAML::Node& root, const std::string& source_text);
+// Reads the file, applies overrides ("a.b=value"), parses.
+Config load_config(const std::string& path, const std::vector<std::string>& overrides);
+
+// Checks connections, power pairs and the macro step against the participants' declarations.
+void check_wiring(const Config& config,
+                  const std::map<std::string, cosim::ParticipantInfo>& participants);
+
+}  // namespace master

@@ -1,0 +1,191 @@
+#include "cosimulation.hpp"
+
+#include <chrono>
+#include <cmath>
+
+#include <cosim/bus.hpp>
+#include <cosim/rotation.hpp>
+
+namespace master {
+
+using cosim::InputPolynomial;
+using cosim::SignalKind;
+using cosim::Value;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+std::vector<double> deviation(SignalKind kind, const Value& predicted, const Value& received) {
+  if (kind != SignalKind::Kinematics) {
+    std::vector<double> d(predicted.size());
+    for (std::size_t i = 0; i < d.size(); ++i) d[i] = predicted[i] - received[i];
+    return d;
+  }
+  const auto r = cosim::quat_relative({received[3], received[4], received[5], received[6]},
+                                      {predicted[3], predicted[4], predicted[5], predicted[6]});
+  return {predicted[0] - received[0], predicted[1] - received[1], predicted[2] - received[2],
+          r[0], r[1], r[2],
+          predicted[7] - received[7], predicted[8] - received[8], predicted[9] - received[9],
+          predicted[10] - received[10], predicted[11] - received[11], predicted[12] - received[12]};
+}
+
+// Power of a force (scalar, or wrench [f, t, r]) on a motion (scalar velocity, or kinematics
+// [p, q, v, w]): F v, or f . (v + w x (r - p)) + t . w.
+double power(SignalKind kind, const Value& F, const Value& V) {
+  if (kind == SignalKind::Scalar) return F[0] * V[0];
+  const double rx = F[6] - V[0], ry = F[7] - V[1], rz = F[8] - V[2];
+  const double wx = V[10], wy = V[11], wz = V[12];
+  const double vx = V[7] + wy * rz - wz * ry;
+  const double vy = V[8] + wz * rx - wx * rz;
+  const double vz = V[9] + wx * ry - wy * rx;
+  return F[0] * vx + F[1] * vy + F[2] * vz + F[3] * wx + F[4] * wy + F[5] * wz;
+}
+
+}  // namespace
+
+CoSimulation::CoSimulation(const Config& config, cosim::Transport& transport)
+    : config_(config), transport_(transport) {
+  if (config.scheme == Scheme::Jacobi) {
+    groups_.push_back({});
+    for (const auto& p : config.participants) groups_.back().push_back(p.name);
+  } else {
+    for (const auto& name : config.order) groups_.push_back({name});
+  }
+}
+
+void CoSimulation::connect() {
+  std::vector<cosim::configure_t> configs;
+  for (const auto& p : config_.participants) {
+    cosim::configure_t c{};
+    c.protocol_version = cosim::kProtocolVersion;
+    c.session_id = transport_.session();
+    c.participant = p.name;
+    c.t_start_ns = config_.t_start;
+    c.t_end_ns = config_.t_end;
+    c.macro_step_ns = config_.macro_step;
+    c.parameters_yaml = p.parameters_yaml;
+    configs.push_back(c);
+  }
+  setup_.config = &config_;
+  setup_.session = transport_.session();
+  setup_.participants = transport_.connect(configs, config_.connect_timeout);
+  check_wiring(config_, setup_.participants);
+  setup_.steps = (config_.t_end - config_.t_start) / config_.macro_step;
+  can_iterate_ = true;
+  for (const auto& [name, info] : setup_.participants) can_iterate_ = can_iterate_ && info.can_repeat;
+  predictors_.clear();
+  for (const auto& k : config_.connections) {
+    const auto& src = setup_.participants.at(k.from.participant);
+    const auto& initial = src.initial_outputs.at(k.from.signal);
+    predictors_.emplace_back(initial.kind, k.predictor);
+    predictors_.back().record(config_.t_start, initial.value);
+    max_order_ = std::max(max_order_, k.predictor.order);
+  }
+}
+
+std::vector<cosim::step_request_t> CoSimulation::requests(const std::vector<std::string>& group,
+                                                   int64_t step, int iteration, Ticks t0, Ticks t1) {
+  std::vector<cosim::step_request_t> out;
+  for (const auto& name : group) {
+    cosim::step_request_t q{};
+    q.session_id = transport_.session();
+    q.participant = name;
+    q.step_index = step;
+    q.iteration = iteration;
+    q.attempt = 0;
+    q.t_start_ns = t0;
+    q.t_end_ns = t1;
+    q.want_average = false;
+    cosim::Polynomials inputs;
+    for (std::size_t i = 0; i < config_.connections.size(); ++i)
+      if (config_.connections[i].to.participant == name)
+        inputs[config_.connections[i].to.signal] = predictors_[i].predict(t0, t1);
+    q.inputs = cosim::to_message(inputs);
+    out.push_back(std::move(q));
+  }
+  return out;
+}
+
+void CoSimulation::run_step(int64_t step, Ticks t0, Ticks t1) {
+  const auto start = Clock::now();
+  double waiting = 0;
+  StepRecord rec;
+  rec.step_index = step;
+  rec.t_start = t0;
+  rec.t_end = t1;
+  // The first steps have too few samples for the configured orders; iterating them (redo
+  // from the step's start with the new end sample) keeps the start-up from capping the order.
+  const bool iterate = step < max_order_ && can_iterate_;
+  const int iterations = iterate ? 1 + config_.startup_iterations : 1;
+  std::vector<InputPolynomial> sent(config_.connections.size());
+  for (int it = 0; it < iterations; ++it) {
+    for (const auto& group : groups_) {
+      auto qs = requests(group, step, it, t0, t1);
+      for (std::size_t i = 0; i < config_.connections.size(); ++i)
+        for (const auto& name : group)
+          if (config_.connections[i].to.participant == name) sent[i] = predictors_[i].predict(t0, t1);
+      const auto wait_start = Clock::now();
+      const auto answers = transport_.exchange(qs);
+      waiting += since(wait_start);
+      for (std::size_t g = 0; g < group.size(); ++g) {
+        const auto& name = group[g];
+        rec.outputs[name] = answers[g].outputs;
+        rec.diagnostics[name] = answers[g].diagnostics;
+        rec.compute_seconds[name] = answers[g].compute_seconds;
+        rec.round_trip_seconds[name] = answers[g].round_trip_seconds;
+        for (std::size_t i = 0; i < config_.connections.size(); ++i)
+          if (config_.connections[i].from.participant == name)
+            predictors_[i].record(t1, answers[g].outputs.at(config_.connections[i].from.signal).value);
+      }
+    }
+  }
+  rec.iterations = iterations;
+  for (std::size_t i = 0; i < config_.connections.size(); ++i) {
+    const auto& k = config_.connections[i];
+    ConnectionRecord c;
+    c.sent = sent[i];
+    c.predicted = sent[i].evaluate(1.0);
+    c.received = rec.outputs.at(k.from.participant).at(k.from.signal).value;
+    c.deviation = deviation(sent[i].kind, c.predicted, c.received);
+    rec.connections.push_back(std::move(c));
+  }
+  for (const auto& p : config_.power) {
+    auto conn = [&](const Endpoint& from, const std::string& to) -> const ConnectionRecord& {
+      for (std::size_t i = 0; i < config_.connections.size(); ++i)
+        if (config_.connections[i].from.str() == from.str() && config_.connections[i].to.participant == to)
+          return rec.connections[i];
+      throw std::logic_error("power pair without connection");
+    };
+    const auto& f = conn(p.force, p.velocity.participant);
+    const auto& v = conn(p.velocity, p.force.participant);
+    const auto kind = sent.empty() ? SignalKind::Scalar
+                                   : (f.received.size() == 1 ? SignalKind::Scalar : SignalKind::Wrench);
+    PowerRecord r;
+    r.force_side = power(kind, f.received, v.predicted);
+    r.motion_side = power(kind, f.predicted, v.received);
+    r.residual = r.force_side - r.motion_side;
+    rec.power.push_back(r);
+  }
+  rec.wall_seconds = since(start);
+  rec.master_seconds = rec.wall_seconds - waiting;
+  for (auto* o : observers_) o->on_step(rec);
+}
+
+void CoSimulation::run() {
+  for (auto* o : observers_) o->on_start(setup_);
+  int64_t step = 0;
+  try {
+    for (Ticks t = config_.t_start; t < config_.t_end; t += config_.macro_step, ++step)
+      run_step(step, t, t + config_.macro_step);
+  } catch (const std::exception& e) {
+    transport_.terminate(true, e.what());
+    for (auto* o : observers_) o->on_finish(false, e.what());
+    throw;
+  }
+  transport_.terminate(false, "finished");
+  for (auto* o : observers_) o->on_finish(true, "");
+}
+
+}  // namespace master

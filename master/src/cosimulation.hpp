@@ -1,0 +1,83 @@
+// The co-simulation loop: handshake and wiring check, then macro steps in the configured
+// scheme. Observers (recorder, CSV, progress) see every step; the loop writes no files.
+#pragma once
+
+#include <cosim/link.hpp>
+
+#include <map>
+#include <memory>
+#include <vector>
+
+#include "config.hpp"
+#include "predictor.hpp"
+
+namespace master {
+
+struct ConnectionRecord {
+  cosim::InputPolynomial sent;  // the polynomial the consumer got (last iteration)
+  cosim::Value predicted;       // sent evaluated at t_end
+  cosim::Value received;        // the source's output at t_end
+  std::vector<double> deviation;  // predicted - received (orientation: rotation vector)
+};
+
+struct PowerRecord {
+  double force_side = 0;   // F received * v predicted: what the force side computed against
+  double motion_side = 0;  // F predicted * v received: what the motion side felt
+  double residual = 0;     // force_side - motion_side
+};
+
+struct StepRecord {
+  int64_t step_index = 0;
+  Ticks t_start = 0, t_end = 0;
+  int iterations = 1;
+  std::map<std::string, cosim::Signals> outputs;
+  std::map<std::string, std::vector<std::pair<std::string, double>>> diagnostics;
+  std::vector<ConnectionRecord> connections;  // in config order
+  std::vector<PowerRecord> power;             // in config order
+  std::map<std::string, double> compute_seconds, round_trip_seconds;
+  double master_seconds = 0;  // time in the master itself (predictors, observers excluded)
+  double wall_seconds = 0;    // the whole step
+};
+
+struct RunSetup {
+  const Config* config = nullptr;
+  std::map<std::string, cosim::ParticipantInfo> participants;
+  int64_t session = 0;
+  int64_t steps = 0;
+};
+
+class Observer {
+ public:
+  virtual ~Observer() = default;
+  virtual void on_start(const RunSetup&) {}
+  virtual void on_step(const StepRecord&) {}
+  // ok = false: the run stopped early; message says why. Observers keep what they have.
+  virtual void on_finish(bool ok, const std::string& message) {}
+};
+
+class CoSimulation {
+ public:
+  CoSimulation(const Config& config, cosim::Transport& transport);
+  void add_observer(Observer* observer) { observers_.push_back(observer); }
+  // Handshake and wiring check; raises ConfigError, ParticipantConfigError or LinkError.
+  void connect();
+  // All macro steps; raises LinkError on failure after telling the observers.
+  void run();
+  const RunSetup& setup() const { return setup_; }
+
+ private:
+  std::vector<cosim::step_request_t> requests(const std::vector<std::string>& group, int64_t step,
+                                       int iteration, Ticks t0, Ticks t1);
+  void run_step(int64_t step, Ticks t0, Ticks t1);
+
+  const Config& config_;
+  cosim::Transport& transport_;
+  std::vector<Observer*> observers_;
+  RunSetup setup_;
+  std::vector<Predictor> predictors_;  // one per connection
+  std::vector<std::vector<std::string>> groups_;  // participants stepping together
+  int max_order_ = 0;
+  bool can_iterate_ = false;
+};
+
+}  // namespace master

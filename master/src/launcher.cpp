@@ -1,0 +1,117 @@
+#include "launcher.hpp"
+
+#include <signal.h>
+#include <sys/prctl.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <climits>
+#include <cstdlib>
+#include <iostream>
+#include <thread>
+
+namespace master {
+
+namespace {
+bool executable(const std::string& path) {
+  struct stat st {};
+  return stat(path.c_str(), &st) == 0 && S_ISREG(st.st_mode) && access(path.c_str(), X_OK) == 0;
+}
+
+std::string own_dir() {
+  char buf[PATH_MAX];
+  const ssize_t n = readlink("/proc/self/exe", buf, sizeof buf - 1);
+  if (n <= 0) return ".";
+  std::string p(buf, static_cast<std::size_t>(n));
+  return p.substr(0, p.rfind('/'));
+}
+
+std::string describe_status(int status) {
+  if (WIFEXITED(status)) return "exited with code " + std::to_string(WEXITSTATUS(status));
+  if (WIFSIGNALED(status)) return "was killed by signal " + std::to_string(WTERMSIG(status));
+  return "stopped";
+}
+}  // namespace
+
+std::string find_program(const std::string& program) {
+  if (program.find('/') != std::string::npos) return executable(program) ? program : "";
+  const std::string beside = own_dir() + "/" + program;
+  if (executable(beside)) return beside;
+  if (const char* path = std::getenv("PATH")) {
+    std::string p = path;
+    std::size_t start = 0;
+    while (start <= p.size()) {
+      const auto end = p.find(':', start);
+      const std::string dir = p.substr(start, end - start);
+      if (!dir.empty() && executable(dir + "/" + program)) return dir + "/" + program;
+      if (end == std::string::npos) break;
+      start = end + 1;
+    }
+  }
+  return "";
+}
+
+Launcher::~Launcher() { stop(0.5); }
+
+void Launcher::start(const ParticipantSpec& spec, const std::string& bus_url) {
+  const std::string program = find_program(spec.launch[0]);
+  if (program.empty())
+    throw cosim::config::ConfigError("participants." + spec.name + ".launch: program '" + spec.launch[0] +
+                                     "' not found beside cosim_master or on PATH; build it or give its path");
+  std::vector<std::string> args = spec.launch;
+  args[0] = program;
+  args.insert(args.end(), {"--name", spec.name, "--bus", bus_url});
+  std::vector<char*> argv;
+  for (auto& a : args) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  const pid_t parent = getpid();
+  const pid_t pid = fork();
+  if (pid < 0) throw std::runtime_error("cannot start participant " + spec.name + ": fork failed");
+  if (pid == 0) {
+    prctl(PR_SET_PDEATHSIG, SIGTERM);  // no orphans if the master dies
+    if (getppid() != parent) _exit(1);
+    execv(argv[0], argv.data());
+    _exit(127);
+  }
+  children_.push_back({spec.name, pid});
+}
+
+void Launcher::check() {
+  for (auto& c : children_) {
+    if (c.exited) continue;
+    int status = 0;
+    if (waitpid(c.pid, &status, WNOHANG) == c.pid) {
+      c.exited = true;
+      c.status = status;
+      throw cosim::LinkError(c.name, "participant '" + c.name + "' (pid " + std::to_string(c.pid) + ") " +
+                                         describe_status(status) + " during the run; see its messages above");
+    }
+  }
+}
+
+void Launcher::stop(double grace) {
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(grace);
+  for (int round = 0; round < 2; ++round) {
+    for (auto& c : children_) {
+      while (!c.exited) {
+        int status = 0;
+        if (waitpid(c.pid, &status, WNOHANG) == c.pid) {
+          c.exited = true;
+          break;
+        }
+        if (std::chrono::steady_clock::now() > deadline) {
+          kill(c.pid, round == 0 ? SIGTERM : SIGKILL);
+          if (round == 0) { std::this_thread::sleep_for(std::chrono::milliseconds(200)); }
+          break;
+        }
+        std::this_thread::sleep_for(std::chrono::milliseconds(10));
+      }
+    }
+  }
+  for (auto& c : children_)
+    if (!c.exited) waitpid(c.pid, nullptr, 0), c.exited = true;
+}
+
+}  // namespace master

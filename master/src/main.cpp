@@ -1,0 +1,119 @@
+// cosim_master CONFIG.yaml [--set dotted.key=value ...] [--output FILE.h5] [--csv FILE.csv]
+// Exit codes: 0 finished, 1 the run failed (participant lost, refused or failed a step),
+// 2 the configuration was refused before any step.
+#include <unistd.h>
+
+#include <csignal>
+#include <cstring>
+#include <iostream>
+
+#include <cosim/bus.hpp>
+
+#include "config.hpp"
+#include "cosimulation.hpp"
+#include "launcher.hpp"
+#include "recorder.hpp"
+
+namespace {
+
+void usage() {
+  std::cerr << "usage: cosim_master CONFIG.yaml [--set dotted.key=value ...] [--output FILE.h5] [--csv FILE.csv]\n"
+               "  --set     override a config value, e.g. --set time.macro_step=5e-4 --set predictors.force.order=1\n"
+               "  --output  HDF5 file to record to (overrides output.file)\n"
+               "  --csv     CSV export of every participant output (overrides output.csv)\n"
+               "See docs/config.md for the config keys and docs/output.md for the recorded layout.\n";
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string config_path, output, csv;
+  std::vector<std::string> overrides;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    auto value = [&]() -> std::string {
+      if (i + 1 >= argc) {
+        std::cerr << "cosim_master: " << a << " needs a value\n";
+        usage();
+        std::exit(2);
+      }
+      return argv[++i];
+    };
+    if (a == "--set") overrides.push_back(value());
+    else if (a == "--output") output = value();
+    else if (a == "--csv") csv = value();
+    else if (a == "-h" || a == "--help") { usage(); return 0; }
+    else if (!a.empty() && a[0] == '-') { std::cerr << "cosim_master: unknown option " << a << "\n"; usage(); return 2; }
+    else if (config_path.empty()) config_path = a;
+    else { std::cerr << "cosim_master: more than one config file given\n"; usage(); return 2; }
+  }
+  if (config_path.empty()) { usage(); return 2; }
+
+  master::Config config;
+  try {
+    config = master::load_config(config_path, overrides);
+  } catch (const cosim::config::ConfigError& e) {
+    std::cerr << "cosim_master: config refused: " << e.what() << "\n";
+    return 2;
+  }
+  if (!output.empty()) config.output.file = output;
+  if (!csv.empty()) config.output.csv_file = csv;
+  const std::string url = cosim::resolve_bus_url(config.bus_url);
+
+  std::signal(SIGPIPE, SIG_IGN);
+  master::Launcher launcher;
+  try {
+    auto transport = cosim::make_lcm_transport(url, cosim::new_session_id(), [&] {
+      std::map<std::string, cosim::LinkSettings> links;
+      for (const auto& p : config.participants) links[p.name] = p.link;
+      return links;
+    }());
+    transport->set_fault_plan(config.faults);
+    transport->set_liveness_check([&] { launcher.check(); });
+    for (const auto& p : config.participants)
+      if (!p.launch.empty()) launcher.start(p, url);
+
+    master::CoSimulation sim(config, *transport);
+    std::cerr << "cosim_master: session " << std::hex << transport->session() << std::dec << " on " << url
+              << ", waiting for " << config.participants.size() << " participant(s)\n";
+    try {
+      sim.connect();
+    } catch (const cosim::ParticipantConfigError& e) {
+      transport->terminate(true, e.what());
+      std::cerr << "cosim_master: config refused: participants." << e.participant() << ".parameters: " << e.what() << "\n";
+      return 2;
+    } catch (const cosim::config::ConfigError& e) {
+      transport->terminate(true, e.what());
+      std::cerr << "cosim_master: config refused: " << e.what() << "\n";
+      return 2;
+    }
+
+    std::unique_ptr<master::H5Recorder> recorder;
+    std::unique_ptr<master::CsvWriter> csv_writer;
+    if (!config.output.file.empty()) recorder = std::make_unique<master::H5Recorder>(config.output.file);
+    if (!config.output.csv_file.empty()) csv_writer = std::make_unique<master::CsvWriter>(config.output.csv_file);
+    const bool live = config.output.progress == "on" || (config.output.progress == "auto" && isatty(STDERR_FILENO));
+    master::Progress progress(live);
+    if (recorder) sim.add_observer(recorder.get());
+    if (csv_writer) sim.add_observer(csv_writer.get());
+    sim.add_observer(&progress);
+
+    sim.run();
+    const auto& st = transport->stats();
+    std::cerr << "cosim_master: " << st.resends << " request(s) resent, " << st.dropped_by_plan
+              << " dropped by the fault plan, " << st.ignored_replies << " stale replies ignored\n";
+    if (recorder) std::cerr << "cosim_master: recorded to " << config.output.file << "\n";
+    launcher.stop(5.0);
+    return 0;
+  } catch (const cosim::LinkError& e) {
+    std::cerr << "cosim_master: run failed: " << e.what() << "\n";
+    if (!config.output.file.empty()) std::cerr << "cosim_master: the steps completed so far are in " << config.output.file << "\n";
+    return 1;
+  } catch (const cosim::config::ConfigError& e) {
+    std::cerr << "cosim_master: config refused: " << e.what() << "\n";
+    return 2;
+  } catch (const std::exception& e) {
+    std::cerr << "cosim_master: error: " << e.what() << "\n";
+    return 1;
+  }
+}

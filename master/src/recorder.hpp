@@ -1,0 +1,60 @@
+// Observers of the co-simulation: the HDF5 recorder (layout in docs/output.md), the CSV
+// export of the signals, and the progress line with the closing timing table.
+#pragma once
+
+#include <chrono>
+#include <cstdio>
+#include <memory>
+#include <string>
+
+#include "cosimulation.hpp"
+
+namespace master {
+
+class H5Recorder final : public Observer {
+ public:
+  // Creates (truncates) the file; raises std::runtime_error naming the path if it cannot.
+  explicit H5Recorder(const std::string& path);
+  ~H5Recorder() override;
+  void on_start(const RunSetup& setup) override;
+  void on_step(const StepRecord& record) override;
+  void on_finish(bool ok, const std::string& message) override;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+class CsvWriter final : public Observer {
+ public:
+  explicit CsvWriter(const std::string& path);
+  ~CsvWriter() override;
+  void on_start(const RunSetup& setup) override;
+  void on_step(const StepRecord& record) override;
+  void on_finish(bool ok, const std::string& message) override;
+
+ private:
+  void row(Ticks t, const std::map<std::string, cosim::Signals>& outputs);
+  std::string path_;
+  std::FILE* file_ = nullptr;
+  std::vector<std::pair<std::string, std::string>> columns_;  // participant, signal
+};
+
+class Progress final : public Observer {
+ public:
+  explicit Progress(bool live) : live_(live) {}
+  void on_start(const RunSetup& setup) override;
+  void on_step(const StepRecord& record) override;
+  void on_finish(bool ok, const std::string& message) override;
+
+ private:
+  bool live_;
+  const RunSetup* setup_ = nullptr;
+  std::chrono::steady_clock::time_point start_, last_print_;
+  int64_t steps_done_ = 0;
+  Ticks t_done_ = 0;
+  double wall_steps_ = 0, master_ = 0;
+  std::map<std::string, double> compute_, round_trip_;
+};
+
+}  // namespace master

@@ -1,0 +1,22 @@
+// oscillator_participant --side mass1|mass2 [--name NAME] [--bus URL] ...
+#include <cstring>
+#include <iostream>
+
+#include "oscillator_model.hpp"
+
+int main(int argc, char** argv) {
+  std::string side;
+  std::vector<char*> rest{argv[0]};
+  for (int i = 1; i < argc; ++i) {
+    if (std::strcmp(argv[i], "--side") == 0 && i + 1 < argc) side = argv[++i];
+    else rest.push_back(argv[i]);
+  }
+  if (side != "mass1" && side != "mass2") {
+    std::cerr << "oscillator_participant: --side must be mass1 or mass2 (got '" << side << "')\n"
+              << "usage: oscillator_participant --side mass1|mass2 [--name NAME] [--bus URL]\n";
+    return 2;
+  }
+  oscillator::OscillatorModel model(side == "mass1" ? oscillator::Side::Mass1
+                                                    : oscillator::Side::Mass2);
+  return cosim::run_participant(model, side, static_cast<int>(rest.size()), rest.data());
+}
