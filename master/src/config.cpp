@@ -107,7 +107,7 @@ Config parse_config(const YAML::Node& root, const std::string& source_text) {
       throw ConfigError(path + ": '" + p.name + "' is not a valid participant name (1 to 32 characters of A-Z, a-z, 0-9, _; not 'master')");
     const YAML::Node node = kv.second.IsNull() ? YAML::Node(YAML::NodeType::Map) : kv.second;
     cfg::check_keys(node, path, {"launch", "timeout", "retries", "parameters"});
-    if (node["launch"]) {
+    if (node["launch"] && !node["launch"].IsNull()) {  // null: started by the user
       if (!node["launch"].IsSequence() || node["launch"].size() == 0)
         throw ConfigError(path + ".launch: expected a non-empty list [program, arg, ...]");
       for (const auto& a : node["launch"]) {

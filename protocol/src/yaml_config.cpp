@@ -181,7 +181,7 @@ std::string get_string(const YAML::Node& node, std::string_view path, const std:
 
 std::string get_string_or(const YAML::Node& node, std::string_view path, const std::string& key,
                           const std::string& fallback) {
-  if (!node.IsMap() || !node[key]) return fallback;
+  if (!node.IsMap() || !node[key] || node[key].IsNull()) return fallback;
   return get_string(node, path, key);
 }
 

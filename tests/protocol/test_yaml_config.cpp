@@ -1,0 +1,34 @@
+#include <cosim/time.hpp>
+#include <cosim/yaml_config.hpp>
+#include <gtest/gtest.h>
+
+using namespace cosim::config;
+
+TEST(YamlConfig, OverridesCreateAndReplaceNestedKeys) {
+  YAML::Node root = YAML::Load("a: {b: 1}\n");
+  apply_override(root, "a.b=2.5");
+  apply_override(root, "a.c.d=[1, 2]");
+  EXPECT_EQ(root["a"]["b"].as<double>(), 2.5);
+  EXPECT_EQ(root["a"]["c"]["d"].size(), 2u);
+  EXPECT_THROW(apply_override(root, "a.b"), ConfigError);
+  EXPECT_THROW(apply_override(root, "a..b=1"), ConfigError);
+  EXPECT_THROW(apply_override(root, "a.b.c=1"), ConfigError);  // a.b is a number, not a map
+}
+
+TEST(YamlConfig, UnknownKeysAreNamedWithTheAllowedOnes) {
+  YAML::Node n = YAML::Load("mass: 1\nmas: 2\n");
+  try {
+    check_keys(n, "participants.mass1.parameters", {"mass", "stiffness"});
+    FAIL() << "no error";
+  } catch (const ConfigError& e) {
+    EXPECT_STREQ(e.what(), "participants.mass1.parameters.mas: unknown key 'mas' (allowed: mass, stiffness)");
+  }
+}
+
+TEST(YamlConfig, TimesAreWholeNanoseconds) {
+  EXPECT_EQ(cosim::seconds_to_ticks(1e-3, "t"), 1'000'000);
+  EXPECT_EQ(cosim::seconds_to_ticks(1.25e-4, "t"), 125'000);
+  EXPECT_EQ(cosim::seconds_to_ticks(4e-4, "t"), 400'000);
+  EXPECT_THROW(cosim::seconds_to_ticks(1.5e-10, "t"), ConfigError);
+  EXPECT_THROW(cosim::seconds_to_ticks(-1, "t"), ConfigError);
+}
