@@ -1,5 +1,6 @@
 #include "cosim/yaml_config.hpp"
 
+#include <cstdlib>
 #include <sstream>
 
 namespace cosim::config {
@@ -70,19 +71,33 @@ void apply_override(YAML::Node& root, const std::string& assignment) {
   for (const auto& part : parts)
     if (part.empty()) throw ConfigError("--set '" + assignment + "': empty key segment");
   if (!root || root.IsNull()) root = YAML::Node(YAML::NodeType::Map);
+  // A numeric segment indexes a list (connections.2.predictor=...).
+  auto index_of = [&](const YAML::Node& node, const std::string& part) -> long {
+    if (!node.IsSequence()) return -1;
+    char* end = nullptr;
+    const long i = std::strtol(part.c_str(), &end, 10);
+    if (*end != '\0' || i < 0 || static_cast<std::size_t>(i) >= node.size())
+      throw ConfigError("--set " + key + ": '" + part + "' is not an index of that list (it has " +
+                        std::to_string(node.size()) + " entries)");
+    return i;
+  };
   // yaml-cpp nodes are handles: walking with operator[] on copies edits the same tree.
   std::vector<YAML::Node> chain{root};
   for (std::size_t i = 0; i + 1 < parts.size(); ++i) {
-    YAML::Node child = chain.back()[parts[i]];
-    if (child.IsDefined() && !child.IsNull() && !child.IsMap())
-      throw ConfigError("--set " + key + ": '" + parts[i] + "' is not a map");
+    YAML::Node parent = chain.back();
+    const long index = index_of(parent, parts[i]);
+    YAML::Node child = index >= 0 ? parent[static_cast<std::size_t>(index)] : parent[parts[i]];
+    if (child.IsDefined() && !child.IsNull() && !child.IsMap() && !child.IsSequence())
+      throw ConfigError("--set " + key + ": '" + parts[i] + "' is not a map or a list");
     if (!child.IsDefined() || child.IsNull()) {
-      chain.back()[parts[i]] = YAML::Node(YAML::NodeType::Map);
-      child = chain.back()[parts[i]];
+      parent[parts[i]] = YAML::Node(YAML::NodeType::Map);
+      child = parent[parts[i]];
     }
     chain.push_back(child);
   }
-  chain.back()[parts.back()] = value;
+  const long last = index_of(chain.back(), parts.back());
+  if (last >= 0) chain.back()[static_cast<std::size_t>(last)] = value;
+  else chain.back()[parts.back()] = value;
 }
 
 void check_keys(const YAML::Node& node, std::string_view path,

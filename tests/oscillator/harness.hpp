@@ -134,7 +134,10 @@ inline std::string read_text(const std::string& path) {
 
 inline std::string temp_path(const std::string& suffix) {
   const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-  return std::string(TEST_TMP_DIR) + "/" + info->test_suite_name() + "_" + info->name() + suffix;
+  std::string name = std::string(info->test_suite_name()) + "_" + info->name();
+  for (auto& c : name)
+    if (c == '/') c = '_';
+  return std::string(TEST_TMP_DIR) + "/" + name + suffix;
 }
 
 // Runs cosim_master with the given overrides (the bus URL is added); returns its exit code.

@@ -13,6 +13,10 @@ TEST(YamlConfig, OverridesCreateAndReplaceNestedKeys) {
   EXPECT_THROW(apply_override(root, "a.b"), ConfigError);
   EXPECT_THROW(apply_override(root, "a..b=1"), ConfigError);
   EXPECT_THROW(apply_override(root, "a.b.c=1"), ConfigError);  // a.b is a number, not a map
+  YAML::Node list = YAML::Load("l: [{o: 1}, {o: 2}]");
+  apply_override(list, "l.1.o=5");
+  EXPECT_EQ(list["l"][1]["o"].as<int>(), 5);
+  EXPECT_THROW(apply_override(list, "l.2.o=5"), ConfigError);
 }
 
 TEST(YamlConfig, UnknownKeysAreNamedWithTheAllowedOnes) {

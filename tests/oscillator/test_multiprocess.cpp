@@ -1,0 +1,126 @@
+// The oscillator as three processes over LCM on loopback: bit-identical to a second run and to
+// the in-process schedule; lost messages are retried; a dead participant is named; bad configs
+// are refused before any step.
+#include <signal.h>
+
+#include <cstring>
+
+#include "harness.hpp"
+
+namespace {
+
+const std::vector<std::string> kShort{"time.end=0.05", "time.macro_step=5e-4"};
+
+std::vector<std::string> with(std::vector<std::string> a, const std::vector<std::string>& b) {
+  a.insert(a.end(), b.begin(), b.end());
+  return a;
+}
+
+bool bit_identical(const std::vector<double>& a, const std::vector<double>& b) {
+  return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(double)) == 0;
+}
+
+}  // namespace
+
+TEST(MultiProcess, BitIdenticalToASecondRunAndToTheInProcessSchedule) {
+  const std::string a = harness::temp_path("_a.h5"), b = harness::temp_path("_b.h5");
+  ASSERT_EQ(harness::run_master(kShort, a), 0) << harness::read_text(a + ".log");
+  ASSERT_EQ(harness::run_master(kShort, b), 0) << harness::read_text(b + ".log");
+  const auto s = harness::run_in_process(harness::oscillator_config(with(kShort, {"output.file=", "output.csv="})));
+  for (const std::string name : {"participants/mass1/outputs/x", "participants/mass1/outputs/v",
+                                 "participants/mass2/outputs/force", "connections/mass1.force/predicted",
+                                 "connections/mass2.x/sent"}) {
+    const auto da = harness::read_dataset(a, name), db = harness::read_dataset(b, name);
+    ASSERT_FALSE(da.empty()) << name;
+    ASSERT_EQ(da.size() % 101, 0u) << name;  // 100 steps + the initial row
+    EXPECT_TRUE(bit_identical(da, db)) << name;
+  }
+  EXPECT_TRUE(bit_identical(harness::read_dataset(a, "participants/mass1/outputs/x"), s.x1));
+  EXPECT_TRUE(bit_identical(harness::read_dataset(a, "participants/mass1/outputs/v"), s.v1));
+  EXPECT_TRUE(bit_identical(harness::read_dataset(a, "participants/mass2/outputs/force"), s.force));
+  EXPECT_EQ(harness::read_string(a, "status"), "finished");
+  EXPECT_NE(harness::read_string(a, "config").find("coupling_stiffness: 1000"), std::string::npos);
+}
+
+TEST(MultiProcess, LostRequestAndReplyAreRetriedAndTheResultIsUnchanged) {
+  const std::string clean = harness::temp_path("_clean.h5"), lossy = harness::temp_path("_lossy.h5");
+  ASSERT_EQ(harness::run_master(kShort, clean), 0) << harness::read_text(clean + ".log");
+  const std::vector<std::string> faults{
+      "participants.mass1.timeout=0.2", "participants.mass2.timeout=0.2",
+      "faults={drop_request: [{participant: mass1, step: 10}], drop_reply: [{participant: mass2, step: 20}, {participant: mass1, step: 30}]}"};
+  ASSERT_EQ(harness::run_master(with(kShort, faults), lossy), 0) << harness::read_text(lossy + ".log");
+  const std::string log = harness::read_text(lossy + ".log");
+  EXPECT_NE(log.find("3 request(s) resent, 3 dropped by the fault plan"), std::string::npos) << log;
+  for (const std::string name : {"participants/mass1/outputs/x", "participants/mass2/outputs/force"})
+    EXPECT_TRUE(bit_identical(harness::read_dataset(clean, name), harness::read_dataset(lossy, name))) << name;
+}
+
+TEST(MultiProcess, KilledParticipantIsNamedAndCompletedStepsAreKept) {
+  const std::string url = harness::bus_url();
+  const std::string h5 = harness::temp_path(".h5");
+  auto m1 = harness::spawn({harness::bin("oscillator_participant"), "--side", "mass1", "--bus", url, "--wait", "60"},
+                           h5 + ".mass1.log");
+  auto m2 = harness::spawn({harness::bin("oscillator_participant"), "--side", "mass2", "--bus", url, "--wait", "60"},
+                           h5 + ".mass2.log");
+  auto master = harness::spawn(
+      {harness::bin("cosim_master"), harness::source("configs/oscillator.yaml"), "--output", h5, "--set",
+       "bus.url=" + url, "--set", "participants.mass1.launch=null", "--set", "participants.mass2.launch=null",
+       "--set", "participants.mass2.timeout=0.3", "--set", "participants.mass2.retries=2", "--set",
+       "time.end=200", "--set", "output.csv=", "--set", "output.progress=off"},
+      h5 + ".log");
+  // let the run record steps (about 2000 per second here), then kill mass2 mid-run
+  std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+  kill(m2.pid, SIGKILL);
+  const auto killed = std::chrono::steady_clock::now();
+  const int code = harness::wait_for(master, 30);
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - killed).count();
+  harness::wait_for(m2, 5);
+  harness::wait_for(m1, 10);
+  const std::string log = harness::read_text(h5 + ".log");
+  EXPECT_EQ(code, 1) << log;
+  EXPECT_LT(seconds, 0.3 * 3 + 2.0) << "the master took too long to give up";
+  EXPECT_NE(log.find("participant 'mass2' stopped answering"), std::string::npos) << log;
+  const auto t = harness::read_dataset(h5, "time");
+  const auto x = harness::read_dataset(h5, "participants/mass1/outputs/x");
+  ASSERT_GT(t.size(), 50u);
+  EXPECT_EQ(t.size(), x.size());
+  for (double v : x) ASSERT_TRUE(std::isfinite(v));
+  EXPECT_EQ(harness::read_string(h5, "status").rfind("stopped: participant 'mass2'", 0), 0u);
+}
+
+struct BadConfig {
+  const char* name;
+  std::vector<std::string> overrides;
+  const char* message;
+};
+
+class ConfigRefused : public ::testing::TestWithParam<BadConfig> {};
+
+TEST_P(ConfigRefused, BeforeAnyStepWithAMessageNamingTheKey) {
+  const auto& c = GetParam();
+  const std::string h5 = harness::temp_path(".h5");
+  std::remove(h5.c_str());
+  EXPECT_EQ(harness::run_master(with(kShort, c.overrides), h5, 60), 2);
+  const std::string log = harness::read_text(h5 + ".log");
+  EXPECT_NE(log.find(c.message), std::string::npos) << log;
+  EXPECT_TRUE(harness::read_dataset(h5, "time").empty()) << "a step was recorded";
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Cases, ConfigRefused,
+    ::testing::Values(
+        BadConfig{"unknown_top_key", {"schema=jacobi"}, "schema: unknown key 'schema' (allowed: bus, time, scheme"},
+        BadConfig{"unknown_parameter", {"participants.mass1.parameters.mas=2"},
+                  "participants.mass1.parameters: parameters.mas: unknown key 'mas' (allowed: mass, stiffness"},
+        BadConfig{"wiring_no_such_input", {"connections.0.to=mass2.position"},
+                  "connections.0 (mass1.x -> mass2.position): mass2 has no input 'position' (it has: x, v)"},
+        BadConfig{"wiring_input_unconnected", {"connections=[{from: mass1.x, to: mass2.x}, {from: mass2.force, to: mass1.force}]"},
+                  "input mass2.v is not connected"},
+        BadConfig{"macro_step_not_multiple", {"participants.mass2.parameters.inner_step=3e-6"},
+                  "time.macro_step: 0.000500 s is not a multiple of participant mass2's inner step"},
+        BadConfig{"unknown_predictor", {"connections.2.predictor=quadratic"},
+                  "connections.2.predictor: unknown predictor 'quadratic' (defined under predictors: force, kinematics)"},
+        BadConfig{"predictor_order", {"predictors.force.order=4"},
+                  "predictors.force.order: 4 is not allowed (allowed: 0, 1, 2, 3)"},
+        BadConfig{"scheme", {"scheme=newton"}, "scheme: 'newton' is not allowed (allowed: jacobi, gauss_seidel)"}),
+    [](const auto& info) { return std::string(info.param.name); });
