@@ -1,0 +1,94 @@
+// The step: broad phase (when due or when the guard fires), narrow phase and forces for
+// particle pairs, wall and mesh contacts, integration. The engine holds only workspace and
+// the last step's outputs; everything that evolves is in State.
+#pragma once
+
+#include <cstdint>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "dem/broad_phase.hpp"
+#include "dem/scene.hpp"
+#include "dem/state.hpp"
+
+namespace dem {
+
+// The run cannot continue: NaN, runaway speed, guard violation in strict mode, too many
+// boundary contacts. The message names the step, time, particle and the fix.
+struct SimulationError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+struct Wrench {
+  Vec3 force;   // on the tool, ground frame
+  Vec3 torque;  // about the tool's reference point, ground frame
+};
+
+// Wall-clock seconds per stage, LAMMPS style.
+struct Timing {
+  double broad_phase = 0;
+  double pair_forces = 0;    // narrow phase + contact forces between particles
+  double mesh_contacts = 0;  // walls and tool meshes
+  double integration = 0;
+  double output = 0;         // filled by the caller that writes files
+  double total = 0;          // everything inside step() plus output
+};
+
+class Engine {
+ public:
+  explicit Engine(const Scene& scene);
+
+  // Advances one dt. Tool poses are read from s.tool_pose (set them before the call).
+  void step(State& s);
+  // Forces a broad phase now (e.g. after particles were added or moved by hand).
+  void rebuild(State& s);
+
+  const Scene& scene() const { return scene_; }
+  const std::vector<Wrench>& tool_wrenches() const { return tool_wrench_; }
+  const std::vector<Vec3>& wall_forces() const { return wall_force_; }  // on each wall
+  Timing& timing() { return timing_; }
+  const Timing& timing() const { return timing_; }
+  int threads() const { return threads_; }
+
+  // For tests and diagnostics: contacts with positive overlap found through the candidate
+  // lists at the current positions (particle ids, i < j) and mesh contacts after feature
+  // selection (particle id, tool, contact key).
+  std::vector<std::pair<std::int64_t, std::int64_t>> particle_contacts(const State& s) const;
+  struct MeshContact {
+    std::int64_t particle;
+    int tool;
+    std::uint64_t key;
+    Vec3 point;
+  };
+  std::vector<MeshContact> mesh_contacts(const State& s);
+
+ private:
+  void update_tool_geometry(const State& s);
+  bool guard_fires(const State& s, double* moved) const;
+  void pair_forces(State& s);
+  void boundary_forces(State& s);
+  void integrate(State& s);
+
+  const Scene& scene_;
+  int threads_ = 1;
+  BroadPhase broad_;
+  std::vector<Vec3> force_;
+  std::vector<std::vector<Vec3>> tool_vertices_;  // world frame, current pose
+  std::vector<Mat3> tool_rotation_;
+  struct Remote {
+    std::int32_t j;
+    Vec3 f;
+  };
+  std::vector<std::vector<Remote>> remote_;              // per thread
+  std::vector<std::vector<Wrench>> thread_tool_wrench_;  // per thread
+  std::vector<std::vector<Vec3>> thread_wall_force_;     // per thread
+  std::vector<Wrench> tool_wrench_;
+  std::vector<Vec3> wall_force_;
+  Timing timing_;
+};
+
+// Kinetic energy of all particles.
+double kinetic_energy(const State& s);
+
+}  // namespace dem

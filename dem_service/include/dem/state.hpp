@@ -1,0 +1,64 @@
+// State: everything the step advances (MuJoCo's mjData). A snapshot, a rollback and a
+// checkpoint are a copy of this struct and nothing more. The candidate lists live here too:
+// they fix the summation order and carry the tangential history, so a restored run continues
+// bit for bit.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "dem/vec3.hpp"
+
+namespace dem {
+
+// Pose of a tool: world position of its reference point, orientation of the mesh frame, and
+// the velocities used for contact damping and friction.
+struct ToolPose {
+  Vec3 position;
+  Quat orientation;
+  Vec3 velocity;          // of the reference point
+  Vec3 angular_velocity;  // world frame
+};
+
+// Boundary (wall or mesh feature) contacts per particle keep their tangential history in
+// fixed slots; more simultaneous boundary contacts than this stop the run with a message.
+inline constexpr int kBoundarySlots = 8;
+
+struct State {
+  std::int64_t step = 0;
+
+  // Per particle (sorted by grid cell at every broad phase for cache locality).
+  std::vector<Vec3> x, v;
+  std::vector<double> radius, mass;
+  std::vector<std::int32_t> species;
+  std::vector<std::int64_t> id;  // stable identity across sorting, used in output
+
+  std::vector<ToolPose> tool_pose;
+
+  // Broad-phase products.
+  bool lists_valid = false;
+  std::int64_t steps_since_rebuild = 0;
+  std::int64_t rebuilds = 0;
+  std::int64_t early_rebuilds = 0;
+  double max_displacement = 0;  // largest particle displacement since the last broad phase
+  std::vector<Vec3> x_at_rebuild;
+  std::vector<ToolPose> tool_pose_at_rebuild;
+  // Half list of particle pairs (i < j) in CSR form, with the tangential spring of each pair
+  // (the spring acts on i; j feels the opposite).
+  std::vector<std::int32_t> pair_offset, pair_j;
+  std::vector<Vec3> pair_spring;
+  // Particle-triangle candidates in CSR form: tool index and triangle index.
+  std::vector<std::int32_t> tri_offset, tri_tool, tri_index;
+  // Boundary contact history: kBoundarySlots per particle.
+  std::vector<std::uint64_t> slot_key;
+  std::vector<Vec3> slot_spring;
+  std::vector<std::uint8_t> slot_count;
+
+  std::size_t size() const { return x.size(); }
+};
+
+// Appends one particle; radius and mass must already be validated.
+void add_particle(State& s, Vec3 x, Vec3 v, double radius, double mass, int species,
+                  std::int64_t id);
+
+}  // namespace dem

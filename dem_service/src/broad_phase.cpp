@@ -1,0 +1,212 @@
+#include "dem/broad_phase.hpp"
+
+#include <omp.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "dem/mesh_contact.hpp"
+
+namespace dem {
+
+template <class T>
+void BroadPhase::permute(std::vector<T>& a, std::vector<T>& scratch, std::size_t width) {
+  const std::size_t n = order_.size();
+  scratch.resize(a.size());
+  for (std::size_t p = 0; p < n; ++p) {
+    const std::size_t o = static_cast<std::size_t>(order_[p]);
+    for (std::size_t k = 0; k < width; ++k) scratch[p * width + k] = a[o * width + k];
+  }
+  a.swap(scratch);
+}
+
+void BroadPhase::build(const Scene& scene, State& s,
+                       const std::vector<std::vector<Vec3>>& tool_vertices, int threads) {
+  const std::size_t n = s.size();
+  const double skin = scene.skin_distance();
+  const double rmax = scene.r_max();
+
+  // Grid over the particles' bounding box; cells at least one candidate distance wide, so
+  // the 27 surrounding cells hold every candidate.
+  Vec3 lo{1e300, 1e300, 1e300}, hi{-1e300, -1e300, -1e300};
+  for (const Vec3& p : s.x) {
+    lo = {std::min(lo.x, p.x), std::min(lo.y, p.y), std::min(lo.z, p.z)};
+    hi = {std::max(hi.x, p.x), std::max(hi.y, p.y), std::max(hi.z, p.z)};
+  }
+  if (n == 0) lo = hi = Vec3{};
+  double h = 2 * rmax + skin;
+  long nx, ny, nz;
+  // A particle far from the rest would blow the cell count up: coarsen the grid instead.
+  const double max_cells = std::max<double>(4.0 * static_cast<double>(n), 64.0);
+  while (true) {
+    nx = static_cast<long>((hi.x - lo.x) / h) + 1;
+    ny = static_cast<long>((hi.y - lo.y) / h) + 1;
+    nz = static_cast<long>((hi.z - lo.z) / h) + 1;
+    if (static_cast<double>(nx) * ny * nz <= max_cells) break;
+    h *= 1.25;
+  }
+  const long ncells = nx * ny * nz;
+  const double inv_h = 1.0 / h;
+  auto cell_coord = [&](double v, double l, long nmax) {
+    long c = static_cast<long>((v - l) * inv_h);
+    return std::clamp(c, 0L, nmax - 1);
+  };
+
+  // Stable counting sort of particles by cell.
+  cell_of_.resize(n);
+  cell_start_.assign(static_cast<std::size_t>(ncells) + 1, 0);
+  for (std::size_t i = 0; i < n; ++i) {
+    const Vec3 p = s.x[i];
+    const long c = (cell_coord(p.z, lo.z, nz) * ny + cell_coord(p.y, lo.y, ny)) * nx +
+                   cell_coord(p.x, lo.x, nx);
+    cell_of_[i] = static_cast<std::int32_t>(c);
+    ++cell_start_[c + 1];
+  }
+  for (long c = 0; c < ncells; ++c) cell_start_[c + 1] += cell_start_[c];
+  order_.resize(n);
+  {
+    std::vector<std::int32_t>& fill = scratch_i32_;
+    fill.assign(cell_start_.begin(), cell_start_.end() - 1);
+    for (std::size_t i = 0; i < n; ++i) order_[fill[cell_of_[i]]++] = static_cast<std::int32_t>(i);
+  }
+
+  // Keep the old list (old particle indices) to carry tangential history over.
+  const bool had_list = s.lists_valid && s.pair_offset.size() == n + 1;
+  old_offset_.swap(s.pair_offset);
+  old_j_.swap(s.pair_j);
+  old_spring_.swap(s.pair_spring);
+
+  permute(s.x, scratch_vec_, 1);
+  permute(s.v, scratch_vec_, 1);
+  permute(s.radius, scratch_d_, 1);
+  permute(s.mass, scratch_d_, 1);
+  permute(s.species, scratch_i32_, 1);
+  permute(s.id, scratch_i64_, 1);
+  s.slot_count.resize(n, 0);
+  s.slot_key.resize(n * kBoundarySlots, 0);
+  s.slot_spring.resize(n * kBoundarySlots);
+  permute(s.slot_count, scratch_u8_, 1);
+  permute(s.slot_key, scratch_key_, kBoundarySlots);
+  permute(s.slot_spring, scratch_vec_, kBoundarySlots);
+  // cell_of_ in the new order, for the neighbour stencil.
+  for (std::size_t p = 0; p < n; ++p) scratch_i32_[p] = cell_of_[order_[p]];
+  scratch_i32_.resize(n);
+  cell_of_.swap(scratch_i32_);
+
+  // Half list (j > i), built per thread over contiguous ranges and joined in thread order.
+  const int T = std::max(1, threads);
+  thread_j_.resize(T);
+  thread_spring_.resize(T);
+  s.pair_offset.assign(n + 1, 0);
+  auto old_spring = [&](std::int32_t oa, std::int32_t ob) -> Vec3 {
+    const bool swap = oa > ob;
+    const std::int32_t row = swap ? ob : oa, col = swap ? oa : ob;
+    for (std::int32_t k = old_offset_[row]; k < old_offset_[row + 1]; ++k)
+      if (old_j_[k] == col) return swap ? -old_spring_[k] : old_spring_[k];
+    return {};
+  };
+#pragma omp parallel num_threads(T)
+  {
+    const int t = omp_get_thread_num();
+    const std::size_t a0 = n * t / T, a1 = n * (t + 1) / T;
+    auto& J = thread_j_[t];
+    auto& S = thread_spring_[t];
+    J.clear();
+    S.clear();
+    for (std::size_t a = a0; a < a1; ++a) {
+      const long c = cell_of_[a];
+      const long cx = c % nx, cy = (c / nx) % ny, cz = c / (nx * ny);
+      const Vec3 xa = s.x[a];
+      const double ra = s.radius[a];
+      std::int32_t count = 0;
+      for (long dz = -1; dz <= 1; ++dz) {
+        const long z = cz + dz;
+        if (z < 0 || z >= nz) continue;
+        for (long dy = -1; dy <= 1; ++dy) {
+          const long y = cy + dy;
+          if (y < 0 || y >= ny) continue;
+          for (long dx = -1; dx <= 1; ++dx) {
+            const long x = cx + dx;
+            if (x < 0 || x >= nx) continue;
+            const long cc = (z * ny + y) * nx + x;
+            const std::int32_t b0 = std::max<std::int32_t>(cell_start_[cc], a + 1);
+            for (std::int32_t b = b0; b < cell_start_[cc + 1]; ++b) {
+              const double cut = ra + s.radius[b] + skin;
+              if (norm2(xa - s.x[b]) < cut * cut) {
+                J.push_back(b);
+                S.push_back(had_list ? old_spring(order_[a], order_[b]) : Vec3{});
+                ++count;
+              }
+            }
+          }
+        }
+      }
+      s.pair_offset[a + 1] = count;
+    }
+  }
+  for (std::size_t a = 0; a < n; ++a) s.pair_offset[a + 1] += s.pair_offset[a];
+  s.pair_j.resize(s.pair_offset[n]);
+  s.pair_spring.resize(s.pair_offset[n]);
+  {
+    std::size_t pos = 0;
+    for (int t = 0; t < T; ++t) {
+      std::copy(thread_j_[t].begin(), thread_j_[t].end(), s.pair_j.begin() + pos);
+      std::copy(thread_spring_[t].begin(), thread_spring_[t].end(), s.pair_spring.begin() + pos);
+      pos += thread_j_[t].size();
+    }
+  }
+
+  // Particle-triangle candidates: each triangle visits the cells its box (grown by the
+  // largest radius and the skin) overlaps.
+  tri_candidates_.clear();
+  const double margin = rmax + skin;
+  for (std::size_t m = 0; m < scene.tools.size(); ++m) {
+    const Mesh& mesh = scene.tools[m].mesh;
+    const Vec3* wv = tool_vertices[m].data();
+    for (std::int32_t t = 0; t < static_cast<std::int32_t>(mesh.triangles.size()); ++t) {
+      const auto& T3 = mesh.triangles[t];
+      const Vec3 a = wv[T3[0]], b = wv[T3[1]], c = wv[T3[2]];
+      const Vec3 bmin{std::min({a.x, b.x, c.x}) - margin, std::min({a.y, b.y, c.y}) - margin,
+                      std::min({a.z, b.z, c.z}) - margin};
+      const Vec3 bmax{std::max({a.x, b.x, c.x}) + margin, std::max({a.y, b.y, c.y}) + margin,
+                      std::max({a.z, b.z, c.z}) + margin};
+      if (n == 0 || bmax.x < lo.x || bmax.y < lo.y || bmax.z < lo.z || bmin.x > hi.x ||
+          bmin.y > hi.y || bmin.z > hi.z)
+        continue;
+      const long x0 = cell_coord(bmin.x, lo.x, nx), x1 = cell_coord(bmax.x, lo.x, nx);
+      const long y0 = cell_coord(bmin.y, lo.y, ny), y1 = cell_coord(bmax.y, lo.y, ny);
+      const long z0 = cell_coord(bmin.z, lo.z, nz), z1 = cell_coord(bmax.z, lo.z, nz);
+      for (long z = z0; z <= z1; ++z)
+        for (long y = y0; y <= y1; ++y)
+          for (long x = x0; x <= x1; ++x) {
+            const long cc = (z * ny + y) * nx + x;
+            for (std::int32_t p = cell_start_[cc]; p < cell_start_[cc + 1]; ++p) {
+              const double cut = s.radius[p] + skin;
+              if (closest_on_triangle(mesh, wv, t, s.x[p]).dist2 < cut * cut)
+                tri_candidates_.push_back({p, static_cast<std::int32_t>(m), t});
+            }
+          }
+    }
+  }
+  s.tri_offset.assign(n + 1, 0);
+  for (const auto& c : tri_candidates_) ++s.tri_offset[c.particle + 1];
+  for (std::size_t a = 0; a < n; ++a) s.tri_offset[a + 1] += s.tri_offset[a];
+  s.tri_tool.resize(tri_candidates_.size());
+  s.tri_index.resize(tri_candidates_.size());
+  tri_count_.assign(s.tri_offset.begin(), s.tri_offset.end() - 1);
+  for (const auto& c : tri_candidates_) {  // stable: per particle ordered by (tool, triangle)
+    const std::int32_t k = tri_count_[c.particle]++;
+    s.tri_tool[k] = c.tool;
+    s.tri_index[k] = c.tri;
+  }
+
+  s.x_at_rebuild = s.x;
+  s.tool_pose_at_rebuild = s.tool_pose;
+  s.max_displacement = 0;
+  s.steps_since_rebuild = 0;
+  s.lists_valid = true;
+  ++s.rebuilds;
+}
+
+}  // namespace dem

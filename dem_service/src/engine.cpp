@@ -1,0 +1,421 @@
+#include "dem/engine.hpp"
+
+#include <omp.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <sstream>
+
+#include "dem/contact_law.hpp"
+#include "dem/mesh_contact.hpp"
+#include "dem/stability.hpp"
+
+namespace dem {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double seconds_since(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+// One wall or mesh contact of a particle, before forces.
+struct BoundaryContact {
+  std::uint64_t key;
+  Vec3 point;   // contact point on the body
+  Vec3 normal;  // from the body towards the particle centre
+  double overlap;
+  Vec3 body_velocity;  // body velocity at the contact point
+};
+
+constexpr int kMaxHits = 256;  // triangles touching one sphere at once, per tool
+
+// Wall and mesh contacts of particle i after feature selection. Returns the count, or -1 if
+// more than kBoundarySlots contacts (or kMaxHits triangle hits) exist.
+int gather_boundary(const Scene& scene, const State& s, std::size_t i,
+                    const std::vector<std::vector<Vec3>>& tool_vertices, BoundaryContact* out,
+                    TriangleHit* hits) {
+  const Vec3 xi = s.x[i];
+  const double r = s.radius[i];
+  int nc = 0;
+  for (std::size_t w = 0; w < scene.walls.size(); ++w) {
+    const Wall& wall = scene.walls[w];
+    const double gap = dot(xi - wall.point, wall.normal);
+    if (gap < r) {
+      if (nc == kBoundarySlots) return -1;
+      out[nc++] = {contact_key(FeatureKind::wall, static_cast<std::uint32_t>(w), 0),
+                   xi - gap * wall.normal, wall.normal, r - gap, Vec3{}};
+    }
+  }
+  const std::int32_t k0 = s.tri_offset[i], k1 = s.tri_offset[i + 1];
+  for (std::int32_t k = k0; k < k1;) {
+    const std::int32_t m = s.tri_tool[k];
+    const Mesh& mesh = scene.tools[m].mesh;
+    const Vec3* wv = tool_vertices[m].data();
+    int nh = 0;
+    for (; k < k1 && s.tri_tool[k] == m; ++k) {
+      const TriangleHit h = closest_on_triangle(mesh, wv, s.tri_index[k], xi);
+      if (h.dist2 < r * r) {
+        if (nh == kMaxHits) return -1;
+        hits[nh++] = h;
+      }
+    }
+    nh = select_mesh_contacts(mesh, hits, nh);
+    const ToolPose& pose = s.tool_pose[m];
+    for (int h = 0; h < nh; ++h) {
+      if (nc == kBoundarySlots) return -1;
+      const double d = std::sqrt(hits[h].dist2);
+      Vec3 n;
+      if (d > 1e-12 * r) {
+        n = (1.0 / d) * (xi - hits[h].point);
+      } else {  // centre on the surface: fall back to the face normal
+        const auto& T = mesh.triangles[hits[h].triangle];
+        const Vec3 fn = cross(wv[T[1]] - wv[T[0]], wv[T[2]] - wv[T[0]]);
+        n = (1.0 / norm(fn)) * fn;
+      }
+      const Vec3 arm = hits[h].point - pose.position;
+      out[nc++] = {contact_key(hits[h].kind, static_cast<std::uint32_t>(m),
+                               static_cast<std::uint32_t>(hits[h].feature)),
+                   hits[h].point, n, r - d, pose.velocity + cross(pose.angular_velocity, arm)};
+    }
+  }
+  return nc;
+}
+
+bool shares_vertex(const Scene& scene, std::uint64_t a, std::uint64_t b) {
+  if (key_kind(a) == FeatureKind::wall || key_kind(b) == FeatureKind::wall) return false;
+  if (key_body(a) != key_body(b)) return false;
+  const Mesh& mesh = scene.tools[key_body(a)].mesh;
+  std::int32_t va[3], vb[3];
+  const int na = feature_vertices(mesh, key_kind(a), key_feature(a), va);
+  const int nb = feature_vertices(mesh, key_kind(b), key_feature(b), vb);
+  for (int p = 0; p < na; ++p)
+    for (int q = 0; q < nb; ++q)
+      if (va[p] == vb[q]) return true;
+  return false;
+}
+
+}  // namespace
+
+Engine::Engine(const Scene& scene) : scene_(scene) {
+  threads_ = std::max(1, scene.threads);
+  remote_.resize(threads_);
+  thread_tool_wrench_.assign(threads_, std::vector<Wrench>(scene.tools.size()));
+  thread_wall_force_.assign(threads_, std::vector<Vec3>(scene.walls.size()));
+  tool_wrench_.resize(scene.tools.size());
+  wall_force_.resize(scene.walls.size());
+  tool_vertices_.resize(scene.tools.size());
+  tool_rotation_.resize(scene.tools.size());
+}
+
+void Engine::update_tool_geometry(const State& s) {
+  if (s.tool_pose.size() != scene_.tools.size())
+    throw SimulationError("state has " + std::to_string(s.tool_pose.size()) +
+                          " tool poses but the scene has " +
+                          std::to_string(scene_.tools.size()) + " tools");
+  for (std::size_t m = 0; m < scene_.tools.size(); ++m) {
+    const Mesh& mesh = scene_.tools[m].mesh;
+    const ToolPose& pose = s.tool_pose[m];
+    const Mat3 R = to_matrix(pose.orientation);
+    tool_rotation_[m] = R;
+    auto& wv = tool_vertices_[m];
+    wv.resize(mesh.vertices.size());
+    for (std::size_t v = 0; v < wv.size(); ++v) wv[v] = pose.position + R * mesh.vertices[v];
+  }
+}
+
+bool Engine::guard_fires(const State& s, double* moved) const {
+  // A pair not in the list was more than `skin` apart at the last broad phase; it can touch
+  // only after the two bodies together moved more than that.
+  double worst = 2 * s.max_displacement;
+  for (std::size_t m = 0; m < scene_.tools.size(); ++m) {
+    const ToolPose& now = s.tool_pose[m];
+    const ToolPose& then = s.tool_pose_at_rebuild[m];
+    const double angle = angle_between(now.orientation, then.orientation);
+    const double tool_move = norm(now.position - then.position) +
+                             2 * std::sin(std::min(angle, M_PI) / 2) *
+                                 scene_.tools[m].mesh.bounding_radius;
+    worst = std::max(worst, s.max_displacement + tool_move);
+  }
+  *moved = worst;
+  return worst > scene_.skin_distance();
+}
+
+void Engine::rebuild(State& s) {
+  const auto t0 = Clock::now();
+  update_tool_geometry(s);
+  broad_.build(scene_, s, tool_vertices_, threads_);
+  timing_.broad_phase += seconds_since(t0);
+}
+
+void Engine::step(State& s) {
+  const auto t_start = Clock::now();
+  auto t0 = t_start;
+  update_tool_geometry(s);
+  timing_.mesh_contacts += seconds_since(t0);
+
+  t0 = Clock::now();
+  const bool due = !s.lists_valid || s.steps_since_rebuild >= scene_.broad_phase_interval ||
+                   s.pair_offset.size() != s.size() + 1;
+  double moved = 0;
+  if (due) {
+    broad_.build(scene_, s, tool_vertices_, threads_);
+  } else if (guard_fires(s, &moved)) {
+    if (scene_.guard == GuardMode::strict) {
+      std::ostringstream msg;
+      msg << "broad phase guard at step " << s.step << " (t = " << s.step * scene_.dt
+          << " s): bodies moved " << moved << " m since the last broad phase, more than the skin "
+          << scene_.skin_distance() << " m; contacts could be missed. Lower "
+          << "scene.broad_phase_interval (now " << scene_.broad_phase_interval
+          << ") or raise scene.skin (now " << scene_.skin
+          << "), or set scene.guard: rebuild to rebuild early automatically";
+      throw SimulationError(msg.str());
+    }
+    ++s.early_rebuilds;
+    broad_.build(scene_, s, tool_vertices_, threads_);
+  }
+  timing_.broad_phase += seconds_since(t0);
+
+  t0 = Clock::now();
+  pair_forces(s);
+  timing_.pair_forces += seconds_since(t0);
+
+  t0 = Clock::now();
+  boundary_forces(s);
+  timing_.mesh_contacts += seconds_since(t0);
+
+  t0 = Clock::now();
+  integrate(s);
+  timing_.integration += seconds_since(t0);
+  timing_.total += seconds_since(t_start);
+}
+
+void Engine::pair_forces(State& s) {
+  const std::size_t n = s.size();
+  force_.resize(n);
+  const int T = threads_;
+  const ContactLaw& law = scene_.particle_particle;
+  const double dt = scene_.dt;
+  const Vec3 g = scene_.gravity;
+#pragma omp parallel num_threads(T)
+  {
+    const int t = omp_get_thread_num();
+    const std::size_t a0 = n * t / T, a1 = n * (t + 1) / T;
+    auto& remote = remote_[t];
+    remote.clear();
+    for (std::size_t i = a0; i < a1; ++i) force_[i] = s.mass[i] * g;
+    for (std::size_t i = a0; i < a1; ++i) {
+      const Vec3 xi = s.x[i], vi = s.v[i];
+      const double ri = s.radius[i], mi = s.mass[i];
+      Vec3 fi{};
+      for (std::int32_t k = s.pair_offset[i]; k < s.pair_offset[i + 1]; ++k) {
+        const std::int32_t j = s.pair_j[k];
+        const Vec3 d = xi - s.x[j];
+        const double rsum = ri + s.radius[j];
+        const double d2 = norm2(d);
+        if (d2 >= rsum * rsum) {
+          s.pair_spring[k] = Vec3{};  // contact ended: history is forgotten
+          continue;
+        }
+        const double dist = std::sqrt(d2);
+        const Vec3 nrm = dist > 0 ? (1.0 / dist) * d : Vec3{0, 0, 1};
+        const double rj = s.radius[j], mj = s.mass[j];
+        const ContactCoefficients c = coefficients(law, ri * rj / rsum, mi * mj / (mi + mj));
+        const Vec3 f = contact_force(law, c, rsum - dist, nrm, vi - s.v[j], s.pair_spring[k], dt);
+        fi += f;
+        // Partner in this thread's range: write directly; otherwise defer, applied below in
+        // fixed thread order so the sums do not depend on scheduling.
+        if (static_cast<std::size_t>(j) < a1)
+          force_[j] -= f;
+        else
+          remote.push_back({j, f});
+      }
+      force_[i] += fi;
+    }
+  }
+  for (int t = 0; t < T; ++t)
+    for (const Remote& r : remote_[t]) force_[r.j] -= r.f;
+}
+
+void Engine::boundary_forces(State& s) {
+  const std::size_t n = s.size();
+  const int T = threads_;
+  const ContactLaw& law = scene_.particle_wall;
+  const double dt = scene_.dt;
+  const std::size_t ntools = scene_.tools.size(), nwalls = scene_.walls.size();
+  if (ntools == 0 && nwalls == 0) return;
+  std::int64_t overflow = -1;
+#pragma omp parallel num_threads(T)
+  {
+    const int t = omp_get_thread_num();
+    auto& tw = thread_tool_wrench_[t];
+    auto& wf = thread_wall_force_[t];
+    std::fill(tw.begin(), tw.end(), Wrench{});
+    std::fill(wf.begin(), wf.end(), Vec3{});
+    BoundaryContact cs[kBoundarySlots];
+    TriangleHit hits[kMaxHits];
+    std::int64_t my_overflow = -1;
+    const std::size_t a0 = n * t / T, a1 = n * (t + 1) / T;
+    for (std::size_t i = a0; i < a1; ++i) {
+      const int nc = gather_boundary(scene_, s, i, tool_vertices_, cs, hits);
+      if (nc < 0) {
+        if (my_overflow < 0) my_overflow = static_cast<std::int64_t>(i);
+        continue;
+      }
+      const int nold = s.slot_count[i];
+      if (nc == 0 && nold == 0) continue;
+      std::uint64_t old_key[kBoundarySlots];
+      Vec3 old_spring[kBoundarySlots], spring[kBoundarySlots];
+      bool used[kBoundarySlots] = {}, matched[kBoundarySlots] = {};
+      for (int o = 0; o < nold; ++o) {
+        old_key[o] = s.slot_key[i * kBoundarySlots + o];
+        old_spring[o] = s.slot_spring[i * kBoundarySlots + o];
+      }
+      for (int c = 0; c < nc; ++c)
+        for (int o = 0; o < nold; ++o)
+          if (!used[o] && old_key[o] == cs[c].key) {
+            spring[c] = old_spring[o];
+            used[o] = matched[c] = true;
+            break;
+          }
+      // A sphere sliding from a face onto an edge or vertex (or on to the next face) keeps its
+      // tangential spring: the new feature inherits from an adjacent one that just ended.
+      for (int c = 0; c < nc; ++c) {
+        if (matched[c]) continue;
+        spring[c] = Vec3{};
+        for (int o = 0; o < nold; ++o)
+          if (!used[o] && shares_vertex(scene_, old_key[o], cs[c].key)) {
+            spring[c] = old_spring[o];
+            used[o] = true;
+            break;
+          }
+      }
+      const double ri = s.radius[i], mi = s.mass[i];
+      const ContactCoefficients coef = coefficients(law, ri, mi);
+      Vec3 fi{};
+      for (int c = 0; c < nc; ++c) {
+        const Vec3 f = contact_force(law, coef, cs[c].overlap, cs[c].normal,
+                                     s.v[i] - cs[c].body_velocity, spring[c], dt);
+        fi += f;
+        const std::uint32_t body = key_body(cs[c].key);
+        if (key_kind(cs[c].key) == FeatureKind::wall) {
+          wf[body] -= f;
+        } else {
+          tw[body].force -= f;
+          tw[body].torque -= cross(cs[c].point - s.tool_pose[body].position, f);
+        }
+        s.slot_key[i * kBoundarySlots + c] = cs[c].key;
+        s.slot_spring[i * kBoundarySlots + c] = spring[c];
+      }
+      s.slot_count[i] = static_cast<std::uint8_t>(nc);
+      force_[i] += fi;
+    }
+#pragma omp critical(dem_overflow)
+    if (my_overflow >= 0 && (overflow < 0 || my_overflow < overflow)) overflow = my_overflow;
+  }
+  if (overflow >= 0) {
+    const std::size_t i = static_cast<std::size_t>(overflow);
+    std::ostringstream msg;
+    msg << "step " << s.step << " (t = " << s.step * scene_.dt << " s): particle id " << s.id[i]
+        << " at (" << s.x[i].x << ", " << s.x[i].y << ", " << s.x[i].z << ") touches more than "
+        << kBoundarySlots << " walls and mesh features at once; the tool mesh is probably finer "
+        << "than the particles (coarsen it) or the particle was pushed through it (lower dt)";
+    throw SimulationError(msg.str());
+  }
+  // Reduce per-thread sums in fixed thread order.
+  for (std::size_t m = 0; m < ntools; ++m) {
+    Wrench w{};
+    for (int t = 0; t < T; ++t) {
+      w.force += thread_tool_wrench_[t][m].force;
+      w.torque += thread_tool_wrench_[t][m].torque;
+    }
+    tool_wrench_[m] = w;
+  }
+  for (std::size_t w = 0; w < nwalls; ++w) {
+    Vec3 f{};
+    for (int t = 0; t < T; ++t) f += thread_wall_force_[t][w];
+    wall_force_[w] = f;
+  }
+}
+
+void Engine::integrate(State& s) {
+  const std::size_t n = s.size();
+  const int T = threads_;
+  const double dt = scene_.dt;
+  const double vmax2 = scene_.stability.max_speed * scene_.stability.max_speed;
+  double max_d2 = 0;
+  std::int64_t bad = -1;
+#pragma omp parallel num_threads(T)
+  {
+    const int t = omp_get_thread_num();
+    const std::size_t a0 = n * t / T, a1 = n * (t + 1) / T;
+    double my_d2 = 0;
+    std::int64_t my_bad = -1;
+    for (std::size_t i = a0; i < a1; ++i) {
+      // Semi-implicit Euler: the new velocity moves the particle (symplectic, one force
+      // evaluation per step); see docs/physics.md.
+      const Vec3 v = s.v[i] + (dt / s.mass[i]) * force_[i];
+      const Vec3 x = s.x[i] + dt * v;
+      s.v[i] = v;
+      s.x[i] = x;
+      const double v2 = norm2(v);
+      if (!(v2 <= vmax2) && my_bad < 0) my_bad = static_cast<std::int64_t>(i);
+      my_d2 = std::max(my_d2, norm2(x - s.x_at_rebuild[i]));
+    }
+#pragma omp critical(dem_integrate)
+    {
+      max_d2 = std::max(max_d2, my_d2);
+      if (my_bad >= 0 && (bad < 0 || my_bad < bad)) bad = my_bad;
+    }
+  }
+  s.max_displacement = std::sqrt(max_d2);
+  ++s.step;
+  ++s.steps_since_rebuild;
+  if (bad >= 0) {
+    const std::size_t i = static_cast<std::size_t>(bad);
+    std::ostringstream msg;
+    msg << "blow-up at step " << s.step << " (t = " << s.step * dt << " s): particle id "
+        << s.id[i] << " at (" << s.x[i].x << ", " << s.x[i].y << ", " << s.x[i].z
+        << ") has speed " << norm(s.v[i]) << " m/s (limit scene.stability.max_speed = "
+        << scene_.stability.max_speed << "); kinetic energy " << kinetic_energy(s)
+        << " J. Lower scene.dt (now " << dt << ", largest safe " << largest_safe_dt(scene_)
+        << ") or soften contact normal_stiffness";
+    throw SimulationError(msg.str());
+  }
+}
+
+std::vector<std::pair<std::int64_t, std::int64_t>> Engine::particle_contacts(
+    const State& s) const {
+  std::vector<std::pair<std::int64_t, std::int64_t>> out;
+  for (std::size_t i = 0; i + 1 < s.pair_offset.size(); ++i)
+    for (std::int32_t k = s.pair_offset[i]; k < s.pair_offset[i + 1]; ++k) {
+      const std::int32_t j = s.pair_j[k];
+      const double rsum = s.radius[i] + s.radius[j];
+      if (norm2(s.x[i] - s.x[j]) < rsum * rsum)
+        out.emplace_back(std::min(s.id[i], s.id[j]), std::max(s.id[i], s.id[j]));
+    }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+std::vector<Engine::MeshContact> Engine::mesh_contacts(const State& s) {
+  update_tool_geometry(s);
+  std::vector<MeshContact> out;
+  BoundaryContact cs[kBoundarySlots];
+  std::vector<TriangleHit> hits(kMaxHits);
+  for (std::size_t i = 0; i + 1 < s.tri_offset.size(); ++i) {
+    const int nc = gather_boundary(scene_, s, i, tool_vertices_, cs, hits.data());
+    for (int c = 0; c < nc; ++c)
+      if (key_kind(cs[c].key) != FeatureKind::wall)
+        out.push_back({s.id[i], static_cast<int>(key_body(cs[c].key)), cs[c].key, cs[c].point});
+  }
+  return out;
+}
+
+double kinetic_energy(const State& s) {
+  double e = 0;
+  for (std::size_t i = 0; i < s.size(); ++i) e += 0.5 * s.mass[i] * norm2(s.v[i]);
+  return e;
+}
+
+}  // namespace dem
