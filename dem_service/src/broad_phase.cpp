@@ -79,6 +79,7 @@ void BroadPhase::build(const Scene& scene, State& s,
 
   permute(s.x, scratch_vec_, 1);
   permute(s.v, scratch_vec_, 1);
+  permute(s.u, scratch_vec_, 1);
   permute(s.radius, scratch_d_, 1);
   permute(s.mass, scratch_d_, 1);
   permute(s.species, scratch_i32_, 1);

@@ -32,16 +32,19 @@ constexpr int kMaxHits = 256;  // triangles touching one sphere at once, per too
 
 // Wall and mesh contacts of particle i after feature selection. Returns the count, or -1 if
 // more than kBoundarySlots contacts (or kMaxHits triangle hits) exist.
+// dt > 0 widens the test by the distance the contact window can reach (see contact_force);
+// dt = 0 gives the geometric contacts.
 int gather_boundary(const Scene& scene, const State& s, std::size_t i,
                     const std::vector<std::vector<Vec3>>& tool_vertices, BoundaryContact* out,
-                    TriangleHit* hits) {
+                    TriangleHit* hits, double dt) {
   const Vec3 xi = s.x[i];
   const double r = s.radius[i];
+  const double speed = norm(s.u[i]);
   int nc = 0;
   for (std::size_t w = 0; w < scene.walls.size(); ++w) {
     const Wall& wall = scene.walls[w];
     const double gap = dot(xi - wall.point, wall.normal);
-    if (gap < r) {
+    if (gap < r + 0.5 * dt * speed) {
       if (nc == kBoundarySlots) return -1;
       out[nc++] = {contact_key(FeatureKind::wall, static_cast<std::uint32_t>(w), 0),
                    xi - gap * wall.normal, wall.normal, r - gap, Vec3{}};
@@ -52,10 +55,13 @@ int gather_boundary(const Scene& scene, const State& s, std::size_t i,
     const std::int32_t m = s.tri_tool[k];
     const Mesh& mesh = scene.tools[m].mesh;
     const Vec3* wv = tool_vertices[m].data();
+    const ToolPose& tp = s.tool_pose[m];
+    const double reach = r + 0.5 * dt * (speed + norm(tp.velocity) +
+                                         norm(tp.angular_velocity) * mesh.bounding_radius);
     int nh = 0;
     for (; k < k1 && s.tri_tool[k] == m; ++k) {
       const TriangleHit h = closest_on_triangle(mesh, wv, s.tri_index[k], xi);
-      if (h.dist2 < r * r) {
+      if (h.dist2 < reach * reach) {
         if (nh == kMaxHits) return -1;
         hits[nh++] = h;
       }
@@ -205,7 +211,7 @@ void Engine::pair_forces(State& s) {
     remote.clear();
     for (std::size_t i = a0; i < a1; ++i) force_[i] = s.mass[i] * g;
     for (std::size_t i = a0; i < a1; ++i) {
-      const Vec3 xi = s.x[i], vi = s.v[i];
+      const Vec3 xi = s.x[i], ui = s.u[i];
       const double ri = s.radius[i], mi = s.mass[i];
       Vec3 fi{};
       for (std::int32_t k = s.pair_offset[i]; k < s.pair_offset[i + 1]; ++k) {
@@ -213,7 +219,8 @@ void Engine::pair_forces(State& s) {
         const Vec3 d = xi - s.x[j];
         const double rsum = ri + s.radius[j];
         const double d2 = norm2(d);
-        if (d2 >= rsum * rsum) {
+        const Vec3 urel = ui - s.u[j];
+        if (surely_apart(d2, rsum, norm2(urel), dt)) {
           s.pair_spring[k] = Vec3{};  // contact ended: history is forgotten
           continue;
         }
@@ -221,7 +228,11 @@ void Engine::pair_forces(State& s) {
         const Vec3 nrm = dist > 0 ? (1.0 / dist) * d : Vec3{0, 0, 1};
         const double rj = s.radius[j], mj = s.mass[j];
         const ContactCoefficients c = coefficients(law, ri * rj / rsum, mi * mj / (mi + mj));
-        const Vec3 f = contact_force(law, c, rsum - dist, nrm, vi - s.v[j], s.pair_spring[k], dt);
+        Vec3 f;
+        if (!contact_force(law, c, rsum - dist, nrm, urel, s.pair_spring[k], dt, f)) {
+          s.pair_spring[k] = Vec3{};
+          continue;
+        }
         fi += f;
         // Partner in this thread's range: write directly; otherwise defer, applied below in
         // fixed thread order so the sums do not depend on scheduling.
@@ -257,7 +268,7 @@ void Engine::boundary_forces(State& s) {
     std::int64_t my_overflow = -1;
     const std::size_t a0 = n * t / T, a1 = n * (t + 1) / T;
     for (std::size_t i = a0; i < a1; ++i) {
-      const int nc = gather_boundary(scene_, s, i, tool_vertices_, cs, hits);
+      const int nc = gather_boundary(scene_, s, i, tool_vertices_, cs, hits, dt);
       if (nc < 0) {
         if (my_overflow < 0) my_overflow = static_cast<std::int64_t>(i);
         continue;
@@ -293,9 +304,12 @@ void Engine::boundary_forces(State& s) {
       const double ri = s.radius[i], mi = s.mass[i];
       const ContactCoefficients coef = coefficients(law, ri, mi);
       Vec3 fi{};
+      int active = 0;
       for (int c = 0; c < nc; ++c) {
-        const Vec3 f = contact_force(law, coef, cs[c].overlap, cs[c].normal,
-                                     s.v[i] - cs[c].body_velocity, spring[c], dt);
+        Vec3 f;
+        if (!contact_force(law, coef, cs[c].overlap, cs[c].normal, s.u[i] - cs[c].body_velocity,
+                           spring[c], dt, f))
+          continue;
         fi += f;
         const std::uint32_t body = key_body(cs[c].key);
         if (key_kind(cs[c].key) == FeatureKind::wall) {
@@ -304,10 +318,11 @@ void Engine::boundary_forces(State& s) {
           tw[body].force -= f;
           tw[body].torque -= cross(cs[c].point - s.tool_pose[body].position, f);
         }
-        s.slot_key[i * kBoundarySlots + c] = cs[c].key;
-        s.slot_spring[i * kBoundarySlots + c] = spring[c];
+        s.slot_key[i * kBoundarySlots + active] = cs[c].key;
+        s.slot_spring[i * kBoundarySlots + active] = spring[c];
+        ++active;
       }
-      s.slot_count[i] = static_cast<std::uint8_t>(nc);
+      s.slot_count[i] = static_cast<std::uint8_t>(active);
       force_[i] += fi;
     }
 #pragma omp critical(dem_overflow)
@@ -354,9 +369,11 @@ void Engine::integrate(State& s) {
     for (std::size_t i = a0; i < a1; ++i) {
       // Semi-implicit Euler: the new velocity moves the particle (symplectic, one force
       // evaluation per step); see docs/physics.md.
-      const Vec3 v = s.v[i] + (dt / s.mass[i]) * force_[i];
+      const Vec3 dv = (dt / s.mass[i]) * force_[i];
+      const Vec3 v = s.v[i] + dv;
       const Vec3 x = s.x[i] + dt * v;
       s.v[i] = v;
+      s.u[i] = v + 0.5 * dv;  // velocity at the next force time
       s.x[i] = x;
       const double v2 = norm2(v);
       if (!(v2 <= vmax2) && my_bad < 0) my_bad = static_cast<std::int64_t>(i);
@@ -404,7 +421,7 @@ std::vector<Engine::MeshContact> Engine::mesh_contacts(const State& s) {
   BoundaryContact cs[kBoundarySlots];
   std::vector<TriangleHit> hits(kMaxHits);
   for (std::size_t i = 0; i + 1 < s.tri_offset.size(); ++i) {
-    const int nc = gather_boundary(scene_, s, i, tool_vertices_, cs, hits.data());
+    const int nc = gather_boundary(scene_, s, i, tool_vertices_, cs, hits.data(), 0.0);
     for (int c = 0; c < nc; ++c)
       if (key_kind(cs[c].key) != FeatureKind::wall)
         out.push_back({s.id[i], static_cast<int>(key_body(cs[c].key)), cs[c].key, cs[c].point});

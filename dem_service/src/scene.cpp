@@ -55,6 +55,7 @@ void add_particle(State& s, Vec3 x, Vec3 v, double radius, double mass, int spec
                   std::int64_t id) {
   s.x.push_back(x);
   s.v.push_back(v);
+  s.u.push_back(v);
   s.radius.push_back(radius);
   s.mass.push_back(mass);
   s.species.push_back(species);

@@ -29,6 +29,9 @@ struct State {
 
   // Per particle (sorted by grid cell at every broad phase for cache locality).
   std::vector<Vec3> x, v;
+  // Velocity estimated at the force time t_n, u = v_n + dt/2 a_(n-1): damping and friction
+  // use it (second-order dashpot, docs/physics.md). Set u = v when you set v by hand.
+  std::vector<Vec3> u;
   std::vector<double> radius, mass;
   std::vector<std::int32_t> species;
   std::vector<std::int64_t> id;  // stable identity across sorting, used in output

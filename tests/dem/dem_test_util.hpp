@@ -1,0 +1,73 @@
+// Small builders shared by the DEM tests: programmatic scenes without YAML.
+#pragma once
+
+#include <cmath>
+#include <vector>
+
+#include "dem/engine.hpp"
+#include "dem/mesh.hpp"
+#include "dem/scene.hpp"
+#include "dem/state.hpp"
+
+namespace demtest {
+
+using dem::Vec3;
+
+inline dem::ContactLaw law_n_per_m(double k, double e, bool clip, double mu = 0.0,
+                                   double kt_ratio = 1.0, double etat_ratio = 0.5) {
+  dem::ContactLaw l;
+  l.stiffness_per_length = false;
+  l.normal_stiffness = k;
+  l.damping_from_restitution = true;
+  l.restitution = e;
+  l.clip_attractive = clip;
+  l.friction = mu;
+  l.tangential_stiffness_ratio = kt_ratio;
+  l.tangential_damping_ratio = etat_ratio;
+  dem::finalize(l, "test");
+  return l;
+}
+
+inline dem::Scene one_species_scene(double rmin, double rmax, double density = 2500) {
+  dem::Scene s;
+  dem::Species sp;
+  sp.name = "grain";
+  sp.density = density;
+  sp.radius.kind = rmin == rmax ? dem::RadiusDistribution::Kind::constant
+                                : dem::RadiusDistribution::Kind::uniform;
+  sp.radius.min = rmin;
+  sp.radius.max = rmax;
+  s.species.push_back(sp);
+  s.gravity = {0, 0, 0};
+  s.threads = 1;
+  return s;
+}
+
+inline double sphere_mass(double r, double density = 2500) {
+  return density * 4.0 / 3.0 * M_PI * r * r * r;
+}
+
+inline void add(dem::State& st, Vec3 x, Vec3 v, double r, double density = 2500) {
+  dem::add_particle(st, x, v, r, sphere_mass(r, density), 0, static_cast<std::int64_t>(st.size()));
+}
+
+// Index of the particle with the given id (the broad phase reorders particles).
+inline std::size_t index_of(const dem::State& st, std::int64_t id) {
+  for (std::size_t i = 0; i < st.size(); ++i)
+    if (st.id[i] == id) return i;
+  return st.size();
+}
+
+inline dem::Tool static_tool(const std::string& name, const std::vector<Vec3>& corners) {
+  dem::Tool t;
+  t.name = name;
+  t.mesh = dem::build_mesh(corners, name);
+  return t;
+}
+
+// Quad (a,b,c,d counter-clockwise) as two triangles split along a-c.
+inline void quad(std::vector<Vec3>& corners, Vec3 a, Vec3 b, Vec3 c, Vec3 d) {
+  corners.insert(corners.end(), {a, b, c, a, c, d});
+}
+
+}  // namespace demtest
