@@ -102,17 +102,7 @@ void apply_override(YAML::Node& root, const std::string& assignment) {
 
 void check_keys(const YAML::Node& node, std::string_view path,
                 std::initializer_list<std::string_view> allowed) {
-  if (!node.IsMap())
-    throw ConfigError(std::string(path.empty() ? "config" : path) + ": expected a map, got " +
-                      describe(node));
-  for (const auto& kv : node) {
-    const auto key = kv.first.as<std::string>();
-    bool ok = false;
-    for (auto a : allowed) ok = ok || a == key;
-    if (!ok)
-      throw ConfigError(join_path(path, key) + ": unknown key '" + key + "' (allowed: " +
-                        list(allowed) + ")");
-  }
+  check_keys(node, path, std::vector<std::string>(allowed.begin(), allowed.end()));
 }
 
 void check_keys(const YAML::Node& node, std::string_view path,
