@@ -154,9 +154,8 @@ void Engine::rebuild(State& s) {
   timing_.broad_phase += seconds_since(t0);
 }
 
-void Engine::step(State& s) {
-  const auto t_start = Clock::now();
-  auto t0 = t_start;
+void Engine::prepare(State& s) {
+  auto t0 = Clock::now();
   update_tool_geometry(s);
   timing_.mesh_contacts += seconds_since(t0);
 
@@ -181,8 +180,12 @@ void Engine::step(State& s) {
     broad_.build(scene_, s, tool_vertices_, threads_);
   }
   timing_.broad_phase += seconds_since(t0);
+}
 
-  t0 = Clock::now();
+void Engine::step(State& s) {
+  const auto t_start = Clock::now();
+  prepare(s);
+  auto t0 = Clock::now();
   pair_forces(s);
   timing_.pair_forces += seconds_since(t0);
 

@@ -25,12 +25,6 @@ struct PosHash {
     return (k.a * 0x9E3779B97F4A7C15ull) ^ (k.b * 0xC2B2AE3D27D4EB4Full) ^ (k.c + 0x165667B1);
   }
 };
-std::uint64_t bits(double d) {
-  if (d == 0) d = 0;  // fold -0 into +0 so they weld
-  std::uint64_t u;
-  std::memcpy(&u, &d, 8);
-  return u;
-}
 
 }  // namespace
 
@@ -40,14 +34,30 @@ Mesh build_mesh(const std::vector<Vec3>& corners, const std::string& source) {
                              "or open triangle surface (STL, OBJ, PLY)");
   Mesh m;
   m.source = source;
-  // STL stores every triangle's corners separately: weld exact duplicates so shared edges
-  // and vertices are recognised as one feature.
-  std::unordered_map<PosKey, std::int32_t, PosHash> index;
+  // STL stores every triangle's corners separately, and exporters round: weld corners closer
+  // than 1e-9 of the mesh size so shared edges and vertices are recognised as one feature.
+  Vec3 lo = corners[0], hi = corners[0];
+  for (const Vec3& p : corners) {
+    lo = {std::min(lo.x, p.x), std::min(lo.y, p.y), std::min(lo.z, p.z)};
+    hi = {std::max(hi.x, p.x), std::max(hi.y, p.y), std::max(hi.z, p.z)};
+  }
+  const double tol = std::max(1e-9 * norm(hi - lo), 1e-300);
+  std::unordered_map<PosKey, std::vector<std::int32_t>, PosHash> index;
+  auto cell = [&](double v) { return static_cast<std::uint64_t>(std::floor(v / tol)); };
   auto vertex_id = [&](Vec3 p) {
-    const PosKey k{bits(p.x), bits(p.y), bits(p.z)};
-    auto [it, inserted] = index.emplace(k, static_cast<std::int32_t>(m.vertices.size()));
-    if (inserted) m.vertices.push_back(p);
-    return it->second;
+    const std::uint64_t cx = cell(p.x), cy = cell(p.y), cz = cell(p.z);
+    for (std::uint64_t dx = cx - 1; dx != cx + 2; ++dx)
+      for (std::uint64_t dy = cy - 1; dy != cy + 2; ++dy)
+        for (std::uint64_t dz = cz - 1; dz != cz + 2; ++dz) {
+          const auto it = index.find(PosKey{dx, dy, dz});
+          if (it == index.end()) continue;
+          for (std::int32_t v : it->second)
+            if (norm2(m.vertices[v] - p) <= tol * tol) return v;
+        }
+    const auto id = static_cast<std::int32_t>(m.vertices.size());
+    m.vertices.push_back(p);
+    index[PosKey{cx, cy, cz}].push_back(id);
+    return id;
   };
   std::map<std::pair<std::int32_t, std::int32_t>, std::int32_t> edge_id;
   for (std::size_t t = 0; t < corners.size() / 3; ++t) {

@@ -41,6 +41,9 @@ class Engine {
 
   // Advances one dt. Tool poses are read from s.tool_pose (set them before the call).
   void step(State& s);
+  // First stage of step(): world tool geometry and the broad phase if it is due or the guard
+  // fires. Idempotent; tests call it to inspect the lists the next narrow phase will use.
+  void prepare(State& s);
   // Forces a broad phase now (e.g. after particles were added or moved by hand).
   void rebuild(State& s);
 
