@@ -1,0 +1,180 @@
+// dem_run CONFIG.yaml [--set dotted.key=value ...] [--output FILE.h5]
+// Standalone DEM run: optional settling, prescribed tool motion, HDF5 + XDMF output, and a
+// LAMMPS-style timing table at the end.
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <string>
+#include <vector>
+
+#include "cosim/yaml_config.hpp"
+#include "dem/bed.hpp"
+#include "dem/checkpoint.hpp"
+#include "dem/config.hpp"
+#include "dem/engine.hpp"
+#include "dem/output.hpp"
+#include "dem/stability.hpp"
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+void usage() {
+  std::cerr << "usage: dem_run CONFIG.yaml [--set dotted.key=value ...] [--output FILE.h5]\n"
+               "  Runs the DEM scene of CONFIG.yaml; see docs/dem.md for the schema.\n";
+}
+
+void set_tool_poses(const dem::Scene& scene, dem::State& s) {
+  for (std::size_t m = 0; m < scene.tools.size(); ++m)
+    s.tool_pose[m] = scene.tools[m].motion.evaluate(s.step * scene.dt);
+}
+
+void print_timing(const dem::Engine& engine, const dem::State& s, double sim_time, long long steps,
+                  double wall) {
+  const dem::Timing& t = engine.timing();
+  const double other = std::max(0.0, wall - t.broad_phase - t.pair_forces - t.mesh_contacts -
+                                         t.integration - t.output);
+  std::printf("\nLoop time of %.3f s for %lld steps with %zu particles on %d thread(s)\n\n", wall,
+              steps, s.size(), engine.threads());
+  std::printf("%-22s| %10s | %7s\n", "Section", "time (s)", "%total");
+  std::printf("----------------------+------------+--------\n");
+  auto row = [&](const char* name, double v) {
+    std::printf("%-22s| %10.3f | %6.2f\n", name, v, wall > 0 ? 100 * v / wall : 0.0);
+  };
+  row("Broad phase", t.broad_phase);
+  row("Narrow phase + forces", t.pair_forces);
+  row("Mesh + wall contacts", t.mesh_contacts);
+  row("Integration", t.integration);
+  row("Output", t.output);
+  row("Other", other);
+  std::printf("\nReal-time factor (wall / simulated): %.3g\n", sim_time > 0 ? wall / sim_time : 0.0);
+  std::printf("Particle-steps/s: %.4g\n", wall > 0 ? static_cast<double>(s.size()) * steps / wall : 0.0);
+  std::printf("Broad phases: %lld (early rebuilds by the guard: %lld)\n",
+              static_cast<long long>(s.rebuilds), static_cast<long long>(s.early_rebuilds));
+}
+
+int run(int argc, char** argv) {
+  std::string config_path, output_override;
+  std::vector<std::string> sets;
+  for (int a = 1; a < argc; ++a) {
+    const std::string arg = argv[a];
+    if (arg == "-h" || arg == "--help") {
+      usage();
+      return 0;
+    } else if (arg == "--set" && a + 1 < argc) {
+      sets.push_back(argv[++a]);
+    } else if (arg == "--output" && a + 1 < argc) {
+      output_override = argv[++a];
+    } else if (!arg.empty() && arg[0] == '-') {
+      std::cerr << "dem_run: unknown or incomplete option '" << arg << "'\n";
+      usage();
+      return 2;
+    } else if (config_path.empty()) {
+      config_path = arg;
+    } else {
+      std::cerr << "dem_run: more than one config file given ('" << arg << "')\n";
+      return 2;
+    }
+  }
+  if (config_path.empty()) {
+    usage();
+    return 2;
+  }
+  YAML::Node root = cosim::config::load_file(config_path);
+  for (const auto& s : sets) cosim::config::apply_override(root, s);
+  const std::string base = std::filesystem::path(config_path).parent_path().string();
+  dem::RunConfig rc = dem::load_config(root, base);
+  if (!output_override.empty()) rc.output.file = output_override;
+  dem::Scene& scene = rc.scene;
+  dem::State& s = rc.state;
+  dem::check_dt(scene, std::cerr);
+  dem::validate_state(scene, s);
+  std::fprintf(stderr, "dem_run: %zu particles, %zu walls, %zu tools, dt %.3g s (largest safe %.3g s)\n",
+               s.size(), scene.walls.size(), scene.tools.size(), scene.dt,
+               dem::largest_safe_dt(scene));
+
+  dem::Engine engine(scene);
+  if (rc.settle.enabled) {
+    set_tool_poses(scene, s);
+    const auto r = dem::settle(engine, s, rc.settle.ke_per_particle, rc.settle.max_time,
+                               [&](const dem::SettleResult& p) {
+                                 if (s.step % 20000 == 0)
+                                   std::fprintf(stderr, "settle: t = %.3f s, KE/particle %.3g J\n",
+                                                p.time, p.ke_per_particle);
+                               });
+    std::fprintf(stderr, "settle: %s after %.3f s, KE/particle %.3g J\n",
+                 r.converged ? "at rest" : "NOT at rest (settle.max_time reached)", r.time,
+                 r.ke_per_particle);
+    if (!rc.settle.checkpoint.empty()) {
+      dem::save_checkpoint(s, rc.settle.checkpoint);
+      std::fprintf(stderr, "settle: saved %s\n", rc.settle.checkpoint.c_str());
+    }
+    engine.timing() = dem::Timing{};  // the table below is for the run itself
+  }
+
+  dem::RunOutput out(rc.output.file, scene, rc.config_text);
+  const long long steps = std::llround(rc.duration / scene.dt);
+  const long long wrench_every =
+      std::max(1LL, std::llround(rc.output.wrenches_every / scene.dt));
+  const long long snap_every =
+      rc.output.particles_every > 0 ? std::max(1LL, std::llround(rc.output.particles_every / scene.dt))
+                                    : 0;
+  const double t0 = s.step * scene.dt;
+  const auto wall0 = Clock::now();
+  auto last_progress = wall0;
+  {
+    const auto w = Clock::now();
+    out.snapshot(s, t0);
+    engine.timing().output += std::chrono::duration<double>(Clock::now() - w).count();
+  }
+  for (long long k = 1; k <= steps; ++k) {
+    set_tool_poses(scene, s);
+    const double t_force = s.step * scene.dt;
+    engine.step(s);
+    const auto w = Clock::now();
+    if (k % wrench_every == 0) out.sample_wrenches(s, engine, t_force);
+    if (snap_every && k % snap_every == 0 && k != steps) out.snapshot(s, s.step * scene.dt);
+    engine.timing().output += std::chrono::duration<double>(Clock::now() - w).count();
+    if (std::chrono::duration<double>(w - last_progress).count() >= rc.output.progress_every) {
+      last_progress = w;
+      const double wall = std::chrono::duration<double>(w - wall0).count();
+      const double rate = k / wall;
+      std::fprintf(stderr, "t = %.4f s  step %lld/%lld  %.0f steps/s  ETA %.0f s\n",
+                   s.step * scene.dt, k, steps, rate, (steps - k) / rate);
+    }
+  }
+  {
+    const auto w = Clock::now();
+    out.snapshot(s, s.step * scene.dt);
+    if (!rc.output.checkpoint.empty()) dem::save_checkpoint(s, rc.output.checkpoint);
+    engine.timing().output += std::chrono::duration<double>(Clock::now() - w).count();
+  }
+  const double wall = std::chrono::duration<double>(Clock::now() - wall0).count();
+  out.write_summary(engine.timing(), s, s.step * scene.dt - t0);
+  std::fprintf(stderr, "dem_run: wrote %s and %s\n", rc.output.file.c_str(),
+               out.xdmf_path().c_str());
+  print_timing(engine, s, s.step * scene.dt - t0, steps, wall);
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    return run(argc, argv);
+  } catch (const cosim::config::ConfigError& e) {
+    std::cerr << "dem_run: config error: " << e.what() << "\n";
+    return 2;
+  } catch (const std::invalid_argument& e) {
+    std::cerr << "dem_run: refused: " << e.what() << "\n";
+    return 2;
+  } catch (const dem::SimulationError& e) {
+    std::cerr << "dem_run: stopped: " << e.what() << "\n";
+    return 3;
+  } catch (const std::exception& e) {
+    std::cerr << "dem_run: error: " << e.what() << "\n";
+    return 1;
+  }
+}

@@ -1,0 +1,43 @@
+// Run output: one HDF5 file with the config, particle snapshots and tool/wall wrench series,
+// and an XDMF file beside it so ParaView opens the snapshots (points, velocity, radius, id).
+// Layout in docs/dem.md.
+#pragma once
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "dem/engine.hpp"
+#include "dem/scene.hpp"
+#include "dem/state.hpp"
+
+namespace dem {
+
+class RunOutput {
+ public:
+  // Throws std::runtime_error naming the file and the fix if it cannot be created.
+  RunOutput(const std::string& path, const Scene& scene, const std::string& config_text);
+  ~RunOutput();
+  RunOutput(const RunOutput&) = delete;
+  RunOutput& operator=(const RunOutput&) = delete;
+
+  void snapshot(const State& s, double time);  // particles, sorted by id
+  // Buffers one sample of every tool's pose and wrench and every wall's force.
+  void sample_wrenches(const State& s, const Engine& e, double time);
+  void flush();  // appends buffered samples and rewrites the XDMF file
+  void write_summary(const Timing& t, const State& s, double sim_time);
+
+  const std::string& xdmf_path() const { return xdmf_; }
+
+ private:
+  void write_xdmf() const;
+  std::string path_, xdmf_;
+  const Scene& scene_;
+  long long file_ = -1;
+  std::vector<double> snapshot_times_;
+  std::vector<std::size_t> snapshot_sizes_;
+  std::vector<std::vector<double>> tool_rows_;  // per tool: t, F, M, position, quaternion
+  std::vector<double> wall_rows_;               // t, then F of every wall
+};
+
+}  // namespace dem

@@ -1,0 +1,157 @@
+#include "dem/output.hpp"
+
+#include <algorithm>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <numeric>
+#include <stdexcept>
+
+#include "dem/h5_util.hpp"
+
+namespace dem {
+namespace {
+
+std::string snapshot_name(std::size_t k) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%06zu", k);
+  return buf;
+}
+
+constexpr std::size_t kToolCols = 1 + 3 + 3 + 3 + 4;
+
+}  // namespace
+
+RunOutput::RunOutput(const std::string& path, const Scene& scene, const std::string& config_text)
+    : path_(path), scene_(scene) {
+  xdmf_ = std::filesystem::path(path).replace_extension(".xdmf").string();
+  file_ = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
+  if (file_ < 0)
+    throw std::runtime_error("cannot create output '" + path +
+                             "': check that the folder exists and is writable (--output FILE.h5)");
+  h5::write_string_attribute(file_, "config", config_text);
+  h5::Handle g1(H5Gcreate2(file_, "particles", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Gclose);
+  h5::Handle g2(H5Gcreate2(file_, "tools", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Gclose);
+  for (const Tool& t : scene.tools) {
+    h5::Handle g(H5Gcreate2(g2, t.name.c_str(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Gclose);
+    h5::create_series(g, "samples", kToolCols);
+    h5::write_string_attribute(g, "columns",
+                               "time, force xyz, torque xyz (about the reference point), "
+                               "position xyz, orientation wxyz; ground frame, SI units");
+  }
+  tool_rows_.resize(scene.tools.size());
+  if (!scene.walls.empty()) {
+    h5::create_series(file_, "walls", 1 + 3 * scene.walls.size());
+    std::string cols = "time";
+    for (const Wall& w : scene.walls) cols += ", " + w.name + " force xyz";
+    h5::Handle set(H5Dopen2(file_, "walls", H5P_DEFAULT), H5Dclose);
+    h5::write_string_attribute(set, "columns", cols + " (force on the wall)");
+  }
+}
+
+RunOutput::~RunOutput() {
+  try {
+    flush();
+  } catch (...) {
+  }
+  if (file_ >= 0) H5Fclose(file_);
+}
+
+void RunOutput::snapshot(const State& s, double time) {
+  // Sorted by id so ParaView sees the same particle at the same index in every snapshot.
+  std::vector<std::size_t> order(s.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::sort(order.begin(), order.end(), [&](auto a, auto b) { return s.id[a] < s.id[b]; });
+  std::vector<Vec3> x(s.size()), v(s.size());
+  std::vector<double> r(s.size());
+  std::vector<std::int64_t> id(s.size());
+  for (std::size_t k = 0; k < order.size(); ++k) {
+    x[k] = s.x[order[k]];
+    v[k] = s.v[order[k]];
+    r[k] = s.radius[order[k]];
+    id[k] = s.id[order[k]];
+  }
+  const std::string name = "particles/" + snapshot_name(snapshot_times_.size());
+  h5::Handle g(H5Gcreate2(file_, name.c_str(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Gclose);
+  h5::write_double_attribute(g, "time", time);
+  h5::write(g, "position", x);
+  h5::write(g, "velocity", v);
+  h5::write(g, "radius", r);
+  h5::write(g, "id", id);
+  snapshot_times_.push_back(time);
+  snapshot_sizes_.push_back(s.size());
+  flush();
+}
+
+void RunOutput::sample_wrenches(const State& s, const Engine& e, double time) {
+  for (std::size_t m = 0; m < scene_.tools.size(); ++m) {
+    const Wrench& w = e.tool_wrenches()[m];
+    const ToolPose& p = s.tool_pose[m];
+    tool_rows_[m].insert(tool_rows_[m].end(),
+                         {time, w.force.x, w.force.y, w.force.z, w.torque.x, w.torque.y,
+                          w.torque.z, p.position.x, p.position.y, p.position.z, p.orientation.w,
+                          p.orientation.x, p.orientation.y, p.orientation.z});
+  }
+  if (!scene_.walls.empty()) {
+    wall_rows_.push_back(time);
+    for (const Vec3& f : e.wall_forces()) wall_rows_.insert(wall_rows_.end(), {f.x, f.y, f.z});
+  }
+}
+
+void RunOutput::flush() {
+  for (std::size_t m = 0; m < scene_.tools.size(); ++m) {
+    const std::string name = "tools/" + scene_.tools[m].name + "/samples";
+    h5::append_series(file_, name, tool_rows_[m].data(), tool_rows_[m].size() / kToolCols,
+                      kToolCols);
+    tool_rows_[m].clear();
+  }
+  if (!scene_.walls.empty()) {
+    const std::size_t cols = 1 + 3 * scene_.walls.size();
+    h5::append_series(file_, "walls", wall_rows_.data(), wall_rows_.size() / cols, cols);
+    wall_rows_.clear();
+  }
+  H5Fflush(file_, H5F_SCOPE_LOCAL);
+  write_xdmf();
+}
+
+void RunOutput::write_summary(const Timing& t, const State& s, double sim_time) {
+  h5::Handle g(H5Gcreate2(file_, "timing", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Gclose);
+  h5::write_double_attribute(g, "broad_phase", t.broad_phase);
+  h5::write_double_attribute(g, "pair_forces", t.pair_forces);
+  h5::write_double_attribute(g, "mesh_contacts", t.mesh_contacts);
+  h5::write_double_attribute(g, "integration", t.integration);
+  h5::write_double_attribute(g, "output", t.output);
+  h5::write_double_attribute(g, "total", t.total);
+  h5::write_double_attribute(g, "simulated_time", sim_time);
+  h5::write_double_attribute(g, "rebuilds", static_cast<double>(s.rebuilds));
+  h5::write_double_attribute(g, "early_rebuilds", static_cast<double>(s.early_rebuilds));
+}
+
+void RunOutput::write_xdmf() const {
+  std::ofstream out(xdmf_);
+  const std::string h5 = std::filesystem::path(path_).filename().string();
+  out << "<?xml version=\"1.0\" ?>\n<Xdmf Version=\"3.0\">\n<Domain>\n"
+      << "<Grid Name=\"particles\" GridType=\"Collection\" CollectionType=\"Temporal\">\n";
+  for (std::size_t k = 0; k < snapshot_times_.size(); ++k) {
+    const std::size_t n = snapshot_sizes_[k];
+    const std::string base = h5 + ":/particles/" + snapshot_name(k);
+    out << "<Grid Name=\"step" << k << "\" GridType=\"Uniform\">\n"
+        << "  <Time Value=\"" << snapshot_times_[k] << "\"/>\n"
+        << "  <Topology TopologyType=\"Polyvertex\" NumberOfElements=\"" << n << "\"/>\n"
+        << "  <Geometry GeometryType=\"XYZ\"><DataItem Dimensions=\"" << n
+        << " 3\" NumberType=\"Float\" Precision=\"8\" Format=\"HDF\">" << base
+        << "/position</DataItem></Geometry>\n"
+        << "  <Attribute Name=\"velocity\" AttributeType=\"Vector\" Center=\"Node\"><DataItem "
+        << "Dimensions=\"" << n << " 3\" NumberType=\"Float\" Precision=\"8\" Format=\"HDF\">"
+        << base << "/velocity</DataItem></Attribute>\n"
+        << "  <Attribute Name=\"radius\" AttributeType=\"Scalar\" Center=\"Node\"><DataItem "
+        << "Dimensions=\"" << n << "\" NumberType=\"Float\" Precision=\"8\" Format=\"HDF\">" << base
+        << "/radius</DataItem></Attribute>\n"
+        << "  <Attribute Name=\"id\" AttributeType=\"Scalar\" Center=\"Node\"><DataItem "
+        << "Dimensions=\"" << n << "\" NumberType=\"Int\" Precision=\"8\" Format=\"HDF\">" << base
+        << "/id</DataItem></Attribute>\n</Grid>\n";
+  }
+  out << "</Grid>\n</Domain>\n</Xdmf>\n";
+}
+
+}  // namespace dem
