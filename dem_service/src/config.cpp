@@ -367,7 +367,7 @@ RunConfig load_config(const YAML::Node& root, const std::string& base_dir) {
   // particles
   const YAML::Node parts = root["particles"];
   if (!parts) throw ConfigError("particles: missing (give fill, list or checkpoint)");
-  cfg::check_keys(parts, "particles", {"fill", "list", "checkpoint"});
+  cfg::check_keys(parts, "particles", {"fill", "list", "checkpoint", "keep_time"});
   if (parts["checkpoint"]) {
     const std::string file = resolve(base_dir, cfg::get_string(parts, "particles", "checkpoint"));
     try {
@@ -375,6 +375,9 @@ RunConfig load_config(const YAML::Node& root, const std::string& base_dir) {
     } catch (const std::exception& e) {
       throw ConfigError(std::string("particles.checkpoint: ") + e.what());
     }
+    // A prepared bed starts a new scene at t = 0 (tool keyframes count from there); keep the
+    // checkpoint's time only to continue the same run.
+    if (!cfg::get_bool_or(parts, "particles", "keep_time", false)) rc.state.step = 0;
   }
   if (const YAML::Node f = parts["fill"]) {
     for (std::size_t i = 0; i < f.size(); ++i) {

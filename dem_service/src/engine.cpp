@@ -6,6 +6,8 @@
 #include <chrono>
 #include <cmath>
 #include <sstream>
+#include <cstdio>
+#include <cstdlib>
 
 #include "dem/contact_law.hpp"
 #include "dem/mesh_contact.hpp"

@@ -1,0 +1,131 @@
+// Throughput benchmark (not a test): particle-steps per second on a settled bed at several
+// sizes, thread counts and broad-phase intervals. Scene parameters follow the LAMMPS anchor
+// in facts.md: monodisperse r = 5 mm, k = 2e5 N/m, e = 0.3, mu = 0.5, dt = 1e-5 s, skin 0.5 r.
+//
+//   dem_bench [--sizes 10000,50000,150000] [--steps 200] [--cache DIR]
+//
+// Settled beds are cached as checkpoints in DIR (default results/bench_dem) so later runs
+// skip the settling.
+#include <omp.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "dem/bed.hpp"
+#include "dem/checkpoint.hpp"
+#include "dem/config.hpp"
+#include "dem/engine.hpp"
+#include "dem/stability.hpp"
+
+namespace {
+
+constexpr double kR = 0.005;
+
+dem::Scene bench_scene(long n, int threads, int interval) {
+  dem::Scene s;
+  dem::Species sp;
+  sp.name = "grain";
+  sp.density = 2500;
+  sp.radius.min = sp.radius.max = kR;
+  s.species.push_back(sp);
+  dem::ContactLaw law;
+  law.stiffness_per_length = false;
+  law.normal_stiffness = 2e5;
+  law.restitution = 0.3;
+  law.tangential_stiffness_ratio = 2.0 / 7.0;  // LAMMPS gran/hooke/history: kt = 2/7 kn
+  law.tangential_damping_ratio = 0.5;          // LAMMPS default gamma_t = gamma_n / 2
+  law.friction = 0.5;
+  dem::finalize(law, "bench");
+  s.particle_particle = s.particle_wall = law;
+  s.dt = 1e-5;
+  s.skin = 0.5;
+  s.threads = threads;
+  s.broad_phase_interval = interval;
+  s.stability.min_steps_per_contact = 15;
+  // Square box whose footprint holds about 40 layers of the bed.
+  const double side = std::sqrt(static_cast<double>(n) / 40.0) * 2 * kR * 1.02 + 2 * kR;
+  s.walls = {{"floor", {0, 0, 0}, {0, 0, 1}},
+             {"x0", {0, 0, 0}, {1, 0, 0}},
+             {"x1", {side, 0, 0}, {-1, 0, 0}},
+             {"y0", {0, 0, 0}, {0, 1, 0}},
+             {"y1", {0, side, 0}, {0, -1, 0}}};
+  return s;
+}
+
+dem::State settled_bed(long n, const std::string& cache) {
+  const std::string file = cache + "/bed_" + std::to_string(n) + ".h5";
+  if (std::filesystem::exists(file)) return dem::load_checkpoint(file);
+  dem::Scene scene = bench_scene(n, omp_get_max_threads(), 5);
+  dem::State st;
+  dem::FillRegion r;
+  const double side = scene.walls[2].point.x;
+  r.min = {0, 0, 0};
+  r.max = {side, side, 10.0};
+  r.count = n;
+  r.seed = 42;
+  dem::fill_region(scene, r, st);
+  dem::Engine engine(scene);
+  std::fprintf(stderr, "settling %ld particles (cached in %s) ...\n", n, file.c_str());
+  const auto res = dem::settle(engine, st, 1e-7, 0.4, [&](const dem::SettleResult& p) {
+    if (st.step % 5000 == 0)
+      std::fprintf(stderr, "  t = %.3f s  KE/particle %.3g J\n", p.time, p.ke_per_particle);
+  });
+  std::fprintf(stderr, "  settled: %.3f s, KE/particle %.3g J\n", res.time, res.ke_per_particle);
+  std::filesystem::create_directories(cache);
+  dem::save_checkpoint(st, file);
+  return st;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::vector<long> sizes{10000, 50000, 150000};
+  int steps = 200;
+  std::string cache = "results/bench_dem";
+  for (int a = 1; a < argc; ++a) {
+    const std::string arg = argv[a];
+    if (arg == "--sizes" && a + 1 < argc) {
+      sizes.clear();
+      std::stringstream ss(argv[++a]);
+      std::string item;
+      while (std::getline(ss, item, ',')) sizes.push_back(std::stol(item));
+    } else if (arg == "--steps" && a + 1 < argc) {
+      steps = std::stoi(argv[++a]);
+    } else if (arg == "--cache" && a + 1 < argc) {
+      cache = argv[++a];
+    } else {
+      std::fprintf(stderr, "usage: dem_bench [--sizes 10000,50000,150000] [--steps 200] "
+                           "[--cache DIR]\n");
+      return 2;
+    }
+  }
+  std::printf("%10s %8s %9s %14s %12s %10s %8s\n", "particles", "threads", "interval",
+              "part-steps/s", "ns/part-step", "contacts", "early");
+  for (long n : sizes) {
+    const dem::State bed = settled_bed(n, cache);
+    for (int interval : {1, 5})
+      for (int threads : {1, 2}) {
+        dem::Scene scene = bench_scene(n, threads, interval);
+        dem::State st = bed;
+        st.lists_valid = false;  // lists are rebuilt for this thread count
+        dem::Engine engine(scene);
+        for (int k = 0; k < 20; ++k) engine.step(st);  // warm-up: lists, caches, buffers
+        const long long early0 = st.early_rebuilds;
+        const auto t0 = std::chrono::steady_clock::now();
+        for (int k = 0; k < steps; ++k) engine.step(st);
+        const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        const double rate = static_cast<double>(n) * steps / wall;
+        std::printf("%10ld %8d %9d %14.4g %12.1f %10zu %8lld\n", n, threads, interval, rate,
+                    1e9 * threads / rate, engine.particle_contacts(st).size(),
+                    static_cast<long long>(st.early_rebuilds - early0));
+        std::fflush(stdout);
+      }
+  }
+  return 0;
+}
