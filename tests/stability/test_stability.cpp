@@ -1,0 +1,244 @@
+// Tests of cosim_stability_lib: the step map's spectral radius against a prototype of the same
+// definitions, against a direct iteration of the map and an independent RK4 step, the critical
+// macro steps, and the small-H limit exp(-alpha H).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+#include <stdexcept>
+#include <vector>
+
+#include "stability.hpp"
+
+namespace {
+
+using namespace cosim::stability;
+
+struct Reference {
+  Scheme scheme;
+  int kq, kf;
+  double H, rho;
+};
+
+// rho(H) printed to 6 decimals by an independent prototype of the same scheme definitions.
+TEST(StabilitySpectralRadius, MatchesPrototypeNumbers) {
+  const OscParams p;
+  const Reference refs[] = {
+      {Scheme::Jacobi, 0, 0, 1e-2, 1.035474},      {Scheme::Jacobi, 0, 0, 2e-3, 1.000300},
+      {Scheme::Jacobi, 0, 0, 1e-3, 1.000025},      {Scheme::Jacobi, 0, 0, 5e-4, 0.999981},
+      {Scheme::Jacobi, 1, 0, 1e-2, 1.013869},      {Scheme::Jacobi, 1, 0, 2e-3, 0.999800},
+      {Scheme::GaussSeidel, 0, 0, 1e-3, 1.000025}, {Scheme::GaussSeidel, 0, 0, 5e-4, 0.999981},
+      {Scheme::GaussSeidel, 1, 0, 1e-2, 1.003699}, {Scheme::Jacobi, 1, 1, 1e-2, 0.998985},
+      {Scheme::Jacobi, 2, 2, 1e-2, 0.998985},
+  };
+  for (const auto& r : refs) {
+    SCOPED_TRACE(std::string(scheme_name(r.scheme)) + " kq=" + std::to_string(r.kq) +
+                 " kf=" + std::to_string(r.kf) + " H=" + std::to_string(r.H));
+    EXPECT_NEAR(spectral_radius(p, r.scheme, r.kq, r.kf, 0, 0, r.H), r.rho, 2e-6);
+  }
+}
+
+// The envelope (max over a window) of a sampled signal.
+double envelope(const std::vector<double>& signal, std::size_t from, std::size_t to) {
+  double m = 0.0;
+  for (std::size_t i = from; i < to; ++i) m = std::max(m, std::abs(signal[i]));
+  return m;
+}
+
+// Iterates z_{n+1} = phi z_n from x(0) = (0.1, 0, 0, 0) and measures the growth of x1. Only the
+// second half is compared: the stiff out-of-phase mode (decay ~2.1 1/s) is gone by then, and what
+// is left is the lightly damped in-phase mode (omega ~ 3.16 rad/s), which is also the mode the
+// coupling error destabilises. At the start x1 = 0.1 is split between both modes, so comparing
+// against the first window would mix them.
+void check_iterated_growth(double H, bool expect_growth) {
+  const OscParams p;
+  const Predictors pr{0, 0, 0, 0};
+  const StepMap map = step_map(p, Scheme::Jacobi, pr, H);
+  Eigen::VectorXd z = initial_extended_state(p, Scheme::Jacobi, pr, Eigen::Vector4d(0.1, 0, 0, 0));
+  const std::size_t steps = 20000;
+  std::vector<double> x1{z(0)};
+  for (std::size_t n = 0; n < steps; ++n) {
+    z = map.phi * z;
+    x1.push_back(z(0));
+  }
+  // Windows a little longer than one period of the in-phase mode (2 pi / 3.16 ~ 2 s).
+  const auto window = static_cast<std::size_t>(std::ceil(2.2 / H));
+  ASSERT_LT(window, steps / 2);
+  const double mid = envelope(x1, steps / 2 - window, steps / 2 + 1);
+  const double last = envelope(x1, steps - window, steps + 1);
+  if (expect_growth)
+    EXPECT_GT(last, mid) << "amplitude should grow at H = " << H;
+  else
+    EXPECT_LT(last, mid) << "amplitude should decay at H = " << H;
+
+  const double observed = std::log(last / mid) / static_cast<double>(steps / 2);
+  const double predicted = std::log(spectral_radius(p, Scheme::Jacobi, 0, 0, 0, 0, H));
+  EXPECT_NEAR(observed, predicted, 0.1 * std::abs(predicted))
+      << "growth per step over the last half at H = " << H;
+}
+
+TEST(StabilityIteratedMap, JacobiGrowsAbove1ms) { check_iterated_growth(1e-3, true); }
+TEST(StabilityIteratedMap, JacobiDecaysAt500us) { check_iterated_growth(5e-4, false); }
+
+TEST(StabilityCriticalStep, BracketsAndSignChange) {
+  const OscParams p;
+  struct Case {
+    int kq, kf;
+    double lo, hi;
+  };
+  for (const Case c : {Case{0, 0, 5e-4, 1e-3}, Case{1, 0, 2e-3, 1e-2}}) {
+    SCOPED_TRACE("jacobi kq=" + std::to_string(c.kq) + " kf=" + std::to_string(c.kf));
+    const auto hc = critical_macro_step(p, Scheme::Jacobi, c.kq, c.kf);
+    ASSERT_TRUE(hc.has_value());
+    EXPECT_GT(*hc, c.lo);
+    EXPECT_LT(*hc, c.hi);
+    EXPECT_LT(spectral_radius(p, Scheme::Jacobi, c.kq, c.kf, 0, 0, 0.98 * *hc), 1.0);
+    EXPECT_GT(spectral_radius(p, Scheme::Jacobi, c.kq, c.kf, 0, 0, 1.02 * *hc), 1.0);
+  }
+}
+
+// As H -> 0 the co-simulation error vanishes and rho tends to the exact decay exp(-alpha H).
+TEST(StabilitySmallStep, TendsToMonolithicDecay) {
+  const OscParams p;
+  const double alpha = slowest_decay_rate(p);
+  // The in-phase mode of the symmetric oscillator decays at d / (2 m) = 0.1 1/s.
+  EXPECT_NEAR(alpha, 0.1, 1e-12);
+  const double H = 1e-5;
+  const double exact = std::exp(-alpha * H);
+  for (Scheme s : {Scheme::Jacobi, Scheme::GaussSeidel})
+    for (const auto& [kq, kf] : std::vector<std::pair<int, int>>{{0, 0}, {1, 0}, {1, 1}, {3, 3}}) {
+      SCOPED_TRACE(std::string(scheme_name(s)) + " kq=" + std::to_string(kq) +
+                   " kf=" + std::to_string(kf));
+      EXPECT_NEAR(spectral_radius(p, s, kq, kf, 0, 0, H) / exact, 1.0, 1e-7);
+    }
+}
+
+// Without coupling the halves are integrated exactly and rho(H) is exp(-alpha H) at any H.
+TEST(StabilitySmallStep, UncoupledIsExact) {
+  OscParams p;
+  set_param(p, "cc", 0.0);
+  set_param(p, "dc", 0.0);
+  set_param(p, "d2", 0.6);  // mass2 decays faster, so alpha is mass1's 0.1 1/s
+  for (double H : {1e-3, 1e-2, 1e-1})
+    for (Scheme s : {Scheme::Jacobi, Scheme::GaussSeidel})
+      EXPECT_NEAR(spectral_radius_minus_one(p, s, 2, 1, 0, 0, H), std::expm1(-0.1 * H), 1e-14)
+          << scheme_name(s) << " H=" << H;
+}
+
+// ---- One macro step against an independent RK4 integration of both halves ----
+
+// Coefficients of the degree-k polynomial through (least squares for more samples) (s_i, y_i).
+Eigen::VectorXd fit(const std::vector<double>& s, const std::vector<double>& y, int k) {
+  Eigen::MatrixXd V(s.size(), k + 1);
+  Eigen::VectorXd Y(s.size());
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    for (int j = 0; j <= k; ++j) V(i, j) = std::pow(s[i], j);
+    Y(i) = y[i];
+  }
+  return V.householderQr().solve(Y);
+}
+
+double eval(const Eigen::VectorXd& w, double sigma) {
+  double v = 0.0;
+  for (int j = static_cast<int>(w.size()) - 1; j >= 0; --j) v = v * sigma + w(j);
+  return v;
+}
+
+// RK4 on m x'' = -c x - d x' + f(sigma) over sigma in [0, 1] (t = sigma H).
+template <class Force>
+Eigen::Vector2d rk4(Eigen::Vector2d y, double m, double c, double d, double H, Force f) {
+  const int n = 2000;
+  const double h = H / n;
+  const auto rhs = [&](const Eigen::Vector2d& q, double t) {
+    return Eigen::Vector2d(q(1), (-c * q(0) - d * q(1) + f(t / H)) / m);
+  };
+  for (int i = 0; i < n; ++i) {
+    const double t = i * h;
+    const Eigen::Vector2d k1 = rhs(y, t), k2 = rhs(y + 0.5 * h * k1, t + 0.5 * h),
+                          k3 = rhs(y + 0.5 * h * k2, t + 0.5 * h), k4 = rhs(y + h * k3, t + h);
+    y += h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
+  }
+  return y;
+}
+
+// The scheme written out step by step from the definitions, on a random extended state.
+Eigen::VectorXd direct_step(const OscParams& p, Scheme scheme, const Predictors& pr, double H,
+                            const Eigen::VectorXd& z) {
+  const Layout L = layout(scheme, pr);
+  const int mq = pr.samples_q(), mf = pr.samples_f();
+  std::vector<double> sf, F;
+  for (int i = 0; i < mf; ++i) {
+    sf.push_back(-i);
+    F.push_back(z(L.f_hist() + i));
+  }
+  const Eigen::VectorXd wF = fit(sf, F, pr.kf);
+  const Eigen::Vector2d y1 =
+      rk4(z.segment<2>(0), p.m1, p.c1, p.d1, H, [&](double s) { return eval(wF, s); });
+  std::vector<double> sq, xs, vs;
+  const bool gs = scheme == Scheme::GaussSeidel;
+  if (gs) {
+    sq.push_back(1);
+    xs.push_back(y1(0));
+    vs.push_back(y1(1));
+  }
+  sq.push_back(0);
+  xs.push_back(z(0));
+  vs.push_back(z(1));
+  for (int h = 0; static_cast<int>(sq.size()) < mq; ++h) {
+    sq.push_back(-1 - h);
+    xs.push_back(z(L.x1_hist() + h));
+    vs.push_back(z(L.v1_hist() + h));
+  }
+  sq.resize(mq);
+  xs.resize(mq);
+  vs.resize(mq);
+  const Eigen::VectorXd wx = fit(sq, xs, pr.kq), wv = fit(sq, vs, pr.kq);
+  // Coupling spring/damper folded into mass2's own stiffness/damping; the input part is the force.
+  const Eigen::Vector2d y2 = rk4(z.segment<2>(2), p.m2, p.c2 + p.cc, p.d2 + p.dc, H,
+                                 [&](double s) { return p.cc * eval(wx, s) + p.dc * eval(wv, s); });
+  const double F_new = -(p.cc * (eval(wx, 1) - y2(0)) + p.dc * (eval(wv, 1) - y2(1)));
+
+  Eigen::VectorXd out(z.size());
+  out << y1, y2, Eigen::VectorXd::Zero(z.size() - 4);
+  for (int h = 0; h < L.hq; ++h) {
+    out(L.x1_hist() + h) = h == 0 ? z(0) : z(L.x1_hist() + h - 1);
+    out(L.v1_hist() + h) = h == 0 ? z(1) : z(L.v1_hist() + h - 1);
+  }
+  for (int h = 0; h < L.hf; ++h) out(L.f_hist() + h) = h == 0 ? F_new : z(L.f_hist() + h - 1);
+  return out;
+}
+
+TEST(StabilityStepMap, MatchesDirectRk4Step) {
+  const OscParams p;
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  const Predictors cases[] = {{0, 0, 0, 0}, {1, 0, 0, 0}, {2, 1, 0, 0}, {3, 3, 0, 0},
+                              {1, 1, 4, 3}, {2, 0, 5, 2}};  // the last two: least-squares fits
+  for (Scheme s : {Scheme::Jacobi, Scheme::GaussSeidel})
+    for (const auto& pr : cases) {
+      SCOPED_TRACE(std::string(scheme_name(s)) + " kq=" + std::to_string(pr.kq) +
+                   " kf=" + std::to_string(pr.kf) + " mq=" + std::to_string(pr.samples_q()) +
+                   " mf=" + std::to_string(pr.samples_f()));
+      const double H = 2e-3;
+      const StepMap map = step_map(p, s, pr, H);
+      Eigen::VectorXd z(map.layout.size());
+      for (int i = 0; i < z.size(); ++i) z(i) = u(rng);
+      z.tail(map.layout.hf) *= 100.0;  // forces in newtons are larger than positions in metres
+      const Eigen::VectorXd expected = direct_step(p, s, pr, H, z);
+      EXPECT_LT((map.phi * z - expected).cwiseAbs().maxCoeff(), 1e-9);
+      EXPECT_LT((map.phi_minus_identity * z - (expected - z)).cwiseAbs().maxCoeff(), 1e-9);
+    }
+}
+
+TEST(StabilityArguments, RejectsWhatTheMasterCannotRun) {
+  const OscParams p;
+  EXPECT_THROW(spectral_radius(p, Scheme::Jacobi, 4, 0, 0, 0, 1e-3), std::invalid_argument);
+  EXPECT_THROW(spectral_radius(p, Scheme::Jacobi, 2, 0, 2, 0, 1e-3), std::invalid_argument);
+  EXPECT_THROW(spectral_radius(p, Scheme::Jacobi, 0, 0, 0, 0, 0.0), std::invalid_argument);
+  OscParams bad;
+  EXPECT_THROW(set_param(bad, "k1", 1.0), std::invalid_argument);
+  set_param(bad, "m2", 0.0);
+  EXPECT_THROW(spectral_radius(bad, Scheme::Jacobi, 0, 0, 0, 0, 1e-3), std::invalid_argument);
+}
+
+}  // namespace
