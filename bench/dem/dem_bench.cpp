@@ -49,7 +49,7 @@ dem::Scene bench_scene(long n, int threads, int interval) {
   s.broad_phase_interval = interval;
   s.stability.min_steps_per_contact = 15;
   // Square box whose footprint holds about 40 layers of the bed.
-  const double side = std::sqrt(static_cast<double>(n) / 40.0) * 2 * kR * 1.02 + 2 * kR;
+  const double side = std::sqrt(static_cast<double>(n) / 40.0) * 2 * kR * 1.15 + 2 * kR;
   s.walls = {{"floor", {0, 0, 0}, {0, 0, 1}},
              {"x0", {0, 0, 0}, {1, 0, 0}},
              {"x1", {side, 0, 0}, {-1, 0, 0}},

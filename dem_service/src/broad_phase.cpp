@@ -14,6 +14,7 @@ template <class T>
 void BroadPhase::permute(std::vector<T>& a, std::vector<T>& scratch, std::size_t width) {
   const std::size_t n = order_.size();
   scratch.resize(a.size());
+#pragma omp parallel for schedule(static) num_threads(threads_)
   for (std::size_t p = 0; p < n; ++p) {
     const std::size_t o = static_cast<std::size_t>(order_[p]);
     for (std::size_t k = 0; k < width; ++k) scratch[p * width + k] = a[o * width + k];
@@ -24,6 +25,7 @@ void BroadPhase::permute(std::vector<T>& a, std::vector<T>& scratch, std::size_t
 void BroadPhase::build(const Scene& scene, State& s,
                        const std::vector<std::vector<Vec3>>& tool_vertices, int threads) {
   const std::size_t n = s.size();
+  threads_ = std::max(1, threads);
   const double skin = scene.skin_distance();
   const double rmax = scene.r_max();
 
@@ -202,7 +204,9 @@ void BroadPhase::build(const Scene& scene, State& s,
     s.tri_index[k] = c.tri;
   }
 
-  s.x_at_rebuild = s.x;
+  s.x_at_rebuild.resize(n);
+#pragma omp parallel for schedule(static) num_threads(threads_)
+  for (std::size_t i = 0; i < n; ++i) s.x_at_rebuild[i] = s.x[i];
   s.tool_pose_at_rebuild = s.tool_pose;
   s.max_displacement = 0;
   s.steps_since_rebuild = 0;

@@ -170,7 +170,9 @@ double sample_radius(const Species& sp, std::uint64_t& rng) {
 void fill_region(const Scene& scene, const FillRegion& region, State& s) {
   const Species& sp = scene.species[region.species];
   const double rmax = std::max(sp.radius.max, sp.radius.min);
-  const double pitch = 2 * rmax * 1.02;  // 2 % slack for jitter: never overlapping
+  // 15 % slack: the jitter is large enough that settling columns collapse into a random
+  // packing instead of staying stacked, and neighbours can never overlap.
+  const double pitch = 2 * rmax * 1.15;
   const Vec3 lo = region.min + Vec3{rmax, rmax, rmax}, hi = region.max - Vec3{rmax, rmax, rmax};
   const long nx = static_cast<long>(std::floor((hi.x - lo.x) / pitch)) + 1;
   const long ny = static_cast<long>(std::floor((hi.y - lo.y) / pitch)) + 1;
@@ -206,7 +208,7 @@ void fill_region(const Scene& scene, const FillRegion& region, State& s) {
       const Vec3 jitter{slack * (2 * uniform() - 1), slack * (2 * uniform() - 1),
                         slack * (2 * uniform() - 1)};
       const double mass = sp.density * 4.0 / 3.0 * M_PI * r * r * r;
-      add_particle(s, centre + 0.5 * jitter, {}, r, mass, region.species, next_id++);
+      add_particle(s, centre + 0.999 * jitter, {}, r, mass, region.species, next_id++);
       ++placed;
     }
   }

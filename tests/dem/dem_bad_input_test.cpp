@@ -52,9 +52,9 @@ void expect_has(const std::string& msg, const std::string& part) {
   EXPECT_NE(msg.find(part), std::string::npos) << "message: '" << msg << "' lacks '" << part << "'";
 }
 
-TEST(BadInput, BaseConfigIsAccepted) { EXPECT_EQ(error_of({}), ""); }
+TEST(dem_BadInput, BaseConfigIsAccepted) { EXPECT_EQ(error_of({}), ""); }
 
-TEST(BadInput, UnknownKeysNamed) {
+TEST(dem_BadInput, UnknownKeysNamed) {
   const auto msg = error_of({"scene.time_step=1e-5"});
   expect_has(msg, "scene");
   expect_has(msg, "time_step");
@@ -62,7 +62,7 @@ TEST(BadInput, UnknownKeysNamed) {
   expect_has(error_of({"contact.particle_particle.stifness=3"}), "stifness");
 }
 
-TEST(BadInput, ZeroOrNegativeRadius) {
+TEST(dem_BadInput, ZeroOrNegativeRadius) {
   expect_has(error_of({"species[0]=x"}), "");  // malformed override must not crash
   expect_has(error_of({"particles.list=[{species: grain, position: [0,0,0], radius: 0}]"}),
              "particles.list[0].radius");
@@ -78,7 +78,7 @@ TEST(BadInput, ZeroOrNegativeRadius) {
   }
 }
 
-TEST(BadInput, DtAboveSafeLimitNamesTheSafeDt) {
+TEST(dem_BadInput, DtAboveSafeLimitNamesTheSafeDt) {
   const auto msg = error_of({"scene.dt=1e-4"});
   expect_has(msg, "scene.dt = 0.0001");
   expect_has(msg, "Use scene.dt <=");
@@ -102,7 +102,7 @@ TEST(BadInput, DtAboveSafeLimitNamesTheSafeDt) {
   EXPECT_NE(error_of({dt_set(safe * 1.001)}), "");
 }
 
-TEST(BadInput, OverlappingInitialParticles) {
+TEST(dem_BadInput, OverlappingInitialParticles) {
   const auto msg = error_of(
       {"particles.list=[{species: grain, position: [0,0,0]}, {species: grain, position: [0.009,0,0]}]"});
   expect_has(msg, "overlap");
@@ -113,7 +113,7 @@ TEST(BadInput, OverlappingInitialParticles) {
             "");
 }
 
-TEST(BadInput, MissingAndCorruptMesh) {
+TEST(dem_BadInput, MissingAndCorruptMesh) {
   auto msg = error_of({"tools=[{name: blade, mesh: no_such_blade.stl}]"});
   expect_has(msg, "tools[0].mesh");
   expect_has(msg, "no_such_blade.stl");
@@ -135,7 +135,7 @@ TEST(BadInput, MissingAndCorruptMesh) {
   expect_has(msg, "empty.obj");
 }
 
-TEST(BadInput, BadValuesNameTheKey) {
+TEST(dem_BadInput, BadValuesNameTheKey) {
   expect_has(error_of({"scene.broad_phase_interval=0"}), "scene.broad_phase_interval");
   expect_has(error_of({"scene.guard=sometimes"}), "scene.guard");
   expect_has(error_of({"contact.particle_particle.restitution=1.5"}),

@@ -93,7 +93,7 @@ std::set<std::tuple<std::int64_t, int, std::uint64_t>> brute_mesh(const dem::Sce
   return out;
 }
 
-TEST(BroadPhase, MatchesBruteForceForSeveralIntervalsAndSkins) {
+TEST(dem_BroadPhase, MatchesBruteForceForSeveralIntervalsAndSkins) {
   for (int n : {1, 5, 20})
     for (double skin : {0.1, 0.4, 1.0}) {
       auto [scene, st] = random_scene(n, skin, 11 + n, 0.3);
@@ -124,20 +124,22 @@ TEST(BroadPhase, MatchesBruteForceForSeveralIntervalsAndSkins) {
     }
 }
 
-TEST(BroadPhase, GuardRebuildsEarlyWhenIntervalIsTooLong) {
+TEST(dem_BroadPhase, GuardRebuildsEarlyWhenIntervalIsTooLong) {
   auto [scene, st] = random_scene(1000, 0.1, 3, 1.0);
   dem::Engine engine(scene);
   for (int k = 0; k < 400; ++k) {
     st.tool_pose[0] = scene.tools[0].motion.evaluate(st.step * scene.dt);
     engine.prepare(st);
-    if (k % 10 == 0) ASSERT_EQ(engine.particle_contacts(st), brute_pairs(st)) << k;
+    if (k % 10 == 0) {
+      ASSERT_EQ(engine.particle_contacts(st), brute_pairs(st)) << k;
+    }
     engine.step(st);
   }
   EXPECT_GT(st.early_rebuilds, 5);
   EXPECT_EQ(st.rebuilds, st.early_rebuilds + 1);  // only the first one was due
 }
 
-TEST(BroadPhase, StrictGuardThrowsNamingIntervalAndSkin) {
+TEST(dem_BroadPhase, StrictGuardThrowsNamingIntervalAndSkin) {
   auto [scene, st] = random_scene(1000, 0.1, 3, 1.0);
   scene.guard = dem::GuardMode::strict;
   dem::Engine engine(scene);

@@ -32,7 +32,7 @@ std::pair<dem::Scene, dem::State> scene_with_tool(int threads) {
   dem::State st;
   dem::FillRegion r;
   r.min = {0, 0, 0};
-  r.max = {0.1, 0.1, 0.06};
+  r.max = {0.1, 0.1, 0.1};
   r.count = 250;
   r.seed = 5;
   dem::fill_region(scene, r, st);
@@ -52,7 +52,7 @@ bool same(const std::vector<T>& a, const std::vector<T>& b) {
   return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(T)) == 0;
 }
 
-TEST(Checkpoint, RestoreAndContinueIsBitIdentical) {
+TEST(dem_Checkpoint, RestoreAndContinueIsBitIdentical) {
   for (int threads : {1, 2}) {
     auto [scene, a] = scene_with_tool(threads);
     dem::Engine ea(scene);
@@ -83,7 +83,7 @@ TEST(Checkpoint, RestoreAndContinueIsBitIdentical) {
   }
 }
 
-TEST(Checkpoint, MissingOrForeignFileIsRefused) {
+TEST(dem_Checkpoint, MissingOrForeignFileIsRefused) {
   try {
     dem::load_checkpoint("/nonexistent/bed.h5");
     FAIL();

@@ -98,9 +98,9 @@ void check(const Impact& got, const Expected& want, const char* what) {
               want.e, 100 * (got.e / want.e - 1), got.tc, want.tc, 100 * (got.tc / want.tc - 1));
 }
 
-class Impacts : public ::testing::TestWithParam<std::tuple<bool, double>> {};
+class dem_Impacts : public ::testing::TestWithParam<std::tuple<bool, double>> {};
 
-TEST_P(Impacts, SphereSphereMatchesClosedForm) {
+TEST_P(dem_Impacts, SphereSphereMatchesClosedForm) {
   const auto [clip, e] = GetParam();
   dem::Scene scene = one_species_scene(kR, kR);
   // Pa mode: k = k_N * r r / (r + r) = k_N r / 2.
@@ -123,7 +123,7 @@ TEST_P(Impacts, SphereSphereMatchesClosedForm) {
   check(run_impact(scene, st, gap, vn), want, clip ? "sphere-sphere clipped" : "sphere-sphere");
 }
 
-TEST_P(Impacts, SpherePlaneMatchesClosedForm) {
+TEST_P(dem_Impacts, SpherePlaneMatchesClosedForm) {
   const auto [clip, e] = GetParam();
   dem::Scene scene = one_species_scene(kR, kR);
   scene.particle_particle = scene.particle_wall = law_n_per_m(2e4, e, clip);
@@ -169,7 +169,7 @@ dem::Tool target_mesh(Target t) {
   return static_tool("target", c);
 }
 
-TEST_P(Impacts, SphereMeshFaceEdgeVertexMatchClosedForm) {
+TEST_P(dem_Impacts, SphereMeshFaceEdgeVertexMatchClosedForm) {
   const auto [clip, e] = GetParam();
   for (Target target : {Target::face, Target::face_on_diagonal, Target::edge, Target::vertex}) {
     dem::Scene scene = one_species_scene(kR, kR);
@@ -191,11 +191,11 @@ TEST_P(Impacts, SphereMeshFaceEdgeVertexMatchClosedForm) {
   }
 }
 
-INSTANTIATE_TEST_SUITE_P(ClipAndRestitution, Impacts,
+INSTANTIATE_TEST_SUITE_P(dem_ClipAndRestitution, dem_Impacts,
                          ::testing::Values(std::make_tuple(false, 0.5), std::make_tuple(false, 0.2),
                                            std::make_tuple(true, 0.5), std::make_tuple(true, 0.2)));
 
-TEST(ContactLaw, ClippedRestitutionExceedsTheFormula) {
+TEST(dem_ContactLaw, ClippedRestitutionExceedsTheFormula) {
   // facts.md: nominal 0.5 gives about 0.55, 0.2 about 0.33 once the pull is clipped.
   const double m = 1, k = 1e4;
   for (auto [e, lo, hi] : {std::tuple{0.5, 0.53, 0.57}, std::tuple{0.2, 0.31, 0.35}}) {
@@ -206,7 +206,7 @@ TEST(ContactLaw, ClippedRestitutionExceedsTheFormula) {
   }
 }
 
-TEST(ContactLaw, CoulombCapResetsTheSpring) {
+TEST(dem_ContactLaw, CoulombCapResetsTheSpring) {
   dem::ContactLaw law = law_n_per_m(1000, 0.5, true, 0.5, 1.0, 0.0);
   const auto c = dem::coefficients(law, 0.01, 0.01);
   Vec3 spring{0.5, 0, 0};  // far beyond the cap

@@ -15,7 +15,7 @@ constexpr double kR = 0.01;
 // theta is the angle between the incoming velocity and the surface NORMAL, so
 // tan(theta) = v_t / v_n (35 deg is steep, 85 deg grazing). With sliding throughout the tangential impulse is mu times the
 // normal impulse m v_n (1 + e), hence v_t,out / v_t,in = 1 - mu (1 + e) / tan(theta).
-TEST(Friction, ObliqueImpactSlidingThroughout) {
+TEST(dem_Friction, ObliqueImpactSlidingThroughout) {
   const double mu = 0.3, speed = 1.0;
   for (double deg = 35; deg <= 85.01; deg += 10) {
     const double th = deg * M_PI / 180;
@@ -87,7 +87,7 @@ InclineResult incline(double theta, double mu, bool mesh) {
   return {(v3 - v1) / (t3 - t1), dot(st.x[0], down) - s2};
 }
 
-TEST(Friction, InclineRestsWhileTanBelowMuElseSlides) {
+TEST(dem_Friction, InclineRestsWhileTanBelowMuElseSlides) {
   const double mu = 0.4, g = 9.81;
   for (bool mesh : {false, true}) {
     for (double tan_ratio : {0.5, 0.95, 1.2, 2.0}) {

@@ -112,7 +112,7 @@ std::vector<Vec3> fan(double slope_deg, int sides) {
   return c;
 }
 
-TEST(MeshContact, RidgeAndVertexFanGiveOneContinuousContact) {
+TEST(dem_MeshContact, RidgeAndVertexFanGiveOneContinuousContact) {
   const double h = 0.8 * kR;  // centre height above the ridge/apex: 20 % overlap there
   struct Case {
     const char* name;
@@ -144,7 +144,7 @@ TEST(MeshContact, RidgeAndVertexFanGiveOneContinuousContact) {
   }
 }
 
-TEST(MeshContact, ClosestFeatureClassification) {
+TEST(dem_MeshContact, ClosestFeatureClassification) {
   const std::vector<Vec3> c = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
   const dem::Mesh mesh = dem::build_mesh(c, "tri");
   const Vec3* wv = mesh.vertices.data();

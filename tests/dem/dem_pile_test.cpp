@@ -81,10 +81,10 @@ void check_pile(bool mesh_floor) {
   EXPECT_LT(moved, 1e-6 * kR);
 }
 
-TEST(Pile, PlaneFloorCarriesTheWeightAndDoesNotCreep) { check_pile(false); }
-TEST(Pile, MeshFloorCarriesTheWeightAndDoesNotCreep) { check_pile(true); }
+TEST(dem_Pile, PlaneFloorCarriesTheWeightAndDoesNotCreep) { check_pile(false); }
+TEST(dem_Pile, MeshFloorCarriesTheWeightAndDoesNotCreep) { check_pile(true); }
 
-TEST(Pile, SameThreadCountIsBitIdentical) {
+TEST(dem_Pile, SameThreadCountIsBitIdentical) {
   for (int threads : {1, 2}) {
     Pile a = make_pile(true, threads), b = make_pile(true, threads);
     dem::Engine ea(a.scene), eb(b.scene);

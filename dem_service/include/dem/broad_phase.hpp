@@ -36,6 +36,7 @@ class BroadPhase {
   };
   std::vector<TriCandidate> tri_candidates_;
   std::vector<std::int32_t> tri_count_;
+  int threads_ = 1;
 
   template <class T>
   void permute(std::vector<T>& a, std::vector<T>& scratch, std::size_t width);
