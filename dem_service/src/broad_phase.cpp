@@ -204,6 +204,21 @@ void BroadPhase::build(const Scene& scene, State& s,
     s.tri_index[k] = c.tri;
   }
 
+  // Wall candidates: most particles are far from every wall and skip the wall loop.
+  s.wall_mask.resize(n);
+  const std::size_t nw = scene.walls.size();
+#pragma omp parallel for schedule(static) num_threads(threads_)
+  for (std::size_t i = 0; i < n; ++i) {
+    std::uint32_t mask = 0;
+    if (nw > 32) {
+      mask = ~0u;
+    } else {
+      for (std::size_t w = 0; w < nw; ++w)
+        if (dot(s.x[i] - scene.walls[w].point, scene.walls[w].normal) < s.radius[i] + skin)
+          mask |= 1u << w;
+    }
+    s.wall_mask[i] = mask;
+  }
   s.x_at_rebuild.resize(n);
 #pragma omp parallel for schedule(static) num_threads(threads_)
   for (std::size_t i = 0; i < n; ++i) s.x_at_rebuild[i] = s.x[i];

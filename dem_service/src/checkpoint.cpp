@@ -54,6 +54,7 @@ void save_checkpoint(const State& s, const std::string& path) {
   h5::write(file, "tri_offset", s.tri_offset);
   h5::write(file, "tri_tool", s.tri_tool);
   h5::write(file, "tri_index", s.tri_index);
+  h5::write(file, "wall_mask", s.wall_mask);
   h5::write(file, "slot_key", s.slot_key);
   h5::write(file, "slot_spring", s.slot_spring);
   h5::write(file, "slot_count", s.slot_count);
@@ -93,6 +94,11 @@ State load_checkpoint(const std::string& path) {
     s.tri_offset = h5::read<std::int32_t>(file, "tri_offset");
     s.tri_tool = h5::read<std::int32_t>(file, "tri_tool");
     s.tri_index = h5::read<std::int32_t>(file, "tri_index");
+    // Older checkpoints lack wall masks: the first step then rebuilds the lists.
+    if (H5Lexists(file, "wall_mask", H5P_DEFAULT) > 0)
+      s.wall_mask = h5::read<std::uint32_t>(file, "wall_mask");
+    else
+      s.lists_valid = false;
     s.slot_key = h5::read<std::uint64_t>(file, "slot_key");
     s.slot_spring = h5::read_vec3(file, "slot_spring");
     s.slot_count = h5::read<std::uint8_t>(file, "slot_count");

@@ -43,7 +43,9 @@ int gather_boundary(const Scene& scene, const State& s, std::size_t i,
   const double r = s.radius[i];
   const double speed = norm(s.u[i]);
   int nc = 0;
+  const std::uint32_t mask = s.wall_mask[i];
   for (std::size_t w = 0; w < scene.walls.size(); ++w) {
+    if (w < 32 && !(mask & (1u << w))) continue;
     const Wall& wall = scene.walls[w];
     const double gap = dot(xi - wall.point, wall.normal);
     if (gap < r + 0.5 * dt * speed) {
@@ -273,6 +275,9 @@ void Engine::boundary_forces(State& s) {
     std::int64_t my_overflow = -1;
     const std::size_t a0 = n * t / T, a1 = n * (t + 1) / T;
     for (std::size_t i = a0; i < a1; ++i) {
+      // Nothing near and nothing remembered: the common case in a bed's interior.
+      if (s.wall_mask[i] == 0 && s.tri_offset[i] == s.tri_offset[i + 1] && s.slot_count[i] == 0)
+        continue;
       const int nc = gather_boundary(scene_, s, i, tool_vertices_, cs, hits, dt);
       if (nc < 0) {
         if (my_overflow < 0) my_overflow = static_cast<std::int64_t>(i);

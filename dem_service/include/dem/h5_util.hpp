@@ -40,6 +40,8 @@ template <>
 inline hid_t type_of<std::uint64_t>() { return H5T_NATIVE_UINT64; }
 template <>
 inline hid_t type_of<std::uint8_t>() { return H5T_NATIVE_UINT8; }
+template <>
+inline hid_t type_of<std::uint32_t>() { return H5T_NATIVE_UINT32; }
 
 // Writes rows x cols values as a 2-D dataset (1-D when cols == 0).
 void write(hid_t loc, const std::string& name, hid_t type, const void* data, std::size_t rows,

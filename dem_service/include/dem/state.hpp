@@ -52,6 +52,8 @@ struct State {
   std::vector<Vec3> pair_spring;
   // Particle-triangle candidates in CSR form: tool index and triangle index.
   std::vector<std::int32_t> tri_offset, tri_tool, tri_index;
+  // Walls within r + skin at the last broad phase, one bit per wall (all bits if > 32 walls).
+  std::vector<std::uint32_t> wall_mask;
   // Boundary contact history: kBoundarySlots per particle.
   std::vector<std::uint64_t> slot_key;
   std::vector<Vec3> slot_spring;
