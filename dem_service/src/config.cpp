@@ -173,7 +173,9 @@ void fill_region(const Scene& scene, const FillRegion& region, State& s) {
   // 15 % slack: the jitter is large enough that settling columns collapse into a random
   // packing instead of staying stacked, and neighbours can never overlap.
   const double pitch = 2 * rmax * 1.15;
-  const Vec3 lo = region.min + Vec3{rmax, rmax, rmax}, hi = region.max - Vec3{rmax, rmax, rmax};
+  // Half a pitch from the region's faces: a jittered particle stays inside the region.
+  const double e = pitch / 2;
+  const Vec3 lo = region.min + Vec3{e, e, e}, hi = region.max - Vec3{e, e, e};
   const long nx = static_cast<long>(std::floor((hi.x - lo.x) / pitch)) + 1;
   const long ny = static_cast<long>(std::floor((hi.y - lo.y) / pitch)) + 1;
   const long nz = static_cast<long>(std::floor((hi.z - lo.z) / pitch)) + 1;
