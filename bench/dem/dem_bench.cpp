@@ -27,6 +27,17 @@ namespace {
 
 constexpr double kR = 0.005;
 
+constexpr long kTile = 10000;  // larger beds are tiles of the settled 10k bed
+
+// Footprint of one 10k tile (about 40 layers high once filled) and the tiling of n particles.
+double tile_side() { return std::sqrt(static_cast<double>(kTile) / 40.0) * 2 * kR * 1.15 + 2 * kR; }
+std::pair<long, long> tiling(long n) {
+  const long k = std::max(1L, n / kTile);
+  long nx = static_cast<long>(std::sqrt(static_cast<double>(k)));
+  while (k % nx) --nx;
+  return {nx, k / nx};
+}
+
 dem::Scene bench_scene(long n, int threads, int interval) {
   dem::Scene s;
   dem::Species sp;
@@ -48,13 +59,13 @@ dem::Scene bench_scene(long n, int threads, int interval) {
   s.threads = threads;
   s.broad_phase_interval = interval;
   s.stability.min_steps_per_contact = 15;
-  // Square box whose footprint holds about 40 layers of the bed.
-  const double side = std::sqrt(static_cast<double>(n) / 40.0) * 2 * kR * 1.15 + 2 * kR;
+  const auto [tx, ty] = tiling(n);
+  const double sx = tx * tile_side(), sy = ty * tile_side();
   s.walls = {{"floor", {0, 0, 0}, {0, 0, 1}},
              {"x0", {0, 0, 0}, {1, 0, 0}},
-             {"x1", {side, 0, 0}, {-1, 0, 0}},
+             {"x1", {sx, 0, 0}, {-1, 0, 0}},
              {"y0", {0, 0, 0}, {0, 1, 0}},
-             {"y1", {0, side, 0}, {0, -1, 0}}};
+             {"y1", {0, sy, 0}, {0, -1, 0}}};
   return s;
 }
 
@@ -62,17 +73,34 @@ dem::State settled_bed(long n, const std::string& cache) {
   const std::string file = cache + "/bed_" + std::to_string(n) + ".h5";
   if (std::filesystem::exists(file)) return dem::load_checkpoint(file);
   dem::Scene scene = bench_scene(n, omp_get_max_threads(), 5);
+  // Settle without friction: with friction and no rotation, spheres that land on each other
+  // stay stacked in columns (2 contacts each); frictionless they pack densely.
+  scene.particle_particle.friction = scene.particle_wall.friction = 0;
   dem::State st;
-  dem::FillRegion r;
-  const double side = scene.walls[2].point.x;
-  r.min = {0, 0, 0};
-  r.max = {side, side, 10.0};
-  r.count = n;
-  r.seed = 42;
-  dem::fill_region(scene, r, st);
+  double max_time = 0.4;
+  if (n > kTile && n % kTile == 0) {
+    // Settling 150k from scratch takes most of an hour on 2 cores: place copies of the settled
+    // 10k bed side by side (their walls coincide, so nothing overlaps) and let the seams relax.
+    const dem::State tile = settled_bed(kTile, cache);
+    const auto [tx, ty] = tiling(n);
+    std::int64_t id = 0;
+    for (long a = 0; a < tx; ++a)
+      for (long b = 0; b < ty; ++b)
+        for (std::size_t i = 0; i < tile.size(); ++i)
+          dem::add_particle(st, tile.x[i] + dem::Vec3{a * tile_side(), b * tile_side(), 0}, {},
+                            tile.radius[i], tile.mass[i], 0, id++);
+    max_time = 0.05;
+  } else {
+    dem::FillRegion r;
+    r.min = {0, 0, 0};
+    r.max = {scene.walls[2].point.x, scene.walls[4].point.y, 10.0};
+    r.count = n;
+    r.seed = 42;
+    dem::fill_region(scene, r, st);
+  }
   dem::Engine engine(scene);
   std::fprintf(stderr, "settling %ld particles (cached in %s) ...\n", n, file.c_str());
-  const auto res = dem::settle(engine, st, 1e-7, 0.4, [&](const dem::SettleResult& p) {
+  const auto res = dem::settle(engine, st, 1e-7, max_time, [&](const dem::SettleResult& p) {
     if (st.step % 5000 == 0)
       std::fprintf(stderr, "  t = %.3f s  KE/particle %.3g J\n", p.time, p.ke_per_particle);
   });

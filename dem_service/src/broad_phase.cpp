@@ -113,8 +113,12 @@ void BroadPhase::build(const Scene& scene, State& s,
   {
     const int t = omp_get_thread_num();
     const std::size_t a0 = n * t / T, a1 = n * (t + 1) / T;
-    auto& J = thread_j_[t];
-    auto& S = thread_spring_[t];
+    // Work on local vectors: the vector headers of neighbouring threads share a cache line,
+    // and push_back on them directly would bounce it between cores.
+    std::vector<std::int32_t> J;
+    std::vector<Vec3> S;
+    J.swap(thread_j_[t]);
+    S.swap(thread_spring_[t]);
     J.clear();
     S.clear();
     for (std::size_t a = a0; a < a1; ++a) {
@@ -147,6 +151,8 @@ void BroadPhase::build(const Scene& scene, State& s,
       }
       s.pair_offset[a + 1] = count;
     }
+    J.swap(thread_j_[t]);
+    S.swap(thread_spring_[t]);
   }
   for (std::size_t a = 0; a < n; ++a) s.pair_offset[a + 1] += s.pair_offset[a];
   s.pair_j.resize(s.pair_offset[n]);

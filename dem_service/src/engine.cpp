@@ -6,8 +6,6 @@
 #include <chrono>
 #include <cmath>
 #include <sstream>
-#include <cstdio>
-#include <cstdlib>
 
 #include "dem/contact_law.hpp"
 #include "dem/mesh_contact.hpp"
@@ -214,7 +212,8 @@ void Engine::pair_forces(State& s) {
   {
     const int t = omp_get_thread_num();
     const std::size_t a0 = n * t / T, a1 = n * (t + 1) / T;
-    auto& remote = remote_[t];
+    std::vector<Remote> remote;  // local for the loop (no false sharing), capacity kept
+    remote.swap(remote_[t]);
     remote.clear();
     for (std::size_t i = a0; i < a1; ++i) force_[i] = s.mass[i] * g;
     for (std::size_t i = a0; i < a1; ++i) {
@@ -250,6 +249,7 @@ void Engine::pair_forces(State& s) {
       }
       force_[i] += fi;
     }
+    remote.swap(remote_[t]);
   }
   for (int t = 0; t < T; ++t)
     for (const Remote& r : remote_[t]) force_[r.j] -= r.f;
