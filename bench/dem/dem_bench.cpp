@@ -133,8 +133,9 @@ int main(int argc, char** argv) {
       return 2;
     }
   }
-  std::printf("%10s %8s %9s %14s %12s %10s %8s\n", "particles", "threads", "interval",
-              "part-steps/s", "ns/part-step", "contacts", "early");
+  std::printf("%10s %8s %9s %14s %12s %10s %8s   wall ns per particle-step:\n", "particles",
+              "threads", "interval", "part-steps/s", "core-ns/p-s", "contacts", "early");
+  std::printf("%76s broad  pair  wall  integ\n", "");
   for (long n : sizes) {
     const dem::State bed = settled_bed(n, cache);
     for (int interval : {1, 5})
@@ -145,13 +146,18 @@ int main(int argc, char** argv) {
         dem::Engine engine(scene);
         for (int k = 0; k < 20; ++k) engine.step(st);  // warm-up: lists, caches, buffers
         const long long early0 = st.early_rebuilds;
+        engine.timing() = dem::Timing{};
         const auto t0 = std::chrono::steady_clock::now();
         for (int k = 0; k < steps; ++k) engine.step(st);
         const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
         const double rate = static_cast<double>(n) * steps / wall;
-        std::printf("%10ld %8d %9d %14.4g %12.1f %10zu %8lld\n", n, threads, interval, rate,
-                    1e9 * threads / rate, engine.particle_contacts(st).size(),
-                    static_cast<long long>(st.early_rebuilds - early0));
+        const dem::Timing& t = engine.timing();
+        const double per = 1e9 / (static_cast<double>(n) * steps);  // ns per particle-step
+        std::printf("%10ld %8d %9d %14.4g %12.1f %10zu %8lld   %5.1f %5.1f %5.1f %5.1f\n", n,
+                    threads, interval, rate, 1e9 * threads / rate,
+                    engine.particle_contacts(st).size(),
+                    static_cast<long long>(st.early_rebuilds - early0), t.broad_phase * per,
+                    t.pair_forces * per, t.mesh_contacts * per, t.integration * per);
         std::fflush(stdout);
       }
   }

