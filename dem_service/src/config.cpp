@@ -230,7 +230,7 @@ RunConfig load_config(const YAML::Node& root, const std::string& base_dir) {
   const YAML::Node s = root["scene"];
   if (!s) throw ConfigError("scene: missing (expected a map with dt, gravity, ...)");
   cfg::check_keys(s, "scene", {"dt", "gravity", "broad_phase_interval", "skin", "guard", "threads",
-                               "stability"});
+                               "min_particles_per_thread", "stability"});
   sc.dt = cfg::get_positive(s, "scene", "dt");
   if (s["gravity"]) sc.gravity = vec3(s, "scene", "gravity");
   sc.broad_phase_interval = static_cast<int>(cfg::get_int_or(s, "scene", "broad_phase_interval", 5));
@@ -243,6 +243,10 @@ RunConfig load_config(const YAML::Node& root, const std::string& base_dir) {
                  : GuardMode::rebuild;
   sc.threads = static_cast<int>(cfg::get_int_or(s, "scene", "threads", 1));
   if (sc.threads < 1) throw ConfigError("scene.threads: must be >= 1");
+  sc.min_particles_per_thread =
+      static_cast<int>(cfg::get_int_or(s, "scene", "min_particles_per_thread", 2000));
+  if (sc.min_particles_per_thread < 1)
+    throw ConfigError("scene.min_particles_per_thread: must be >= 1 (1 = always use scene.threads)");
   if (const YAML::Node st = s["stability"]) {
     cfg::check_keys(st, "scene.stability",
                     {"min_steps_per_contact", "on_violation", "max_speed", "overlap_tolerance"});

@@ -106,10 +106,10 @@ bool shares_vertex(const Scene& scene, std::uint64_t a, std::uint64_t b) {
 }  // namespace
 
 Engine::Engine(const Scene& scene) : scene_(scene) {
-  threads_ = std::max(1, scene.threads);
-  remote_.resize(threads_);
-  thread_tool_wrench_.assign(threads_, std::vector<Wrench>(scene.tools.size()));
-  thread_wall_force_.assign(threads_, std::vector<Vec3>(scene.walls.size()));
+  max_threads_ = threads_ = std::max(1, scene.threads);
+  remote_.resize(max_threads_);
+  thread_tool_wrench_.assign(max_threads_, std::vector<Wrench>(scene.tools.size()));
+  thread_wall_force_.assign(max_threads_, std::vector<Vec3>(scene.walls.size()));
   tool_wrench_.resize(scene.tools.size());
   wall_force_.resize(scene.walls.size());
   tool_vertices_.resize(scene.tools.size());
@@ -150,13 +150,21 @@ bool Engine::guard_fires(const State& s, double* moved) const {
 }
 
 void Engine::rebuild(State& s) {
+  choose_threads(s);
   const auto t0 = Clock::now();
   update_tool_geometry(s);
   broad_.build(scene_, s, tool_vertices_, threads_);
   timing_.broad_phase += seconds_since(t0);
 }
 
+void Engine::choose_threads(const State& s) {
+  const long per = std::max(1, scene_.min_particles_per_thread);
+  const long cap = std::max(1L, static_cast<long>(s.size()) / per);
+  threads_ = static_cast<int>(std::min<long>(max_threads_, cap));
+}
+
 void Engine::prepare(State& s) {
+  choose_threads(s);
   auto t0 = Clock::now();
   update_tool_geometry(s);
   timing_.mesh_contacts += seconds_since(t0);

@@ -24,6 +24,7 @@ std::pair<dem::Scene, State> random_scene(int n_interval, double skin, unsigned 
   scene.broad_phase_interval = n_interval;
   scene.skin = skin;
   scene.threads = 2;
+  scene.min_particles_per_thread = 1;
   scene.particle_particle = scene.particle_wall = law_n_per_m(50, 0.5, true, 0.3);
   const double L = 0.02;
   scene.walls = {{"x0", {0, 0, 0}, {1, 0, 0}}, {"x1", {L, 0, 0}, {-1, 0, 0}},

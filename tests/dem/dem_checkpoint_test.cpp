@@ -17,6 +17,7 @@ std::pair<dem::Scene, dem::State> scene_with_tool(int threads) {
   dem::Scene scene = one_species_scene(0.004, 0.006);
   scene.gravity = {0, 0, -9.81};
   scene.threads = threads;
+  scene.min_particles_per_thread = 1;  // 250 particles: force the requested thread count
   scene.particle_particle = scene.particle_wall = law_n_per_m(5e4, 0.3, true, 0.5, 0.5, 0.5);
   scene.walls = {{"floor", {0, 0, 0}, {0, 0, 1}}, {"x0", {0, 0, 0}, {1, 0, 0}},
                  {"x1", {0.1, 0, 0}, {-1, 0, 0}}, {"y0", {0, 0, 0}, {0, 1, 0}},

@@ -52,7 +52,7 @@ class Engine {
   const std::vector<Vec3>& wall_forces() const { return wall_force_; }  // on each wall
   Timing& timing() { return timing_; }
   const Timing& timing() const { return timing_; }
-  int threads() const { return threads_; }
+  int threads() const { return threads_; }  // threads of the last step
 
   // For tests and diagnostics: contacts with positive overlap found through the candidate
   // lists at the current positions (particle ids, i < j) and mesh contacts after feature
@@ -68,13 +68,15 @@ class Engine {
 
  private:
   void update_tool_geometry(const State& s);
+  void choose_threads(const State& s);
   bool guard_fires(const State& s, double* moved) const;
   void pair_forces(State& s);
   void boundary_forces(State& s);
   void integrate(State& s);
 
   const Scene& scene_;
-  int threads_ = 1;
+  int threads_ = 1;  // used by the current step: scene.threads capped by the scene size
+  int max_threads_ = 1;
   BroadPhase broad_;
   std::vector<Vec3> force_;
   std::vector<std::vector<Vec3>> tool_vertices_;  // world frame, current pose

@@ -72,6 +72,9 @@ struct Scene {
   double skin = 0.5;  // skin factor tau: candidate margin is skin * r_max
   GuardMode guard = GuardMode::rebuild;
   int threads = 1;
+  // Fewer particles per thread than this and the step uses fewer threads: for small scenes
+  // the barriers cost more than the work (and a lot more on a loaded machine).
+  int min_particles_per_thread = 2000;
   StabilityOptions stability;
   std::vector<Species> species;
   ContactLaw particle_particle;
