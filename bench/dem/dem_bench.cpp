@@ -2,7 +2,8 @@
 // sizes, thread counts and broad-phase intervals. Scene parameters follow the LAMMPS anchor
 // in facts.md: monodisperse r = 5 mm, k = 2e5 N/m, e = 0.3, mu = 0.5, dt = 1e-5 s, skin 0.5 r.
 //
-//   dem_bench [--sizes 10000,50000,150000] [--steps 200] [--cache DIR]
+//   dem_bench [--sizes 10000,50000,150000] [--threads 1,2] [--intervals 1,5] [--steps 200]
+//             [--cache DIR]
 //
 // Settled beds are cached as checkpoints in DIR (default results/bench_dem) so later runs
 // skip the settling.
@@ -114,6 +115,14 @@ dem::State settled_bed(long n, const std::string& cache) {
 
 int main(int argc, char** argv) {
   std::vector<long> sizes{10000, 50000, 150000};
+  std::vector<int> thread_counts{1, 2}, intervals{1, 5};
+  auto parse_ints = [](const char* text) {
+    std::vector<int> out;
+    std::stringstream ss(text);
+    std::string item;
+    while (std::getline(ss, item, ',')) out.push_back(std::stoi(item));
+    return out;
+  };
   int steps = 200;
   std::string cache = "results/bench_dem";
   for (int a = 1; a < argc; ++a) {
@@ -123,13 +132,17 @@ int main(int argc, char** argv) {
       std::stringstream ss(argv[++a]);
       std::string item;
       while (std::getline(ss, item, ',')) sizes.push_back(std::stol(item));
+    } else if (arg == "--threads" && a + 1 < argc) {
+      thread_counts = parse_ints(argv[++a]);
+    } else if (arg == "--intervals" && a + 1 < argc) {
+      intervals = parse_ints(argv[++a]);
     } else if (arg == "--steps" && a + 1 < argc) {
       steps = std::stoi(argv[++a]);
     } else if (arg == "--cache" && a + 1 < argc) {
       cache = argv[++a];
     } else {
-      std::fprintf(stderr, "usage: dem_bench [--sizes 10000,50000,150000] [--steps 200] "
-                           "[--cache DIR]\n");
+      std::fprintf(stderr, "usage: dem_bench [--sizes 10000,50000,150000] [--threads 1,2] "
+                           "[--intervals 1,5] [--steps 200] [--cache DIR]\n");
       return 2;
     }
   }
@@ -138,8 +151,8 @@ int main(int argc, char** argv) {
   std::printf("%76s broad  pair  wall  integ\n", "");
   for (long n : sizes) {
     const dem::State bed = settled_bed(n, cache);
-    for (int interval : {1, 5})
-      for (int threads : {1, 2}) {
+    for (int interval : intervals)
+      for (int threads : thread_counts) {
         dem::Scene scene = bench_scene(n, threads, interval);
         dem::State st = bed;
         st.lists_valid = false;  // lists are rebuilt for this thread count

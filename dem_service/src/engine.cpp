@@ -213,7 +213,7 @@ void Engine::pair_forces(State& s) {
   const std::size_t n = s.size();
   force_.resize(n);
   const int T = threads_;
-  const ContactLaw& law = scene_.particle_particle;
+  const ContactLaw law = scene_.particle_particle;  // a local copy: no reloads after stores
   const double dt = scene_.dt;
   const Vec3 g = scene_.gravity;
 #pragma omp parallel num_threads(T)
@@ -226,28 +226,39 @@ void Engine::pair_forces(State& s) {
     for (std::size_t i = a0; i < a1; ++i) force_[i] = s.mass[i] * g;
     ContactCoefficients c;
     double last_ri = -1, last_mi = -1, last_rj = -1, last_mj = -1;
+    // Raw pointers: the compiler cannot prove that writing a spring leaves the vectors'
+    // data pointers alone, and would reload them for every pair.
+    const Vec3* const X = s.x.data();
+    const Vec3* const U = s.u.data();
+    const double* const R = s.radius.data();
+    const double* const M = s.mass.data();
+    const std::int32_t* const off = s.pair_offset.data();
+    const std::int32_t* const J = s.pair_j.data();
+    Vec3* const spring = s.pair_spring.data();
+    Vec3* const F = force_.data();
     for (std::size_t i = a0; i < a1; ++i) {
-      const Vec3 xi = s.x[i], ui = s.u[i];
-      const double ri = s.radius[i], mi = s.mass[i];
+      const Vec3 xi = X[i], ui = U[i];
+      const double ri = R[i], mi = M[i];
       if (ri != last_ri || mi != last_mi) {
         last_ri = ri;
         last_mi = mi;
         last_rj = last_mj = -1;
       }
       Vec3 fi{};
-      for (std::int32_t k = s.pair_offset[i]; k < s.pair_offset[i + 1]; ++k) {
-        const std::int32_t j = s.pair_j[k];
-        const Vec3 d = xi - s.x[j];
-        const double rsum = ri + s.radius[j];
+      for (std::int32_t k = off[i]; k < off[i + 1]; ++k) {
+        const std::int32_t j = J[k];
+        const Vec3 d = xi - X[j];
+        const double rsum = ri + R[j];
         const double d2 = norm2(d);
-        const Vec3 urel = ui - s.u[j];
+        const Vec3 urel = ui - U[j];
         if (d2 >= rsum * rsum && surely_apart(d2, rsum, norm2(urel), dt)) {
-          s.pair_spring[k] = Vec3{};  // contact ended: history is forgotten
+          // Contact ended: history is forgotten (write only if there is something to clear).
+          if (spring[k].x != 0 || spring[k].y != 0 || spring[k].z != 0) spring[k] = Vec3{};
           continue;
         }
         const double dist = std::sqrt(d2);
         const Vec3 nrm = dist > 0 ? (1.0 / dist) * d : Vec3{0, 0, 1};
-        const double rj = s.radius[j], mj = s.mass[j];
+        const double rj = R[j], mj = M[j];
         // Monodisperse beds repeat the same pair: reuse the coefficients (saves a sqrt).
         if (rj != last_rj || mj != last_mj) {
           c = coefficients(law, ri * rj / rsum, mi * mj / (mi + mj));
@@ -255,19 +266,19 @@ void Engine::pair_forces(State& s) {
           last_mj = mj;
         }
         Vec3 f;
-        if (!contact_force(law, c, rsum - dist, nrm, urel, s.pair_spring[k], dt, f)) {
-          s.pair_spring[k] = Vec3{};
+        if (!contact_force(law, c, rsum - dist, nrm, urel, spring[k], dt, f)) {
+          spring[k] = Vec3{};
           continue;
         }
         fi += f;
         // Partner in this thread's range: write directly; otherwise defer, applied below in
         // fixed thread order so the sums do not depend on scheduling.
         if (static_cast<std::size_t>(j) < a1)
-          force_[j] -= f;
+          F[j] -= f;
         else
           remote.push_back({j, f});
       }
-      force_[i] += fi;
+      F[i] += fi;
     }
     remote.swap(remote_[t]);
   }
