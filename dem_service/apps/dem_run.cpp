@@ -32,7 +32,7 @@ void set_tool_poses(const dem::Scene& scene, dem::State& s) {
 }
 
 void print_timing(const dem::Engine& engine, const dem::State& s, double sim_time, long long steps,
-                  double wall) {
+                  double wall, long long rebuilds, long long early) {
   const dem::Timing& t = engine.timing();
   const double other = std::max(0.0, wall - t.broad_phase - t.pair_forces - t.mesh_contacts -
                                          t.integration - t.output);
@@ -51,8 +51,7 @@ void print_timing(const dem::Engine& engine, const dem::State& s, double sim_tim
   row("Other", other);
   std::printf("\nReal-time factor (wall / simulated): %.3g\n", sim_time > 0 ? wall / sim_time : 0.0);
   std::printf("Particle-steps/s: %.4g\n", wall > 0 ? static_cast<double>(s.size()) * steps / wall : 0.0);
-  std::printf("Broad phases: %lld (early rebuilds by the guard: %lld)\n",
-              static_cast<long long>(s.rebuilds), static_cast<long long>(s.early_rebuilds));
+  std::printf("Broad phases: %lld (early rebuilds by the guard: %lld)\n", rebuilds, early);
 }
 
 int run(int argc, char** argv) {
@@ -122,6 +121,7 @@ int run(int argc, char** argv) {
       rc.output.particles_every > 0 ? std::max(1LL, std::llround(rc.output.particles_every / scene.dt))
                                     : 0;
   const double t0 = s.step * scene.dt;
+  const long long rebuilds0 = s.rebuilds, early0 = s.early_rebuilds;
   const auto wall0 = Clock::now();
   auto last_progress = wall0;
   {
@@ -155,7 +155,8 @@ int run(int argc, char** argv) {
   out.write_summary(engine.timing(), s, s.step * scene.dt - t0);
   std::fprintf(stderr, "dem_run: wrote %s and %s\n", rc.output.file.c_str(),
                out.xdmf_path().c_str());
-  print_timing(engine, s, s.step * scene.dt - t0, steps, wall);
+  print_timing(engine, s, s.step * scene.dt - t0, steps, wall, s.rebuilds - rebuilds0,
+               s.early_rebuilds - early0);
   return 0;
 }
 
