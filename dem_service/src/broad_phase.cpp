@@ -101,6 +101,7 @@ void BroadPhase::build(const Scene& scene, State& s,
   // Half list (j > i), built per thread over contiguous ranges and joined in thread order.
   const int T = std::max(1, threads);
   thread_j_.resize(T);
+  thread_used_.assign(T, 0);
   s.pair_offset.assign(n + 1, 0);
 #pragma omp parallel num_threads(T)
   {
@@ -108,9 +109,12 @@ void BroadPhase::build(const Scene& scene, State& s,
     const std::size_t a0 = n * t / T, a1 = n * (t + 1) / T;
     // Work on local vectors: the vector headers of neighbouring threads share a cache line,
     // and push_back on them directly would bounce it between cores.
+    // J is used as a raw buffer: its first `used` entries are this thread's list.
     std::vector<std::int32_t> J;
     J.swap(thread_j_[t]);
-    J.clear();
+    std::size_t used = 0;
+    const Vec3* const X = s.x.data();
+    const double* const R = s.radius.data();
     for (std::size_t a = a0; a < a1; ++a) {
       const long c = cell_of_[a];
       const long cx = c % nx, cy = (c / nx) % ny, cz = c / (nx * ny);
@@ -129,17 +133,26 @@ void BroadPhase::build(const Scene& scene, State& s,
           const long row = (z * ny + y) * nx;
           const std::int32_t b0 = std::max<std::int32_t>(cell_start_[row + x0], a + 1);
           const std::int32_t b1 = cell_start_[row + x1 + 1];
+          if (b1 <= b0) continue;
+          // Branch-free append: write every candidate, advance only on a hit (a hit is
+          // rare enough that a branch would mispredict often).
+          const std::size_t need = used + static_cast<std::size_t>(b1 - b0);
+          if (need > J.size()) J.resize(std::max(need, 2 * J.size()));  // rare: grows once
+          std::int32_t* out = J.data() + used;
+          std::int32_t hits = 0;
           for (std::int32_t b = b0; b < b1; ++b) {
-            const double cut = ra + s.radius[b] + skin;
-            if (norm2(xa - s.x[b]) < cut * cut) {
-              J.push_back(b);
-              ++count;
-            }
+            const double cut = ra + R[b] + skin;
+            const Vec3 d = xa - X[b];
+            out[hits] = b;
+            hits += norm2(d) < cut * cut;
           }
+          used += static_cast<std::size_t>(hits);
+          count += hits;
         }
       }
       s.pair_offset[a + 1] = count;
     }
+    thread_used_[t] = used;
     J.swap(thread_j_[t]);
   }
   for (std::size_t a = 0; a < n; ++a) s.pair_offset[a + 1] += s.pair_offset[a];
@@ -148,8 +161,9 @@ void BroadPhase::build(const Scene& scene, State& s,
   {
     std::size_t pos = 0;
     for (int t = 0; t < T; ++t) {
-      std::copy(thread_j_[t].begin(), thread_j_[t].end(), s.pair_j.begin() + pos);
-      pos += thread_j_[t].size();
+      std::copy(thread_j_[t].begin(), thread_j_[t].begin() + thread_used_[t],
+                s.pair_j.begin() + pos);
+      pos += thread_used_[t];
     }
   }
 

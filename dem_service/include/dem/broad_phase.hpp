@@ -27,7 +27,7 @@ class BroadPhase {
   std::vector<std::uint64_t> scratch_key_;
   std::vector<std::uint8_t> scratch_u8_;
   std::vector<std::vector<std::int32_t>> thread_j_;
-  std::vector<std::int32_t> thread_count_;
+  std::vector<std::size_t> thread_used_;
   std::vector<std::int32_t> old_offset_, old_j_;
   std::vector<Vec3> old_spring_;
   struct TriCandidate {
