@@ -142,9 +142,7 @@ polynomial_set_t to_message(const Polynomials& polynomials) {
       }
     }
   }
-  m.n_scalars = static_cast<int32_t>(m.scalars.size());
-  m.n_kinematics = static_cast<int32_t>(m.kinematics.size());
-  m.n_wrenches = static_cast<int32_t>(m.wrenches.size());
+  set_counts(m);
   return m;
 }
 

@@ -100,9 +100,7 @@ signal_set_t to_message(const Signals& signals) {
       }
     }
   }
-  m.n_scalars = static_cast<int32_t>(m.scalars.size());
-  m.n_kinematics = static_cast<int32_t>(m.kinematics.size());
-  m.n_wrenches = static_cast<int32_t>(m.wrenches.size());
+  set_counts(m);
   return m;
 }
 

@@ -56,6 +56,15 @@ void require_valid_name(std::string_view name, const std::string& what);
 // quaternion to within 1e-6.
 void validate_value(SignalKind kind, const Value& value, const std::string& what);
 
+// LCM encodes arrays by their count fields: sets them from the vectors (a mismatch would read
+// out of bounds). For signal_set_t and polynomial_set_t alike.
+template <class Set>
+void set_counts(Set& m) {
+  m.n_scalars = static_cast<int32_t>(m.scalars.size());
+  m.n_kinematics = static_cast<int32_t>(m.kinematics.size());
+  m.n_wrenches = static_cast<int32_t>(m.wrenches.size());
+}
+
 signal_set_t to_message(const Signals& signals);
 // Validates every entry (names, duplicates, finiteness, unit quaternions).
 Signals from_message(const signal_set_t& message, const std::string& what);
