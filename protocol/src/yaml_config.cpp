@@ -49,6 +49,22 @@ YAML::Node load_file(const std::string& path) {
   }
 }
 
+void apply_overrides(YAML::Node& root, const YAML::Node& overrides, std::string_view what) {
+  if (!overrides || overrides.IsNull()) return;
+  if (!overrides.IsMap())
+    throw ConfigError(std::string(what) + ": expected a map of dotted.key: value overrides");
+  for (const auto& entry : overrides) {
+    const std::string key = entry.first.as<std::string>();
+    YAML::Emitter out;
+    out << YAML::Flow << entry.second;
+    try {
+      apply_override(root, key + "=" + out.c_str());
+    } catch (const ConfigError& e) {
+      throw ConfigError(std::string(what) + ": " + e.what());
+    }
+  }
+}
+
 void apply_override(YAML::Node& root, const std::string& assignment) {
   const auto eq = assignment.find('=');
   if (eq == std::string::npos || eq == 0)

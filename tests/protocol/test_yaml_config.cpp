@@ -19,6 +19,26 @@ TEST(YamlConfig, OverridesCreateAndReplaceNestedKeys) {
   EXPECT_THROW(apply_override(list, "l.2.o=5"), ConfigError);
 }
 
+TEST(YamlConfig, OverrideMapsAmendAConfigAndNameTheirSource) {
+  YAML::Node root = YAML::Load("contact: {k: 1, mu: 0.5}\nlist: [1, 2]\n");
+  apply_overrides(root, YAML::Load("{contact.k: 4.0e8, list: [3, 4, 5], new.x: {a: 1}}"),
+                  "participants.dem.parameters");
+  EXPECT_EQ(root["contact"]["k"].as<double>(), 4e8);
+  EXPECT_EQ(root["contact"]["mu"].as<double>(), 0.5);
+  EXPECT_EQ(root["list"].size(), 3u);
+  EXPECT_EQ(root["new"]["x"]["a"].as<int>(), 1);
+  apply_overrides(root, YAML::Node(), "empty");  // no parameters: nothing changes
+  EXPECT_EQ(root["contact"]["k"].as<double>(), 4e8);
+  try {
+    apply_overrides(root, YAML::Load("{contact.k.z: 1}"), "participants.dem.parameters");
+    FAIL() << "no error";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("participants.dem.parameters: --set contact.k.z"),
+              std::string::npos) << e.what();
+  }
+  EXPECT_THROW(apply_overrides(root, YAML::Load("[1, 2]"), "p"), ConfigError);
+}
+
 TEST(YamlConfig, UnknownKeysAreNamedWithTheAllowedOnes) {
   YAML::Node n = YAML::Load("mass: 1\nmas: 2\n");
   try {

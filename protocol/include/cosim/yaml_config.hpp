@@ -24,6 +24,11 @@ YAML::Node load_file(const std::string& path);
 // and maps work. Intermediate maps are created. A malformed assignment raises ConfigError.
 void apply_override(YAML::Node& root, const std::string& assignment);
 
+// Applies a map of overrides {"a.b.c": value, ...} as apply_override does for each entry, in
+// map order. How a participant's `parameters` from the master's config amend its own config
+// file. `what` names the map in errors (e.g. "participants.dem.parameters").
+void apply_overrides(YAML::Node& root, const YAML::Node& overrides, std::string_view what);
+
 // Raises ConfigError "<path>: unknown key 'k' (allowed: a, b, c)" for keys not in allowed,
 // and "<path>: expected a map" if node is not a map. path is the dotted path of node.
 void check_keys(const YAML::Node& node, std::string_view path,
