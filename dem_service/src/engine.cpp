@@ -109,6 +109,8 @@ Engine::Engine(const Scene& scene) : scene_(scene) {
   max_threads_ = threads_ = std::max(1, scene.threads);
   remote_.resize(max_threads_);
   thread_tool_wrench_.assign(max_threads_, std::vector<Wrench>(scene.tools.size()));
+  thread_stats_.assign(max_threads_, ContactStats{});
+  boundary_stats_.assign(max_threads_, ContactStats{});
   thread_wall_force_.assign(max_threads_, std::vector<Vec3>(scene.walls.size()));
   tool_wrench_.resize(scene.tools.size());
   wall_force_.resize(scene.walls.size());
@@ -203,6 +205,15 @@ void Engine::step(State& s) {
   boundary_forces(s);
   timing_.mesh_contacts += seconds_since(t0);
 
+  stats_ = ContactStats{};
+  for (int t = 0; t < threads_; ++t)
+    for (const ContactStats* c : {&thread_stats_[t], &boundary_stats_[t]}) {
+      stats_.particle_contacts += c->particle_contacts;
+      stats_.boundary_contacts += c->boundary_contacts;
+      stats_.max_overlap = std::max(stats_.max_overlap, c->max_overlap);
+      stats_.max_overlap_ratio = std::max(stats_.max_overlap_ratio, c->max_overlap_ratio);
+    }
+
   t0 = Clock::now();
   integrate(s);
   timing_.integration += seconds_since(t0);
@@ -220,6 +231,8 @@ void Engine::pair_forces(State& s) {
   {
     const int t = omp_get_thread_num();
     const std::size_t a0 = n * t / T, a1 = n * (t + 1) / T;
+    std::int64_t contacts = 0;
+    double max_overlap = 0, max_overlap_ratio = 0;
     std::vector<Remote> remote;  // local for the loop (no false sharing), capacity kept
     remote.swap(remote_[t]);
     remote.clear();
@@ -270,6 +283,10 @@ void Engine::pair_forces(State& s) {
           spring[k] = Vec3{};
           continue;
         }
+        ++contacts;
+        if (rsum - dist > max_overlap_ratio * std::min(ri, rj))
+          max_overlap_ratio = (rsum - dist) / std::min(ri, rj);
+        max_overlap = std::max(max_overlap, rsum - dist);
         fi += f;
         // Partner in this thread's range: write directly; otherwise defer, applied below in
         // fixed thread order so the sums do not depend on scheduling.
@@ -281,6 +298,7 @@ void Engine::pair_forces(State& s) {
       F[i] += fi;
     }
     remote.swap(remote_[t]);
+    thread_stats_[t] = ContactStats{contacts, 0, max_overlap, max_overlap_ratio};
   }
   for (int t = 0; t < T; ++t)
     for (const Remote& r : remote_[t]) force_[r.j] -= r.f;
@@ -292,6 +310,7 @@ void Engine::boundary_forces(State& s) {
   const ContactLaw& law = scene_.particle_wall;
   const double dt = scene_.dt;
   const std::size_t ntools = scene_.tools.size(), nwalls = scene_.walls.size();
+  std::fill(boundary_stats_.begin(), boundary_stats_.end(), ContactStats{});
   if (ntools == 0 && nwalls == 0) return;
   std::int64_t overflow = -1;
 #pragma omp parallel num_threads(T)
@@ -304,6 +323,7 @@ void Engine::boundary_forces(State& s) {
     BoundaryContact cs[kBoundarySlots];
     TriangleHit hits[kMaxHits];
     std::int64_t my_overflow = -1;
+    ContactStats my_stats;
     const std::size_t a0 = n * t / T, a1 = n * (t + 1) / T;
     for (std::size_t i = a0; i < a1; ++i) {
       // Nothing near and nothing remembered: the common case in a bed's interior.
@@ -351,6 +371,9 @@ void Engine::boundary_forces(State& s) {
         if (!contact_force(law, coef, cs[c].overlap, cs[c].normal, s.u[i] - cs[c].body_velocity,
                            spring[c], dt, f))
           continue;
+        ++my_stats.boundary_contacts;
+        my_stats.max_overlap = std::max(my_stats.max_overlap, cs[c].overlap);
+        my_stats.max_overlap_ratio = std::max(my_stats.max_overlap_ratio, cs[c].overlap / ri);
         fi += f;
         const std::uint32_t body = key_body(cs[c].key);
         if (key_kind(cs[c].key) == FeatureKind::wall) {
@@ -366,6 +389,7 @@ void Engine::boundary_forces(State& s) {
       s.slot_count[i] = static_cast<std::uint8_t>(active);
       force_[i] += fi;
     }
+    boundary_stats_[t] = my_stats;
 #pragma omp critical(dem_overflow)
     if (my_overflow >= 0 && (overflow < 0 || my_overflow < overflow)) overflow = my_overflow;
   }

@@ -219,3 +219,24 @@ TEST(dem_ContactLaw, CoulombCapResetsTheSpring) {
 }
 
 }  // namespace
+
+// The step's contact statistics (reported by the service per macro step) count the contacts
+// that carried a force and find the deepest overlap at the force time.
+TEST(dem_ContactLaw, StatisticsCountContactsAndTheDeepestOverlap) {
+  dem::Scene scene = one_species_scene(0.5 * kR, kR);
+  scene.particle_particle = scene.particle_wall = law_n_per_m(2e4, 0.5, true);
+  scene.walls.push_back({"floor", {0, 0, 0}, {0, 0, 1}});
+  scene.dt = 1e-6;
+  State st;
+  add(st, {0, 0, kR - 2e-4}, {}, kR);                    // 2e-4 into the floor
+  add(st, {2 * kR - 1e-4, 0, kR}, {}, kR);               // 1e-4 into the first sphere
+  add(st, {10 * kR, 0, 0.5 * kR - 3e-4}, {}, 0.5 * kR);  // small sphere, 3e-4 into the floor
+  add(st, {20 * kR, 0, 5 * kR}, {}, kR);                 // free
+  dem::Engine engine(scene);
+  engine.step(st);
+  const dem::ContactStats& c = engine.contact_stats();
+  EXPECT_EQ(c.particle_contacts, 1);
+  EXPECT_EQ(c.boundary_contacts, 2);
+  EXPECT_NEAR(c.max_overlap, 3e-4, 1e-12);
+  EXPECT_NEAR(c.max_overlap_ratio, 3e-4 / (0.5 * kR), 1e-9);
+}

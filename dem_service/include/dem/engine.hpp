@@ -25,6 +25,15 @@ struct Wrench {
   Vec3 torque;  // about the tool's reference point, ground frame
 };
 
+// What the last step's force evaluation saw: contacts that carried a force and the deepest
+// overlap, absolute and as a fraction of the smaller radius (a stiffness/dt sanity check).
+struct ContactStats {
+  std::int64_t particle_contacts = 0;
+  std::int64_t boundary_contacts = 0;  // walls and tool features
+  double max_overlap = 0;              // m
+  double max_overlap_ratio = 0;        // overlap / smaller radius
+};
+
 // Wall-clock seconds per stage, LAMMPS style.
 struct Timing {
   double broad_phase = 0;
@@ -50,6 +59,7 @@ class Engine {
   const Scene& scene() const { return scene_; }
   const std::vector<Wrench>& tool_wrenches() const { return tool_wrench_; }
   const std::vector<Vec3>& wall_forces() const { return wall_force_; }  // on each wall
+  const ContactStats& contact_stats() const { return stats_; }          // of the last step
   Timing& timing() { return timing_; }
   const Timing& timing() const { return timing_; }
   int threads() const { return threads_; }  // threads of the last step
@@ -88,6 +98,8 @@ class Engine {
   std::vector<std::vector<Remote>> remote_;              // per thread
   std::vector<std::vector<Wrench>> thread_tool_wrench_;  // per thread
   std::vector<std::vector<Vec3>> thread_wall_force_;     // per thread
+  std::vector<ContactStats> thread_stats_, boundary_stats_;  // per thread
+  ContactStats stats_;
   std::vector<Wrench> tool_wrench_;
   std::vector<Vec3> wall_force_;
   Timing timing_;
