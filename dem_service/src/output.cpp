@@ -96,6 +96,19 @@ void RunOutput::sample_wrenches(const State& s, const Engine& e, double time) {
     wall_rows_.push_back(time);
     for (const Vec3& f : e.wall_forces()) wall_rows_.insert(wall_rows_.end(), {f.x, f.y, f.z});
   }
+  ++buffered_;
+}
+
+void RunOutput::flush_if_older_than(double seconds) {
+  if (std::chrono::duration<double>(std::chrono::steady_clock::now() - last_flush_).count() >= seconds)
+    flush();
+}
+
+void RunOutput::discard_rows_after(std::size_t keep) {
+  if (keep >= buffered_) return;
+  for (auto& rows : tool_rows_) rows.resize(keep * kToolCols);
+  if (!scene_.walls.empty()) wall_rows_.resize(keep * (1 + 3 * scene_.walls.size()));
+  buffered_ = keep;
 }
 
 void RunOutput::flush() {
@@ -110,6 +123,8 @@ void RunOutput::flush() {
     h5::append_series(file_, "walls", wall_rows_.data(), wall_rows_.size() / cols, cols);
     wall_rows_.clear();
   }
+  buffered_ = 0;
+  last_flush_ = std::chrono::steady_clock::now();
   H5Fflush(file_, H5F_SCOPE_LOCAL);
   write_xdmf();
 }

@@ -1,5 +1,6 @@
 #include "config.hpp"
 
+#include <filesystem>
 #include <fstream>
 #include <set>
 #include <sstream>
@@ -227,6 +228,29 @@ Config parse_config(const YAML::Node& root, const std::string& source_text) {
   return c;
 }
 
+namespace {
+
+// Replaces ${config_dir} in every string under node (launch arguments and parameters name
+// files beside the config, wherever the master is started from).
+void substitute_config_dir(YAML::Node node, const std::string& dir) {
+  if (node.IsScalar()) {
+    std::string v = node.Scalar();
+    const std::string key = "${config_dir}";
+    bool changed = false;
+    for (auto at = v.find(key); at != std::string::npos; at = v.find(key, at + dir.size())) {
+      v.replace(at, key.size(), dir);
+      changed = true;
+    }
+    if (changed) node = v;
+  } else if (node.IsSequence()) {
+    for (std::size_t i = 0; i < node.size(); ++i) substitute_config_dir(node[i], dir);
+  } else if (node.IsMap()) {
+    for (auto it = node.begin(); it != node.end(); ++it) substitute_config_dir(it->second, dir);
+  }
+}
+
+}  // namespace
+
 Config load_config(const std::string& path, const std::vector<std::string>& overrides) {
   std::ifstream in(path);
   if (!in) throw ConfigError("cannot read config file '" + path + "': check the path");
@@ -234,6 +258,14 @@ Config load_config(const std::string& path, const std::vector<std::string>& over
   text << in.rdbuf();
   YAML::Node root = cfg::load_file(path);
   for (const auto& o : overrides) cfg::apply_override(root, o);
+  if (YAML::Node parts = root["participants"]; parts && parts.IsMap()) {
+    const std::string dir = std::filesystem::absolute(path).parent_path().lexically_normal().string();
+    for (auto it = parts.begin(); it != parts.end(); ++it)
+      if (it->second.IsMap()) {
+        if (YAML::Node l = it->second["launch"]) substitute_config_dir(l, dir);
+        if (YAML::Node p = it->second["parameters"]) substitute_config_dir(p, dir);
+      }
+  }
   return parse_config(root, text.str());
 }
 

@@ -134,6 +134,13 @@ Signals from_message(const signal_set_t& m, const std::string& what) {
 void check_against_ports(const Signals& signals, const Ports& ports, const std::string& what) {
   std::string declared;
   for (const auto& p : ports) declared += (declared.empty() ? "" : ", ") + p.name;
+  // Unknown names first: a misspelt or unknown tool explains the missing one too.
+  for (const auto& [name, s] : signals) {
+    bool known = false;
+    for (const auto& p : ports) known = known || p.name == name;
+    if (!known)
+      throw ProtocolError(what + ": '" + name + "' is not declared (declared: " + declared + ")");
+  }
   for (const auto& p : ports) {
     auto it = signals.find(p.name);
     if (it == signals.end()) throw ProtocolError(what + ": '" + p.name + "' is missing");
@@ -141,12 +148,6 @@ void check_against_ports(const Signals& signals, const Ports& ports, const std::
       throw ProtocolError(what + ": '" + p.name + "' is " +
                           std::string(kind_name(it->second.kind)) + ", declared " +
                           std::string(kind_name(p.kind)));
-  }
-  for (const auto& [name, s] : signals) {
-    bool known = false;
-    for (const auto& p : ports) known = known || p.name == name;
-    if (!known)
-      throw ProtocolError(what + ": '" + name + "' is not declared (declared: " + declared + ")");
   }
 }
 

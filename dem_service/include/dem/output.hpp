@@ -3,6 +3,8 @@
 // Layout in docs/dem.md.
 #pragma once
 
+#include <chrono>
+
 #include <memory>
 #include <string>
 #include <vector>
@@ -25,6 +27,12 @@ class RunOutput {
   // Buffers one sample of every tool's pose and wrench and every wall's force.
   void sample_wrenches(const State& s, const Engine& e, double time);
   void flush();  // appends buffered samples and rewrites the XDMF file
+  // flush() if the last one was longer ago than `seconds` of wall-clock time.
+  void flush_if_older_than(double seconds);
+  // Buffered (not yet flushed) wrench samples, and dropping those after the first `keep`
+  // (the samples of a macro step the co-simulation repeats).
+  std::size_t buffered_rows() const { return buffered_; }
+  void discard_rows_after(std::size_t keep);
   void write_summary(const Timing& t, const State& s, double sim_time);
 
   const std::string& xdmf_path() const { return xdmf_; }
@@ -38,6 +46,8 @@ class RunOutput {
   std::vector<std::size_t> snapshot_sizes_;
   std::vector<std::vector<double>> tool_rows_;  // per tool: t, F, M, position, quaternion
   std::vector<double> wall_rows_;               // t, then F of every wall
+  std::size_t buffered_ = 0;
+  std::chrono::steady_clock::time_point last_flush_ = std::chrono::steady_clock::now();
 };
 
 }  // namespace dem

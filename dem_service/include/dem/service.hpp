@@ -1,0 +1,80 @@
+// The DEM as a co-simulation participant (a cosim::Model): one kinematic input and one wrench
+// output per tool, macro steps run as whole numbers of DEM steps with the tool poses taken from
+// the master's input polynomials at every inner step, an in-memory snapshot for repeated steps,
+// and the service's own HDF5/XDMF output. The engine itself knows nothing of the bus.
+#pragma once
+
+#include <chrono>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "cosim/participant.hpp"
+#include "dem/config.hpp"
+#include "dem/engine.hpp"
+#include "dem/output.hpp"
+
+namespace dem {
+
+// The `service` section of the DEM config (docs/dem_service.md).
+struct ServiceOptions {
+  bool snapshot = true;         // copy the State at each macro step start (repeatable steps)
+  double checkpoint_every = 0;  // s of co-simulation time between HDF5 checkpoints; 0 = none
+  std::string checkpoint;       // checkpoint file (overwritten each time); "" = none
+  double report_every = 10;     // wall-clock seconds between progress lines on stderr
+};
+
+class ServiceModel final : public cosim::Model {
+ public:
+  // root: the DEM config (the dem_run schema plus `service`), after --set; base_dir resolves its
+  // relative paths. The config is checked here in full, so a bad file fails at start-up.
+  ServiceModel(YAML::Node root, std::string base_dir);
+  ~ServiceModel() override;
+
+  void configure(const YAML::Node& parameters, const cosim::RunInfo& run) override;
+  cosim::Ports inputs() const override;
+  cosim::Ports outputs() const override;
+  cosim::Ticks inner_step() const override { return inner_step_; }
+  cosim::Signals initial_outputs() override;
+  cosim::StepResult step(const cosim::StepInputs& in, bool want_average) override;
+  bool can_repeat() const override { return options_.snapshot; }
+  void save_snapshot() override;
+  void restore_snapshot() override;
+
+  // Ends the run: final particle snapshot, checkpoint, summary; prints the timing table.
+  // Safe to call more than once and without a configured session.
+  void finish(std::ostream& report);
+
+  // For tests.
+  const State& state() const { return rc_->state; }
+  const Scene& scene() const { return rc_->scene; }
+  const ServiceOptions& options() const { return options_; }
+
+ private:
+  void build(YAML::Node root, const std::string& what);
+  void set_tool_poses(const cosim::StepInputs& in, cosim::Ticks t);
+
+  YAML::Node root_;  // as loaded, before the master's parameters
+  std::string base_dir_;
+  std::unique_ptr<RunConfig> rc_;
+  std::unique_ptr<Engine> engine_;
+  std::unique_ptr<RunOutput> out_;
+  ServiceOptions options_;
+  cosim::Ticks inner_step_ = 0;
+  cosim::RunInfo run_;
+  cosim::Ticks particles_every_ = 0, wrenches_every_ = 0, checkpoint_every_ = 0;
+  cosim::Ticks next_particles_ = 0, next_checkpoint_ = 0, last_particles_ = -1;
+  std::optional<State> snapshot_;
+  std::size_t snapshot_rows_ = 0;
+  cosim::Ticks t_now_ = 0;
+  std::int64_t steps_done_ = 0;
+  double snapshot_seconds_ = 0;
+  bool finished_ = false;
+  std::chrono::steady_clock::time_point wall0_, last_report_;
+};
+
+// Pose of a tool from a kinematics value [p, q, v, w] (validated by the protocol).
+ToolPose tool_pose_from(const cosim::Value& v);
+
+}  // namespace dem

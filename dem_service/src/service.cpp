@@ -1,0 +1,307 @@
+#include "dem/service.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <iostream>
+#include <sstream>
+
+#include "cosim/yaml_config.hpp"
+#include "dem/checkpoint.hpp"
+#include "dem/stability.hpp"
+
+namespace dem {
+
+namespace cfg = cosim::config;
+using cosim::Ticks;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+double seconds_since(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+// Splits the `service` section off the DEM config and reads it.
+ServiceOptions read_service(YAML::Node& root) {
+  ServiceOptions o;
+  const YAML::Node n = root["service"];
+  if (n) {
+    cfg::check_keys(n, "service", {"snapshot", "checkpoint_every", "checkpoint", "report_every"});
+    o.snapshot = cfg::get_bool_or(n, "service", "snapshot", o.snapshot);
+    o.checkpoint_every = cfg::get_double_or(n, "service", "checkpoint_every", 0);
+    if (!(o.checkpoint_every >= 0))
+      throw cfg::ConfigError("service.checkpoint_every: must be >= 0 s (0 = no checkpoints)");
+    o.checkpoint = cfg::get_string_or(n, "service", "checkpoint", "");
+    if (o.checkpoint_every > 0 && o.checkpoint.empty())
+      throw cfg::ConfigError("service.checkpoint: missing; checkpoint_every needs a file to write");
+    o.report_every = cfg::get_positive_or(n, "service", "report_every", o.report_every);
+    root.remove("service");
+  }
+  if (const YAML::Node st = root["settle"]) {
+    throw cfg::ConfigError(
+        "settle: dem_service does not settle beds (the master would time out waiting); settle "
+        "with dem_run and load the result with particles.checkpoint");
+  }
+  return o;
+}
+
+std::string resolve(const std::string& base, const std::string& path) {
+  if (path.empty() || path[0] == '/' || base.empty()) return path;
+  return base + "/" + path;
+}
+
+Ticks every_ticks(double seconds, const std::string& key, Ticks inner) {
+  if (seconds <= 0) return 0;
+  const Ticks t = cosim::seconds_to_ticks(seconds, key);
+  return std::max(t, inner);
+}
+
+}  // namespace
+
+ToolPose tool_pose_from(const cosim::Value& v) {
+  ToolPose p;
+  p.position = {v[0], v[1], v[2]};
+  p.orientation = normalized(Quat{v[3], v[4], v[5], v[6]});
+  p.velocity = {v[7], v[8], v[9]};
+  p.angular_velocity = {v[10], v[11], v[12]};
+  return p;
+}
+
+ServiceModel::ServiceModel(YAML::Node root, std::string base_dir)
+    : root_(YAML::Clone(root)), base_dir_(std::move(base_dir)) {
+  build(YAML::Clone(root_), "config");  // fail at start-up, not when the master connects
+}
+
+ServiceModel::~ServiceModel() = default;
+
+void ServiceModel::build(YAML::Node root, const std::string& what) {
+  options_ = read_service(root);
+  auto rc = std::make_unique<RunConfig>(load_config(root, base_dir_));
+  if (rc->scene.tools.empty())
+    throw cfg::ConfigError(what + ": tools: the scene has no tool, so nothing couples to the "
+                                  "co-simulation; add a tool (docs/dem.md)");
+  std::ostringstream warn;
+  check_dt(rc->scene, warn);
+  if (!warn.str().empty()) std::cerr << "dem_service: " << warn.str();
+  validate_state(rc->scene, rc->state);
+  inner_step_ = cosim::seconds_to_ticks(rc->scene.dt, "scene.dt");
+  if (std::abs(cosim::to_seconds(inner_step_) - rc->scene.dt) > 1e-12 * rc->scene.dt)
+    throw cfg::ConfigError("scene.dt: " + std::to_string(rc->scene.dt) +
+                           " s is not a whole number of nanoseconds; the co-simulation counts "
+                           "time in ns, choose e.g. 1e-4 or 2.5e-5");
+  rc_ = std::move(rc);
+}
+
+void ServiceModel::configure(const YAML::Node& parameters, const cosim::RunInfo& run) {
+  YAML::Node root = YAML::Clone(root_);
+  cfg::apply_overrides(root, parameters, "participants." + run.participant + ".parameters");
+  build(root, "participants." + run.participant + ".parameters");
+  run_ = run;
+  const Scene& scene = rc_->scene;
+  engine_ = std::make_unique<Engine>(scene);
+  out_.reset();
+  finished_ = false;
+  const OutputOptions& o = rc_->output;
+  particles_every_ = every_ticks(o.particles_every, "output.particles_every", inner_step_);
+  wrenches_every_ = every_ticks(o.wrenches_every, "output.wrenches_every", inner_step_);
+  checkpoint_every_ = every_ticks(options_.checkpoint_every, "service.checkpoint_every", inner_step_);
+  t_now_ = run.t_start;
+  next_particles_ = run.t_start;
+  next_checkpoint_ = run.t_start + checkpoint_every_;
+  last_particles_ = -1;
+  steps_done_ = 0;
+  snapshot_seconds_ = 0;
+  snapshot_.reset();
+  for (std::size_t m = 0; m < scene.tools.size(); ++m)
+    rc_->state.tool_pose[m] = scene.tools[m].motion.evaluate(cosim::to_seconds(run.t_start));
+  if (!o.file.empty()) out_ = std::make_unique<RunOutput>(resolve("", o.file), scene, rc_->config_text);
+  wall0_ = last_report_ = Clock::now();
+  std::fprintf(stderr,
+               "dem_service: %zu particles, %zu walls, %zu tools, dt %.3g s (largest safe %.3g s), "
+               "%d thread(s), output %s\n",
+               rc_->state.size(), scene.walls.size(), scene.tools.size(), scene.dt,
+               largest_safe_dt(scene), scene.threads, o.file.empty() ? "none" : o.file.c_str());
+}
+
+cosim::Ports ServiceModel::inputs() const {
+  cosim::Ports p;
+  for (const Tool& t : rc_->scene.tools) p.push_back({t.name, cosim::SignalKind::Kinematics});
+  return p;
+}
+
+cosim::Ports ServiceModel::outputs() const {
+  cosim::Ports p;
+  for (const Tool& t : rc_->scene.tools) p.push_back({t.name, cosim::SignalKind::Wrench});
+  return p;
+}
+
+cosim::Signals ServiceModel::initial_outputs() {
+  // No force has been evaluated before the first step: the soil's wrench starts at zero,
+  // about the tool's initial reference point.
+  cosim::Signals s;
+  const auto& tools = rc_->scene.tools;
+  for (std::size_t m = 0; m < tools.size(); ++m) {
+    const Vec3 r = rc_->state.tool_pose[m].position;
+    s[tools[m].name] = {cosim::SignalKind::Wrench, {0, 0, 0, 0, 0, 0, r.x, r.y, r.z}};
+  }
+  return s;
+}
+
+void ServiceModel::set_tool_poses(const cosim::StepInputs& in, Ticks t) {
+  const auto& tools = rc_->scene.tools;
+  for (std::size_t m = 0; m < tools.size(); ++m) {
+    const cosim::Value v = in.at(tools[m].name, t);
+    for (double x : v)
+      if (!std::isfinite(x))
+        throw cosim::InputError("tool '" + tools[m].name + "': its pose polynomial gives NaN or "
+                                "infinity at t = " + std::to_string(cosim::to_seconds(t)) + " s");
+    rc_->state.tool_pose[m] = tool_pose_from(v);
+  }
+}
+
+void ServiceModel::save_snapshot() {
+  const auto t0 = Clock::now();
+  if (out_) out_->flush_if_older_than(2.0);  // the previous step is accepted: its rows may go
+  snapshot_ = rc_->state;  // copy-assignment reuses the snapshot's capacity
+  snapshot_rows_ = out_ ? out_->buffered_rows() : 0;
+  snapshot_seconds_ += seconds_since(t0);
+}
+
+void ServiceModel::restore_snapshot() {
+  if (!snapshot_) throw std::logic_error("dem_service: restore_snapshot without a snapshot");
+  rc_->state = *snapshot_;
+  if (out_) out_->discard_rows_after(snapshot_rows_);  // samples of the abandoned attempt
+}
+
+cosim::StepResult ServiceModel::step(const cosim::StepInputs& in, bool want_average) {
+  const Scene& scene = rc_->scene;
+  State& s = rc_->state;
+  Engine& engine = *engine_;
+  const auto wall_step = Clock::now();
+  const Timing before = engine.timing();
+  const std::int64_t early0 = s.early_rebuilds, rebuilds0 = s.rebuilds;
+  const std::size_t ntools = scene.tools.size();
+  std::vector<Wrench> sum(ntools);
+  const Ticks n = (in.t_end() - in.t_start()) / inner_step_;
+  double max_overlap = 0, max_ratio = 0;
+  // Particle snapshots only at a step's start: that state is accepted (a repeat starts from it).
+  if (out_ && particles_every_ && in.t_start() >= next_particles_ && in.t_start() != last_particles_) {
+    const auto w = Clock::now();
+    out_->snapshot(s, cosim::to_seconds(in.t_start()));  // flushes the accepted rows too
+    snapshot_rows_ = out_->buffered_rows();
+    last_particles_ = in.t_start();
+    next_particles_ += particles_every_ * ((in.t_start() - next_particles_) / particles_every_ + 1);
+    engine.timing().output += seconds_since(w);
+  }
+  for (Ticks k = 0; k < n; ++k) {
+    const Ticks t = in.t_start() + k * inner_step_;
+    set_tool_poses(in, t);
+    engine.step(s);  // forces at t with the poses at t, then positions to t + dt
+    for (std::size_t m = 0; m < ntools; ++m) {
+      sum[m].force += engine.tool_wrenches()[m].force;
+      sum[m].torque += engine.tool_wrenches()[m].torque;
+    }
+    const ContactStats& c = engine.contact_stats();
+    max_overlap = std::max(max_overlap, c.max_overlap);
+    max_ratio = std::max(max_ratio, c.max_overlap_ratio);
+    if (out_ && wrenches_every_ && (t - run_.t_start) % wrenches_every_ == 0) {
+      const auto w = Clock::now();
+      out_->sample_wrenches(s, engine, cosim::to_seconds(t));
+      engine.timing().output += seconds_since(w);
+    }
+  }
+  t_now_ = in.t_end();
+  ++steps_done_;
+
+  cosim::StepResult r;
+  const double inv_n = 1.0 / static_cast<double>(n);
+  for (std::size_t m = 0; m < ntools; ++m) {
+    const Wrench& w = engine.tool_wrenches()[m];
+    const Vec3 p = s.tool_pose[m].position;
+    r.outputs[scene.tools[m].name] = {cosim::SignalKind::Wrench,
+                                      {w.force.x, w.force.y, w.force.z, w.torque.x, w.torque.y,
+                                       w.torque.z, p.x, p.y, p.z}};
+  }
+  if (want_average) {
+    cosim::Signals avg;
+    for (std::size_t m = 0; m < ntools; ++m) {
+      const Vec3 f = inv_n * sum[m].force, tq = inv_n * sum[m].torque;
+      const Vec3 p = s.tool_pose[m].position;
+      avg[scene.tools[m].name] = {cosim::SignalKind::Wrench, {f.x, f.y, f.z, tq.x, tq.y, tq.z, p.x, p.y, p.z}};
+    }
+    r.average = std::move(avg);
+  }
+  if (checkpoint_every_ && t_now_ >= next_checkpoint_) {
+    const auto w = Clock::now();
+    save_checkpoint(s, resolve("", options_.checkpoint));
+    next_checkpoint_ += checkpoint_every_ * ((t_now_ - next_checkpoint_) / checkpoint_every_ + 1);
+    engine.timing().output += seconds_since(w);
+  }
+  const Timing& after = engine.timing();
+  const ContactStats& c = engine.contact_stats();
+  r.diagnostics = {
+      {"particle_contacts", static_cast<double>(c.particle_contacts)},
+      {"boundary_contacts", static_cast<double>(c.boundary_contacts)},
+      {"kinetic_energy", kinetic_energy(s)},
+      {"max_overlap", max_overlap},
+      {"max_overlap_ratio", max_ratio},
+      {"broad_phases", static_cast<double>(s.rebuilds - rebuilds0)},
+      {"early_rebuilds", static_cast<double>(s.early_rebuilds - early0)},
+      {"seconds_broad_phase", after.broad_phase - before.broad_phase},
+      {"seconds_pair_forces", after.pair_forces - before.pair_forces},
+      {"seconds_mesh_contacts", after.mesh_contacts - before.mesh_contacts},
+      {"seconds_integration", after.integration - before.integration},
+      {"seconds_output", after.output - before.output},
+      {"seconds_step", seconds_since(wall_step)},
+  };
+  if (seconds_since(last_report_) >= options_.report_every) {
+    last_report_ = Clock::now();
+    const double sim = cosim::to_seconds(t_now_ - run_.t_start);
+    const double left = cosim::to_seconds(run_.t_end - t_now_);
+    const double wall = seconds_since(wall0_);
+    std::fprintf(stderr, "dem_service: t = %.4f s, %lld macro steps, RTF %.3g, ETA %.0f s\n",
+                 cosim::to_seconds(t_now_), static_cast<long long>(steps_done_),
+                 sim > 0 ? wall / sim : 0.0, sim > 0 ? left * wall / sim : 0.0);
+  }
+  return r;
+}
+
+void ServiceModel::finish(std::ostream& report) {
+  if (finished_ || !engine_) return;
+  finished_ = true;
+  const State& s = rc_->state;
+  const Timing& t = engine_->timing();
+  const double sim = cosim::to_seconds(t_now_ - run_.t_start);
+  const double wall = seconds_since(wall0_);
+  if (out_) {
+    if (t_now_ != last_particles_) out_->snapshot(s, cosim::to_seconds(t_now_));
+    out_->write_summary(t, s, sim);
+    out_->flush();
+  }
+  if (!rc_->output.checkpoint.empty()) save_checkpoint(s, resolve("", rc_->output.checkpoint));
+  const double other = std::max(0.0, wall - t.broad_phase - t.pair_forces - t.mesh_contacts -
+                                         t.integration - t.output - snapshot_seconds_);
+  char line[160];
+  auto row = [&](const char* name, double v) {
+    std::snprintf(line, sizeof line, "%-22s| %10.3f | %6.2f\n", name, v, wall > 0 ? 100 * v / wall : 0.0);
+    report << line;
+  };
+  std::snprintf(line, sizeof line, "\ndem_service: %lld macro steps, %.4g s simulated, %.3f s wall, %zu particles, %d thread(s)\n\n",
+                static_cast<long long>(steps_done_), sim, wall, s.size(), engine_->threads());
+  report << line;
+  report << "Section               |   time (s) | %total\n----------------------+------------+--------\n";
+  row("Broad phase", t.broad_phase);
+  row("Narrow phase + forces", t.pair_forces);
+  row("Mesh + wall contacts", t.mesh_contacts);
+  row("Integration", t.integration);
+  row("Snapshots (rollback)", snapshot_seconds_);
+  row("Output", t.output);
+  row("Bus wait + other", other);
+  std::snprintf(line, sizeof line, "\nReal-time factor (wall / simulated): %.3g\nBroad phases: %lld (early rebuilds by the guard: %lld)\n",
+                sim > 0 ? wall / sim : 0.0, static_cast<long long>(s.rebuilds),
+                static_cast<long long>(s.early_rebuilds));
+  report << line;
+  if (out_) report << "dem_service: wrote " << rc_->output.file << " and " << out_->xdmf_path() << "\n";
+}
+
+}  // namespace dem

@@ -1,0 +1,168 @@
+#include "prescribed_model.hpp"
+
+#include <cstdio>
+#include <filesystem>
+
+#include "cosim/yaml_config.hpp"
+
+namespace prescribed {
+
+namespace cfg = cosim::config;
+using cosim::Ticks;
+
+namespace {
+
+std::string resolve(const std::string& base, const std::string& path) {
+  if (path.empty() || path[0] == '/' || base.empty()) return path;
+  return base + "/" + path;
+}
+
+std::vector<ToolTrack> read_tools(const YAML::Node& root, const std::string& path,
+                                  const std::string& base) {
+  const YAML::Node list = root["tools"];
+  if (!list || !list.IsSequence() || list.size() == 0)
+    throw cfg::ConfigError(path + ".tools: missing; give a list of {name, keyframes or csv}");
+  std::vector<ToolTrack> out;
+  for (std::size_t i = 0; i < list.size(); ++i) {
+    const YAML::Node t = list[i];
+    const std::string p = path + ".tools." + std::to_string(i);
+    cfg::check_keys(t, p, {"name", "wrench_input", "interpolation", "keyframes", "csv"});
+    ToolTrack track;
+    track.name = cfg::get_string(t, p, "name");
+    cosim::require_valid_name(track.name, p + ".name");
+    track.wrench_input = cfg::get_string_or(t, p, "wrench_input", track.name + "_wrench");
+    cosim::require_valid_name(track.wrench_input, p + ".wrench_input");
+    track.trajectory.interpolation =
+        cfg::get_choice(t, p, "interpolation", {"linear", "cubic"}, "linear") == "cubic"
+            ? Trajectory::Interpolation::cubic
+            : Trajectory::Interpolation::linear;
+    const bool has_keys = static_cast<bool>(t["keyframes"]), has_csv = static_cast<bool>(t["csv"]);
+    if (has_keys == has_csv)
+      throw cfg::ConfigError(p + ": give exactly one of keyframes and csv");
+    try {
+      if (has_csv) {
+        track.trajectory.keyframes = load_csv(resolve(base, cfg::get_string(t, p, "csv")));
+      } else {
+        const YAML::Node k = t["keyframes"];
+        if (!k.IsSequence()) throw cfg::ConfigError(p + ".keyframes: expected a list");
+        for (std::size_t j = 0; j < k.size(); ++j) {
+          const std::string kp = p + ".keyframes." + std::to_string(j);
+          cfg::check_keys(k[j], kp, {"time", "position", "orientation"});
+          Keyframe f;
+          f.time = cfg::get_double(k[j], kp, "time");
+          const auto x = cfg::get_vector(k[j], kp, "position", 3);
+          f.position = {x[0], x[1], x[2]};
+          if (k[j]["orientation"]) {
+            const auto q = cfg::get_vector(k[j], kp, "orientation", 4);
+            f.orientation = {q[0], q[1], q[2], q[3]};
+          }
+          track.trajectory.keyframes.push_back(f);
+        }
+        validate(track.trajectory.keyframes, p + ".keyframes");
+      }
+    } catch (const std::invalid_argument& e) {
+      throw cfg::ConfigError(e.what());
+    } catch (const std::runtime_error& e) {
+      if (dynamic_cast<const cfg::ConfigError*>(&e)) throw;
+      throw cfg::ConfigError(p + ".csv: " + e.what());
+    }
+    for (const auto& other : out)
+      if (other.name == track.name || other.wrench_input == track.wrench_input ||
+          other.name == track.wrench_input || other.wrench_input == track.name)
+        throw cfg::ConfigError(p + ": name '" + track.name + "' or wrench_input '" +
+                               track.wrench_input + "' is used twice");
+    out.push_back(std::move(track));
+  }
+  return out;
+}
+
+}  // namespace
+
+PrescribedModel::PrescribedModel(YAML::Node root, std::string base_dir)
+    : root_(root ? YAML::Clone(root) : YAML::Node(YAML::NodeType::Map)), base_dir_(std::move(base_dir)) {}
+
+PrescribedModel::~PrescribedModel() {
+  try {
+    flush();
+  } catch (...) {
+  }
+}
+
+void PrescribedModel::configure(const YAML::Node& parameters, const cosim::RunInfo& run) {
+  const std::string path = "participants." + run.participant + ".parameters";
+  YAML::Node root = YAML::Clone(root_);
+  cfg::apply_overrides(root, parameters, path);
+  cfg::check_keys(root, path, {"tools", "inner_step", "record"});
+  tools_ = read_tools(root, path, base_dir_);
+  // Nothing is integrated: the inner step only says which macro steps fit (any, at 1 ns).
+  inner_step_ = cosim::seconds_to_ticks(cfg::get_positive_or(root, path, "inner_step", 1e-9),
+                                        path + ".inner_step");
+  if (inner_step_ <= 0) throw cfg::ConfigError(path + ".inner_step: must be at least 1 ns");
+  record_path_ = cfg::get_string_or(root, path, "record", "");
+  record_.reset();
+  pending_.clear();
+  if (!record_path_.empty()) {
+    record_ = std::make_unique<std::ofstream>(record_path_);
+    if (!*record_)
+      throw cfg::ConfigError(path + ".record: cannot write '" + record_path_ +
+                             "'; check that the folder exists");
+    *record_ << "time,tool,fx,fy,fz,tx,ty,tz,rx,ry,rz\n";
+  }
+}
+
+cosim::Ports PrescribedModel::inputs() const {
+  cosim::Ports p;
+  for (const auto& t : tools_) p.push_back({t.wrench_input, cosim::SignalKind::Wrench});
+  return p;
+}
+
+cosim::Ports PrescribedModel::outputs() const {
+  cosim::Ports p;
+  for (const auto& t : tools_) p.push_back({t.name, cosim::SignalKind::Kinematics});
+  return p;
+}
+
+cosim::Signals PrescribedModel::poses_at(Ticks t) const {
+  cosim::Signals s;
+  for (const auto& tool : tools_) {
+    const Pose p = tool.trajectory.evaluate(cosim::to_seconds(t));
+    s[tool.name] = {cosim::SignalKind::Kinematics,
+                    {p.position[0], p.position[1], p.position[2], p.orientation[0],
+                     p.orientation[1], p.orientation[2], p.orientation[3], p.velocity[0],
+                     p.velocity[1], p.velocity[2], p.angular_velocity[0],
+                     p.angular_velocity[1], p.angular_velocity[2]}};
+  }
+  return s;
+}
+
+cosim::Signals PrescribedModel::initial_outputs() { return poses_at(0); }
+
+void PrescribedModel::flush() {
+  if (!record_) return;
+  for (const auto& row : pending_) *record_ << row;
+  pending_.clear();
+  record_->flush();
+}
+
+cosim::StepResult PrescribedModel::step(const cosim::StepInputs& in, bool want_average) {
+  // Rows wait until the next step starts: a repeat (restore_snapshot) drops them instead.
+  flush();
+  for (const auto& tool : tools_) {
+    // What arrived: the wrench polynomial at the step's start is the latest sample received.
+    const cosim::Value w = in.at(tool.wrench_input, in.t_start());
+    char row[512];
+    std::snprintf(row, sizeof row, "%.9f,%s,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g\n",
+                  cosim::to_seconds(in.t_start()), tool.name.c_str(), w[0], w[1], w[2], w[3], w[4],
+                  w[5], w[6], w[7], w[8]);
+    pending_.push_back(row);
+  }
+  cosim::StepResult r;
+  r.outputs = poses_at(in.t_end());
+  if (want_average) {
+    // Average of the pose over the step is not a pose; the end value stands for it.
+    r.average = r.outputs;
+  }
+  return r;
+}
+
+}  // namespace prescribed

@@ -1,0 +1,53 @@
+// The prescribed participant: plays one trajectory per tool as kinematic outputs and records
+// the wrench each tool receives. Config schema in docs/prescribed.md.
+#pragma once
+
+#include <fstream>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "cosim/participant.hpp"
+#include "trajectory.hpp"
+
+namespace prescribed {
+
+struct ToolTrack {
+  std::string name;          // kinematics output
+  std::string wrench_input;  // wrench input (default <name>_wrench)
+  Trajectory trajectory;
+};
+
+class PrescribedModel final : public cosim::Model {
+ public:
+  // root: the participant's config file (may be empty) after --set; base_dir resolves its
+  // relative paths. The master's parameters amend it in configure().
+  PrescribedModel(YAML::Node root, std::string base_dir);
+
+  void configure(const YAML::Node& parameters, const cosim::RunInfo& run) override;
+  cosim::Ports inputs() const override;
+  cosim::Ports outputs() const override;
+  cosim::Ticks inner_step() const override { return inner_step_; }
+  cosim::Signals initial_outputs() override;
+  cosim::StepResult step(const cosim::StepInputs& in, bool want_average) override;
+  bool can_repeat() const override { return true; }  // nothing evolves but time
+  void save_snapshot() override {}
+  void restore_snapshot() override { pending_.clear(); }  // the repeated step's rows
+  ~PrescribedModel() override;
+
+  const std::vector<ToolTrack>& tools() const { return tools_; }
+
+ private:
+  cosim::Signals poses_at(cosim::Ticks t) const;
+  void flush();
+
+  YAML::Node root_;
+  std::string base_dir_;
+  std::vector<ToolTrack> tools_;
+  cosim::Ticks inner_step_ = 1;
+  std::string record_path_;
+  std::unique_ptr<std::ofstream> record_;
+  std::vector<std::string> pending_;  // rows of the current step until the next one starts
+};
+
+}  // namespace prescribed
