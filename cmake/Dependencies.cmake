@@ -40,3 +40,14 @@ function(soil_add_gtest name)
   gtest_discover_tests(${name} DISCOVERY_TIMEOUT 60
     PROPERTIES TIMEOUT ${T_TIMEOUT} LABELS "${T_LABELS}")
 endfunction()
+
+# Simbody 3.7 (Debian libsimbody-dev) for the machine models. Debian builds it without
+# -DNDEBUG and some SimTKcommon classes change layout under NDEBUG, so every target that
+# includes Simbody headers must be compiled without it. Simbody 3.7's headers also fail as
+# C++20 (ambiguous reversed operator==): keep them in .cpp files built as C++17.
+find_package(Simbody 3.7 CONFIG REQUIRED)
+function(soil_simbody_sources target)
+  target_link_libraries(${target} PUBLIC SimTKsimbody)
+  set_source_files_properties(${ARGN} TARGET_DIRECTORY ${target}
+    PROPERTIES COMPILE_OPTIONS "-std=c++17;-UNDEBUG")
+endfunction()

@@ -1,0 +1,124 @@
+// The wheel-loader multibody model (Simbody). It knows nothing of the bus: a test drives it
+// directly, the adapter (wheel_loader_model.hpp) maps it onto signals.
+//
+// Planar in the x-z plane (x forward, y left, z up, ground z = 0), with full 3D outputs:
+//   ground -Planar(x, z, pitch)-> frame -Pin-> boom -Pin(A)-> bucket
+//                                               boom -Pin-> bell crank -Pin-> tilt link
+//   tilt link -> bucket: PointOnLine at the J-pin (closes the Z-bar loop, 2 equations)
+// Forces: gravity; one vertical spring-damper per axle against the ground; a traction-limited
+// drive force at the tire contacts; lift (frame->boom) and tilt (frame->bell crank) cylinders
+// as stiff position/rate feedback forces along their lines following the maneuver; the
+// external bucket wrench, evaluated at the state's time.
+// Pin angles are positive about -y (x turns towards z): boom up, bucket curled back.
+//
+// Simbody 3.7's headers do not compile as C++20 (ambiguous reversed operator==), so they stay
+// inside wheel_loader.cpp (built as C++17); this header is plain C++.
+#pragma once
+
+#include <array>
+#include <functional>
+#include <memory>
+
+#include "parameters.hpp"
+
+namespace wheel_loader {
+
+using V3 = std::array<double, 3>;
+
+// Force [N] and torque [N m] in ground; the torque is about `point` (ground).
+struct Wrench {
+  V3 force{}, torque{}, point{};
+};
+using WrenchInput = std::function<Wrench(double t)>;
+
+struct BucketKinematics {
+  V3 position{};                  // bucket frame origin (A-pin centre), ground
+  std::array<double, 4> rotation{1, 0, 0, 0};  // unit quaternion bucket -> ground, [w x y z]
+  V3 velocity{};                  // of the origin, ground
+  V3 angular_velocity{};          // ground
+};
+
+// Section forces are the forces ON THE BUCKET from the boom (A) and from the tilt link (J),
+// in the bucket frame: long = x (towards the cutting edge), vert = z (up from the floor).
+struct Reports {
+  double a_long = 0, a_vert = 0, j_long = 0, j_vert = 0;
+  double lift_force = 0, tilt_force = 0;    // N, positive pushing (cylinder in compression)
+  double lift_length = 0, tilt_length = 0;  // m
+  double speed = 0, x_machine = 0;          // front axle centre: dx/dt and x in ground
+  double drive_force = 0, normal_load = 0;  // N: traction at the tires, sum of axle loads
+  double normal_front = 0, normal_rear = 0;
+  double boom_angle = 0, bucket_pitch = 0;  // rad: boom from its design pose; bucket x in ground
+  double pitch = 0, heave = 0;              // frame pitch [rad], front axle centre height [m]
+};
+
+// Everything a Newton-Euler check needs, in ground, at the current state.
+struct BodyDynamics {
+  double mass = 0;
+  V3 origin{}, com{}, com_acceleration{}, angular_velocity{}, angular_acceleration{};
+  std::array<V3, 3> inertia{};  // about the centre of mass, ground axes
+};
+struct PinForce {
+  V3 point{};   // ground
+  V3 force{};   // on the body it belongs to
+  V3 moment{};  // about `point`
+};
+struct Dynamics {
+  BodyDynamics frame, boom, crank, link, bucket;
+  PinForce boom_pivot;   // on the boom, from the frame
+  PinForce a_pin;        // on the bucket, from the boom
+  PinForce crank_pivot;  // on the bell crank, from the boom
+  PinForce link_pin;     // on the tilt link, from the bell crank
+  PinForce j_pin;        // on the bucket, from the tilt link
+  PinForce lift_on_boom, tilt_on_crank;  // cylinder forces at their body pins
+  V3 lift_frame_pin{}, tilt_frame_pin{};  // the cylinders' frame ends
+  Wrench external;       // as applied at the current time
+  V3 gravity{};
+};
+
+class WheelLoader {
+ public:
+  // Builds the model and puts it at rest in static equilibrium (tires and cylinders loaded,
+  // cylinders at their t_start targets) at time t_start, then gives it initial_speed.
+  explicit WheelLoader(const Parameters& p, double t_start = 0);
+  ~WheelLoader();
+  WheelLoader(const WheelLoader&) = delete;
+  WheelLoader& operator=(const WheelLoader&) = delete;
+
+  // The external wrench on the bucket as a function of time; empty means none.
+  void set_bucket_wrench(WrenchInput input);
+  // Advances with fixed inner steps to t_end (a whole number of inner steps ahead);
+  // after_inner_step, when given, runs after every inner step.
+  void advance(double t_end, const std::function<void()>& after_inner_step = {});
+
+  double time() const;
+  BucketKinematics bucket() const;
+  Reports reports() const;
+  // A bucket-frame point in ground, e.g. the cutting edge [edge_x, 0, floor_z].
+  V3 bucket_point(const V3& in_bucket) const;
+  V3 cutting_edge() const;
+  const Parameters& parameters() const { return p_; }
+  Dynamics dynamics() const;
+  double total_mass() const;
+  // Largest |udot| (generalized accelerations) at the current state: ~0 at rest.
+  double max_acceleration() const;
+
+  // Puts the machine at rest in static equilibrium at the current time and x position, with
+  // the current wrench input applied (the constructor does this without one).
+  void resolve_static();
+
+  // One snapshot slot: the whole Simbody state.
+  void save_snapshot();
+  void restore_snapshot();
+
+  // Evaluated wrench at time t (zero if none).
+  Wrench wrench_at(double t) const { return wrench_ ? wrench_(t) : Wrench{}; }
+
+  struct Impl;
+
+ private:
+  Parameters p_;
+  std::unique_ptr<Impl> impl_;
+  WrenchInput wrench_;
+};
+
+}  // namespace wheel_loader
