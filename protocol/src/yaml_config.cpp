@@ -1,5 +1,7 @@
 #include "cosim/yaml_config.hpp"
 
+#include <functional>
+
 #include <cstdlib>
 #include <sstream>
 
@@ -53,16 +55,23 @@ void apply_overrides(YAML::Node& root, const YAML::Node& overrides, std::string_
   if (!overrides || overrides.IsNull()) return;
   if (!overrides.IsMap())
     throw ConfigError(std::string(what) + ": expected a map of dotted.key: value overrides");
-  for (const auto& entry : overrides) {
-    const std::string key = entry.first.as<std::string>();
-    YAML::Emitter out;
-    out << YAML::Flow << entry.second;
-    try {
-      apply_override(root, key + "=" + out.c_str());
-    } catch (const ConfigError& e) {
-      throw ConfigError(std::string(what) + ": " + e.what());
-    }
-  }
+  // A map value amends the map it names key by key (so {contact: {k: 1}} keeps contact's
+  // other keys); anything else replaces.
+  std::function<void(const std::string&, const YAML::Node&)> apply =
+      [&](const std::string& key, const YAML::Node& value) {
+        if (value.IsMap() && value.size() > 0) {
+          for (const auto& e : value) apply(key + "." + e.first.as<std::string>(), e.second);
+          return;
+        }
+        YAML::Emitter out;
+        out << YAML::Flow << value;
+        try {
+          apply_override(root, key + "=" + out.c_str());
+        } catch (const ConfigError& e) {
+          throw ConfigError(std::string(what) + ": " + e.what());
+        }
+      };
+  for (const auto& entry : overrides) apply(entry.first.as<std::string>(), entry.second);
 }
 
 void apply_override(YAML::Node& root, const std::string& assignment) {

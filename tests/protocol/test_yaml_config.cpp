@@ -27,6 +27,9 @@ TEST(YamlConfig, OverrideMapsAmendAConfigAndNameTheirSource) {
   EXPECT_EQ(root["contact"]["mu"].as<double>(), 0.5);
   EXPECT_EQ(root["list"].size(), 3u);
   EXPECT_EQ(root["new"]["x"]["a"].as<int>(), 1);
+  apply_overrides(root, YAML::Load("{contact: {mu: 0.3}}"), "nested");  // amends, keeps k
+  EXPECT_EQ(root["contact"]["mu"].as<double>(), 0.3);
+  EXPECT_EQ(root["contact"]["k"].as<double>(), 4e8);
   apply_overrides(root, YAML::Node(), "empty");  // no parameters: nothing changes
   EXPECT_EQ(root["contact"]["k"].as<double>(), 4e8);
   try {

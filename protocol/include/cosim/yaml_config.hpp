@@ -25,7 +25,8 @@ YAML::Node load_file(const std::string& path);
 void apply_override(YAML::Node& root, const std::string& assignment);
 
 // Applies a map of overrides {"a.b.c": value, ...} as apply_override does for each entry, in
-// map order. How a participant's `parameters` from the master's config amend its own config
+// map order. A map value amends the map it names key by key ({a: {b: 1}} is a.b=1 and keeps
+// a's other keys); a list or scalar replaces. How a participant's `parameters` from the master's config amend its own config
 // file. `what` names the map in errors (e.g. "participants.dem.parameters").
 void apply_overrides(YAML::Node& root, const YAML::Node& overrides, std::string_view what);
 
