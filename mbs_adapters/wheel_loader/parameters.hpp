@@ -14,6 +14,13 @@
 
 namespace wheel_loader {
 
+// wheel_loader.cpp is C++17 (Simbody's headers); the comparisons are for C++20 code (tests).
+#if __cplusplus >= 202002L
+#define WL_DEFAULT_EQ(T) bool operator==(const T&) const = default;
+#else
+#define WL_DEFAULT_EQ(T)
+#endif
+
 using Vec2 = std::array<double, 2>;  // [x, z]
 using Vec3 = std::array<double, 3>;
 
@@ -21,6 +28,7 @@ struct Body {
   double mass = 1;
   Vec2 com{0, 0};        // frame coordinates at the design pose (bucket: bucket frame)
   Vec3 inertia{1, 1, 1};  // principal moments about the centre of mass [kg m2], body axes
+  WL_DEFAULT_EQ(Body)
 };
 
 // The bucket's shell in the bucket frame (shared by the model and the mesh generator).
@@ -35,6 +43,7 @@ struct BucketShape {
   double guard_angle = 40;    // spill guard angle above the horizontal [deg]
   double edge_depth = 0.25;   // cutting-edge bevel: reaches this far back under the floor
   double edge_thickness = 0.06;  // and this far below it
+  WL_DEFAULT_EQ(BucketShape)
 };
 
 // A signal of time through knots (t_i, v_i): constant before the first and after the last
@@ -44,6 +53,7 @@ struct Profile {
   std::vector<std::array<double, 2>> knots;
   double value(double t, bool smooth) const;
   double rate(double t, bool smooth) const;
+  WL_DEFAULT_EQ(Profile)
 };
 
 struct Maneuver {
@@ -51,12 +61,14 @@ struct Maneuver {
   Profile speed;  // target machine speed [m/s]
   Profile lift;   // lift cylinder extension from its design-pose length [m]
   Profile tilt;   // tilt cylinder extension from its design-pose length [m] (+ curls back)
+  WL_DEFAULT_EQ(Maneuver)
 };
 
 struct Cylinder {
   Vec2 frame_pin{0, 0};   // frame coordinates
   double stiffness = 1e8;  // N/m: position feedback (hydraulic compliance)
   double damping = 1e6;    // N s/m: rate feedback
+  WL_DEFAULT_EQ(Cylinder)
 };
 
 struct Parameters {
@@ -97,6 +109,7 @@ struct Parameters {
   double max_torque = 2e7;   // N m
 
   static Maneuver default_maneuver();
+  WL_DEFAULT_EQ(Parameters)
 };
 
 // Reads and validates a machine config (the layout of configs/wheel_loader/machine.yaml):

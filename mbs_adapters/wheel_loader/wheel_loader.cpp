@@ -383,7 +383,11 @@ void WheelLoader::Impl::solve_static(const Parameters& p, State& s) {
 double WheelLoader::time() const { return impl_->state.getTime(); }
 double WheelLoader::total_mass() const { return impl_->total_mass; }
 
-void WheelLoader::set_bucket_wrench(WrenchInput input) { wrench_ = std::move(input); }
+void WheelLoader::set_bucket_wrench(WrenchInput input) {
+  wrench_ = std::move(input);
+  // forces, reactions and accelerations cached for the current state used the old input
+  impl_->state.invalidateAllCacheAtOrAbove(Stage::Dynamics);
+}
 
 void WheelLoader::resolve_static() { impl_->solve_static(p_, impl_->state); }
 

@@ -1,0 +1,140 @@
+// wheel_loader_adapter's Model: config layering and validation, ports, input limits, and a
+// step repeated from a snapshot bit for bit.
+#include <cosim/participant.hpp>
+#include <cosim/yaml_config.hpp>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <string>
+
+#include "wheel_loader_model.hpp"
+
+using namespace wheel_loader;
+using cosim::Ticks;
+
+namespace {
+
+const std::string kMachine = std::string(SOURCE_DIR) + "/configs/wheel_loader/machine.yaml";
+
+cosim::RunInfo run_info(Ticks macro = 1'000'000) { return {"loader", 0, 20 * cosim::kTicksPerSecond, macro}; }
+
+YAML::Node params(const std::string& yaml) { return YAML::Load(yaml); }
+
+// The config error message for these parameters (empty if accepted).
+std::string refusal(const std::string& yaml, Ticks macro = 1'000'000) {
+  WheelLoaderModel m(cosim::config::load_file(kMachine));
+  try {
+    m.configure(params(yaml), run_info(macro));
+  } catch (const cosim::config::ConfigError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+cosim::Polynomials wrench(double fx, double fz, double ty, const cosim::Value& point,
+                          double dfx = 0) {
+  cosim::InputPolynomial p;
+  p.kind = cosim::SignalKind::Wrench;
+  p.n_coefficients = 2;
+  p.coefficients = {fx, 0, fz, 0, ty, 0, point[0], point[1], point[2],
+                    dfx, 0, 0, 0, 0, 0, 0, 0, 0};
+  return {{"bucket_wrench", p}};
+}
+
+}  // namespace
+
+TEST(WheelLoaderAdapter, MachineYamlHoldsTheDefaults) {
+  EXPECT_TRUE(read_parameters(cosim::config::load_file(kMachine)) == Parameters{})
+      << "configs/wheel_loader/machine.yaml and parameters.hpp disagree";
+}
+
+TEST(WheelLoaderAdapter, RefusesBadKeysAndValuesNamingThem) {
+  EXPECT_EQ(refusal("{}"), "");
+  EXPECT_EQ(refusal("{boom.mass: 3000, maneuver.speed: [[0, 1.0]]}"), "");
+  const std::pair<std::string, std::string> cases[] = {
+      {"{boom.mas: 3000}", "unknown key 'mas'"},
+      {"{bucket.mass: 0}", "bucket.mass"},
+      {"{bucket.mass: heavy}", "bucket.mass"},
+      {"{inner_step: -1e-4}", "inner_step"},
+      {"{inner_step: 3e-4}", "inner_step"},  // does not divide the 1 ms macro step
+      {"{drive.traction_coefficient: 3}", "drive.traction_coefficient"},
+      {"{boom.inertia: [1, 1, 5]}", "boom.inertia"},
+      {"{maneuver.tilt: [[1, 0], [0.5, 0.1]]}", "maneuver.tilt.1"},
+      {"{maneuver.interpolation: cubic}", "maneuver.interpolation"},
+      {"{bucket.shape.edge_x: 0.3}", "bucket.shape.edge_x"},
+      {"{lift_cylinder.frame_pin: [1, 2, 3]}", "lift_cylinder.frame_pin"},
+      {"{limits.max_force: -1}", "limits.max_force"},
+      {"{maneuver.tilt: [[0, 1.9]]}", "Z-bar linkage cannot close"},
+  };
+  for (const auto& [yaml, key] : cases) {
+    const std::string e = refusal(yaml);
+    EXPECT_NE(e.find(key), std::string::npos) << yaml << " -> '" << e << "'";
+  }
+}
+
+TEST(WheelLoaderAdapter, PortsAndInitialOutputs) {
+  WheelLoaderModel m(cosim::config::load_file(kMachine));
+  m.configure(params("{}"), run_info());
+  EXPECT_EQ(m.inner_step(), 100'000);
+  ASSERT_EQ(m.inputs().size(), 1u);
+  EXPECT_EQ(m.inputs()[0].name, "bucket_wrench");
+  EXPECT_EQ(m.inputs()[0].kind, cosim::SignalKind::Wrench);
+  const auto out = m.initial_outputs();
+  cosim::check_against_ports(out, m.outputs(), "initial outputs");
+  for (const char* n : {"bucket", "a_long", "a_vert", "j_long", "j_vert", "lift_force",
+                        "tilt_force", "speed", "x_machine", "drive_force"})
+    EXPECT_TRUE(out.count(n)) << n;
+  const auto& b = out.at("bucket").value;
+  cosim::validate_value(cosim::SignalKind::Kinematics, b, "bucket");
+  // at rest in equilibrium, moving at 1.2 m/s, bucket frame origin at the A-pin
+  EXPECT_NEAR(b[7], 1.2, 1e-9);
+  EXPECT_NEAR(out.at("speed").value[0], 1.2, 1e-9);
+  EXPECT_NEAR(b[0], 2.6, 0.01);
+  EXPECT_NEAR(out.at("edge_z").value[0], 0.05, 0.01);  // bucket just above the ground
+}
+
+TEST(WheelLoaderAdapter, RefusesAnInsaneWrenchAndKeepsItsState) {
+  WheelLoaderModel m(cosim::config::load_file(kMachine));
+  m.configure(params("{}"), run_info());
+  const auto x0 = m.initial_outputs().at("bucket").value;
+  const auto bad = wrench(-6e6, 0, 0, {x0[0], x0[1], x0[2]});
+  m.save_snapshot();
+  EXPECT_THROW(m.step(cosim::StepInputs(0, 1'000'000, bad), false), cosim::InputError);
+  m.restore_snapshot();  // as ParticipantCore does after an InputError
+  const auto far = wrench(-1e5, 0, 0, {x0[0] + 1000, x0[1], x0[2] + 300});  // torque 3e7 N m
+  EXPECT_THROW(m.step(cosim::StepInputs(0, 1'000'000, far), false), cosim::InputError);
+  const auto ok = wrench(-1e5, 0, 0, {x0[0], x0[1], x0[2]});
+  const auto r = m.step(cosim::StepInputs(0, 1'000'000, ok), false);
+  EXPECT_NEAR(r.outputs.at("x_machine").value[0], 1.2e-3, 1e-4);
+}
+
+// The master's iterations: a step redone from the snapshot gives the same bits; an average
+// is the trapezoid mean of the inner samples.
+TEST(WheelLoaderAdapter, SnapshotRepeatsAStepBitForBit) {
+  WheelLoaderModel m(cosim::config::load_file(kMachine));
+  m.configure(params("{initial_speed: 1.2}"), run_info(2'000'000));
+  const auto b0 = m.initial_outputs().at("bucket").value;
+  const cosim::Value ref{b0[0], b0[1], b0[2]};
+  Ticks t = 0;
+  for (int i = 0; i < 5; ++i, t += 2'000'000)
+    m.step(cosim::StepInputs(t, t + 2'000'000, wrench(-5e4, 2e4, 1e3, ref, -1e4)), false);
+  m.save_snapshot();
+  const auto in = wrench(-8e4, 3e4, -2e3, ref, 2e4);
+  const auto first = m.step(cosim::StepInputs(t, t + 2'000'000, in), true);
+  m.restore_snapshot();
+  const auto other = m.step(cosim::StepInputs(t, t + 2'000'000, wrench(0, 0, 0, ref)), false);
+  m.restore_snapshot();
+  const auto again = m.step(cosim::StepInputs(t, t + 2'000'000, in), true);
+  ASSERT_TRUE(first.average && again.average);
+  for (const auto& [name, s] : first.outputs) {
+    EXPECT_EQ(s.value, again.outputs.at(name).value) << name;  // bitwise
+    EXPECT_EQ(first.average->at(name).value, again.average->at(name).value) << name;
+  }
+  // the input matters (so the equality above is not vacuous)
+  EXPECT_NE(first.outputs.at("a_long").value, other.outputs.at("a_long").value);
+  // the average lies between the start and end values for the monotone x position
+  const double xa = first.average->at("x_machine").value[0];
+  const double xe = first.outputs.at("x_machine").value[0];
+  EXPECT_LT(xa, xe);
+  EXPECT_GT(xa, xe - 2e-3 * 1.3);
+}
