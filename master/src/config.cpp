@@ -306,10 +306,10 @@ void check_wiring(const Config& c, const std::map<std::string, cosim::Participan
                           " is not connected (add {from: <participant>.<output>, to: " + name + "." + in.name + "})");
     }
     if (c.macro_step % info.inner_step != 0)
-      throw ConfigError("time.macro_step: " + std::to_string(cosim::to_seconds(c.macro_step)) +
-                        " s is not a multiple of participant " + name + "'s inner step " +
-                        std::to_string(cosim::to_seconds(info.inner_step)) +
-                        " s; choose a multiple of it or change that participant's inner step");
+      throw ConfigError("time.macro_step: " + std::to_string(c.macro_step) +
+                        " ns is not a multiple of participant " + name + "'s inner step " +
+                        std::to_string(info.inner_step) +
+                        " ns; choose a multiple of it or change that participant's inner step");
   }
   for (std::size_t i = 0; i < c.power.size(); ++i) {
     const auto& p = c.power[i];

@@ -117,7 +117,7 @@ INSTANTIATE_TEST_SUITE_P(
         BadConfig{"wiring_input_unconnected", {"connections=[{from: mass1.x, to: mass2.x}, {from: mass2.force, to: mass1.force}]"},
                   "input mass2.v is not connected"},
         BadConfig{"macro_step_not_multiple", {"participants.mass2.parameters.inner_step=3e-6"},
-                  "time.macro_step: 0.000500 s is not a multiple of participant mass2's inner step"},
+                  "time.macro_step: 500000 ns is not a multiple of participant mass2's inner step"},
         BadConfig{"unknown_predictor", {"connections.2.predictor=quadratic"},
                   "connections.2.predictor: unknown predictor 'quadratic' (defined under predictors: force, kinematics)"},
         BadConfig{"predictor_order", {"predictors.force.order=4"},
