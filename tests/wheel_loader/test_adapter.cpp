@@ -43,12 +43,12 @@ cosim::Polynomials wrench(double fx, double fz, double ty, const cosim::Value& p
 
 }  // namespace
 
-TEST(WheelLoaderAdapter, MachineYamlHoldsTheDefaults) {
+TEST(wheel_loader_adapter, MachineYamlHoldsTheDefaults) {
   EXPECT_TRUE(read_parameters(cosim::config::load_file(kMachine)) == Parameters{})
       << "configs/wheel_loader/machine.yaml and parameters.hpp disagree";
 }
 
-TEST(WheelLoaderAdapter, RefusesBadKeysAndValuesNamingThem) {
+TEST(wheel_loader_adapter, RefusesBadKeysAndValuesNamingThem) {
   EXPECT_EQ(refusal("{}"), "");
   EXPECT_EQ(refusal("{boom.mass: 3000, maneuver.speed: [[0, 1.0]]}"), "");
   const std::pair<std::string, std::string> cases[] = {
@@ -72,7 +72,7 @@ TEST(WheelLoaderAdapter, RefusesBadKeysAndValuesNamingThem) {
   }
 }
 
-TEST(WheelLoaderAdapter, PortsAndInitialOutputs) {
+TEST(wheel_loader_adapter, PortsAndInitialOutputs) {
   WheelLoaderModel m(cosim::config::load_file(kMachine));
   m.configure(params("{}"), run_info());
   EXPECT_EQ(m.inner_step(), 100'000);
@@ -93,7 +93,7 @@ TEST(WheelLoaderAdapter, PortsAndInitialOutputs) {
   EXPECT_NEAR(out.at("edge_z").value[0], 0.05, 0.01);  // bucket just above the ground
 }
 
-TEST(WheelLoaderAdapter, RefusesAnInsaneWrenchAndKeepsItsState) {
+TEST(wheel_loader_adapter, RefusesAnInsaneWrenchAndKeepsItsState) {
   WheelLoaderModel m(cosim::config::load_file(kMachine));
   m.configure(params("{}"), run_info());
   const auto x0 = m.initial_outputs().at("bucket").value;
@@ -110,7 +110,7 @@ TEST(WheelLoaderAdapter, RefusesAnInsaneWrenchAndKeepsItsState) {
 
 // The master's iterations: a step redone from the snapshot gives the same bits; an average
 // is the trapezoid mean of the inner samples.
-TEST(WheelLoaderAdapter, SnapshotRepeatsAStepBitForBit) {
+TEST(wheel_loader_adapter, SnapshotRepeatsAStepBitForBit) {
   WheelLoaderModel m(cosim::config::load_file(kMachine));
   m.configure(params("{initial_speed: 1.2}"), run_info(2'000'000));
   const auto b0 = m.initial_outputs().at("bucket").value;

@@ -25,7 +25,7 @@ std::array<double, 3> normal(const BucketMesh& m, const std::array<int, 3>& t) {
 
 }  // namespace
 
-TEST(BucketMesh, TriangleCountsDefaultAndFinest) {
+TEST(wheel_loader_mesh, TriangleCountsDefaultAndFinest) {
   const BucketShape s;
   const auto coarse = make_bucket_mesh(s, 1);
   const auto fine = make_bucket_mesh(s, kMaxRefine);
@@ -40,7 +40,7 @@ TEST(BucketMesh, TriangleCountsDefaultAndFinest) {
 
 // Every edge is shared by at most two triangles, and then traversed in opposite directions
 // (orientable, consistently oriented); the edges used once form exactly the rim.
-TEST(BucketMesh, ConsistentlyOrientedShellWithTheExpectedRim) {
+TEST(wheel_loader_mesh, ConsistentlyOrientedShellWithTheExpectedRim) {
   for (int refine : {1, 2}) {
     const BucketShape s;
     const auto m = make_bucket_mesh(s, refine);
@@ -72,7 +72,7 @@ TEST(BucketMesh, ConsistentlyOrientedShellWithTheExpectedRim) {
   }
 }
 
-TEST(BucketMesh, NormalsOnTheSoilSide) {
+TEST(wheel_loader_mesh, NormalsOnTheSoilSide) {
   const BucketShape s;
   const auto m = make_bucket_mesh(s, 1);
   int floor = 0, back = 0, left = 0, right = 0;
@@ -94,7 +94,7 @@ TEST(BucketMesh, NormalsOnTheSoilSide) {
   EXPECT_EQ(left, right);
 }
 
-TEST(BucketMesh, BoundingBoxAndCapacityFollowTheShape) {
+TEST(wheel_loader_mesh, BoundingBoxAndCapacityFollowTheShape) {
   BucketShape s;
   s.width = 2.7;
   const auto m = make_bucket_mesh(s, 1);
@@ -129,7 +129,7 @@ TEST(BucketMesh, BoundingBoxAndCapacityFollowTheShape) {
   EXPECT_NEAR(f.struck_volume / s.width, exact_area, 2e-4 * exact_area);
 }
 
-TEST(BucketMesh, WritesBinaryStl) {
+TEST(wheel_loader_mesh, WritesBinaryStl) {
   const auto m = make_bucket_mesh(BucketShape{}, 1);
   const std::string path = std::string(TEST_TMP_DIR) + "/bucket_test.stl";
   write_stl(m, path);

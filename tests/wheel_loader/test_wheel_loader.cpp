@@ -76,7 +76,7 @@ Parameters at_rest() {
 // With no external force, the A and J reactions, gravity and the bucket's inertia satisfy
 // Newton-Euler on the bucket at every inner step of a dynamic stretch of the maneuver (a
 // tilt pulse while driving and lifting).
-TEST(WheelLoaderModel, BearingForcesBalanceBucketWeightAndInertia) {
+TEST(wheel_loader_model, BearingForcesBalanceBucketWeightAndInertia) {
   Parameters p;
   WheelLoader wl(p, 5.2);  // starts at rest at 5.2 s, then 1.2 m/s, during a tilt pulse
   double worst = 0, largest_inertial = 0;
@@ -105,7 +105,7 @@ TEST(WheelLoaderModel, BearingForcesBalanceBucketWeightAndInertia) {
 
 // The same with an external wrench (force, torque about a point away from the bucket origin):
 // the pins, gravity and the wrench balance the bucket's inertia.
-TEST(WheelLoaderModel, BearingForcesBalanceWithExternalWrench) {
+TEST(wheel_loader_model, BearingForcesBalanceWithExternalWrench) {
   Parameters p;
   WheelLoader wl(p, 5.2);
   wl.set_bucket_wrench([](double t) {
@@ -133,7 +133,7 @@ TEST(WheelLoaderModel, BearingForcesBalanceWithExternalWrench) {
 
 // Machine at rest, cylinders held: every body of the linkage is in static equilibrium, and
 // the cylinder forces follow from statics computed here from the pin positions alone.
-TEST(WheelLoaderModel, LinkageStaticEquilibrium) {
+TEST(wheel_loader_model, LinkageStaticEquilibrium) {
   Parameters p = at_rest();
   p.tilt_link.mass = 0.01;  // a (nearly) massless link is a two-force member
   p.tilt_link.inertia = {1e-4, 1e-4, 1e-4};
@@ -229,7 +229,7 @@ TEST(WheelLoaderModel, LinkageStaticEquilibrium) {
 
 // A known wrench changes the pin forces as statics says. Stiff tires and cylinders keep the
 // pose the same with and without it, so the differences are the wrench's alone.
-TEST(WheelLoaderModel, ExternalWrenchGoesWhereItShould) {
+TEST(wheel_loader_model, ExternalWrenchGoesWhereItShould) {
   Parameters p = at_rest();
   p.axle_stiffness = 1e12;
   p.lift_cylinder.stiffness = 1e12;
@@ -290,7 +290,7 @@ TEST(WheelLoaderModel, ExternalWrenchGoesWhereItShould) {
 // Traction limit: the drive force never exceeds mu * normal load; a resistance above it
 // stops the machine (and pushes it back), one below it only slows it, to the speed the
 // controller's gain predicts.
-TEST(WheelLoaderModel, TractionLimitStallsTheMachine) {
+TEST(wheel_loader_model, TractionLimitStallsTheMachine) {
   Parameters p;
   p.maneuver.speed.knots = {{0, 1.2}};
   p.maneuver.lift.knots = {{0, 0}};
