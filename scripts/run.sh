@@ -1,10 +1,18 @@
 #!/usr/bin/env bash
-# The main job: sets up, builds, and runs the default co-simulation on this host
-# (for now the dual-mass oscillator across three processes: master + two halves).
-# Extra arguments go to cosim_master, e.g. --set time.macro_step=1e-3
+# The main job: sets up, builds, prepares the soil pile (once; results/pile_small.h5), runs the
+# wheel loader filling its bucket (cosim_master + wheel_loader_adapter + dem_service, 15 s of
+# maneuver, a few minutes on 2 cores) and draws the charts:
+#   results/wheel_loader.h5, .csv, results/wheel_loader_bearing_forces.png, _machine.png,
+#   results/wheel_loader_soil.h5 + .xdmf (particles for ParaView).
+# Extra arguments go to cosim_master, e.g. --set time.macro_step=2e-3 --set time.end=5
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/build.sh
 bash scripts/multicast.sh
 mkdir -p results
-./build/bin/cosim_master configs/oscillator.yaml "$@"
+if [ ! -f results/pile_small.h5 ]; then
+  echo "run: preparing the soil pile (once): dem_run configs/soil/pile_prepare.yaml"
+  ./build/bin/dem_run configs/soil/pile_prepare.yaml
+fi
+./build/bin/cosim_master configs/wheel_loader.yaml "$@"
+/usr/bin/python3 master/studies/plot_run.py results/wheel_loader.h5
