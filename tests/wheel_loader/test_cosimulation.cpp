@@ -1,5 +1,7 @@
 // End to end over LCM on loopback: cosim_master + wheel_loader_adapter + dem_service, a small
 // pile (4000 spheres) and 3 s of the maneuver with the machine started close to the pile.
+// The DEM runs on one thread: ctest runs tests side by side, and OpenMP threads that wait for
+// each other on an oversubscribed machine slow everything down many times over.
 // The bucket picks up soil, the bearing forces are finite, of the expected sign and size,
 // the machine slows on contact, and a second run gives the same numbers bit for bit.
 #include <gtest/gtest.h>
@@ -21,6 +23,7 @@ std::string pile() {
         {harness::bin("dem_run"), harness::source("configs/soil/pile_prepare.yaml"), "--output",
          harness::temp_path("_prepare.h5"), "--set", "particles.fill.0.max=[9.0, 1.9, 2.8]", "--set",
          "particles.fill.0.count=4000", "--set", "walls.1.point=[9.0, 0, 0]", "--set",
+         "scene.threads=1", "--set",
          "settle.checkpoint=" + h5},
         h5 + ".log");
     EXPECT_EQ(harness::wait_for(p, 300), 0) << harness::read_text(h5 + ".log");
@@ -39,7 +42,7 @@ Outputs cosimulate(const std::string& tag) {
       {"time.end=" + std::to_string(kEnd), "output.csv=",
        "participants.loader.parameters={initial_position: 1.8}",
        "participants.soil.parameters={particles.checkpoint: " + pile() + ", output.file: " +
-           r.soil_h5 + ", walls.1.point: [9.0, 0, 0], output.particles_every: 1.0}"},
+           r.soil_h5 + ", walls.1.point: [9.0, 0, 0], output.particles_every: 1.0, scene.threads: 1}"},
       r.master_h5, 600, "configs/wheel_loader.yaml");
   EXPECT_EQ(code, 0) << harness::read_text(r.master_h5 + ".log");
   return r;
