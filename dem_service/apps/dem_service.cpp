@@ -3,10 +3,8 @@
 // The DEM soil as a co-simulation participant: one kinematic input and one wrench output per
 // tool of CONFIG.yaml (the dem_run schema plus `service`, docs/dem_service.md). The master's
 // `parameters` for this participant amend the config as --set does.
-#include <filesystem>
 #include <iostream>
 #include <string>
-#include <vector>
 
 #include "cosim/yaml_config.hpp"
 #include "dem/engine.hpp"
@@ -21,39 +19,15 @@ void usage() {
 }
 
 int run(int argc, char** argv) {
-  std::string config_path;
-  std::vector<std::string> sets;
-  std::vector<char*> rest{argv[0]};
-  for (int a = 1; a < argc; ++a) {
-    const std::string arg = argv[a];
-    if (arg == "-h" || arg == "--help") {
+  for (int a = 1; a < argc; ++a)
+    if (std::string(argv[a]) == "-h" || std::string(argv[a]) == "--help") {
       usage();
       return 0;
-    } else if (arg == "--set") {
-      if (a + 1 >= argc) {
-        std::cerr << "dem_service: --set needs dotted.key=value\n";
-        return 2;
-      }
-      sets.push_back(argv[++a]);
-    } else if (!arg.empty() && arg[0] == '-') {
-      rest.push_back(argv[a]);  // the participant's own options and their values
-      if (a + 1 < argc && argv[a + 1][0] != '-') rest.push_back(argv[++a]);
-    } else if (config_path.empty()) {
-      config_path = arg;
-    } else {
-      std::cerr << "dem_service: more than one config file given ('" << arg << "')\n";
-      return 2;
     }
-  }
-  if (config_path.empty()) {
-    std::cerr << "dem_service: no config file given\n";
-    usage();
-    return 2;
-  }
-  YAML::Node root = cosim::config::load_file(config_path);
-  for (const auto& s : sets) cosim::config::apply_override(root, s);
-  dem::ServiceModel model(root, std::filesystem::path(config_path).parent_path().string());
-  const int code = cosim::run_participant(model, "dem", static_cast<int>(rest.size()), rest.data());
+  auto args = cosim::parse_participant_args(argc, argv, true);
+  dem::ServiceModel model(args.config, args.config_dir);
+  const int code =
+      cosim::run_participant(model, "dem", static_cast<int>(args.rest.size()), args.rest.data());
   model.finish(std::cerr);
   return code;
 }

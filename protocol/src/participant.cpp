@@ -2,7 +2,9 @@
 
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <exception>
+#include <filesystem>
 
 #include "cosim/bus.hpp"
 #include "cosim/yaml_config.hpp"
@@ -184,6 +186,36 @@ step_reply_t ParticipantCore::run_step(const step_request_t& q) {
   cached_ = r;
   busy_step_ = -1;
   return r;
+}
+
+ParticipantArgs parse_participant_args(int argc, char** argv, bool require_config) {
+  ParticipantArgs a;
+  a.rest.push_back(argv[0]);
+  std::vector<std::string> sets;
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    if (arg == "--set") {
+      if (i + 1 >= argc) throw config::ConfigError("--set needs dotted.key=value");
+      sets.push_back(argv[++i]);
+    } else if (arg == "--name" || arg == "--bus" || arg == "--idle-timeout" || arg == "--wait") {
+      a.rest.push_back(argv[i]);
+      if (i + 1 < argc) a.rest.push_back(argv[++i]);  // run_participant checks the value
+    } else if (!arg.empty() && arg[0] == '-') {
+      a.rest.push_back(argv[i]);  // --help, or an unknown option run_participant names
+    } else if (a.config_path.empty()) {
+      a.config_path = arg;
+    } else {
+      throw config::ConfigError("more than one config file given ('" + a.config_path + "', '" + arg + "')");
+    }
+  }
+  if (a.config_path.empty() && require_config)
+    throw config::ConfigError("no config file given (the first argument: CONFIG.yaml)");
+  a.config = a.config_path.empty() ? YAML::Node(YAML::NodeType::Map) : config::load_file(a.config_path);
+  if (!a.config || a.config.IsNull()) a.config = YAML::Node(YAML::NodeType::Map);
+  for (const auto& s : sets) config::apply_override(a.config, s);
+  if (!a.config_path.empty())
+    a.config_dir = std::filesystem::path(a.config_path).parent_path().string();
+  return a;
 }
 
 }  // namespace cosim

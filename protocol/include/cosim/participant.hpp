@@ -116,4 +116,16 @@ class ParticipantCore {
 // Returns the process exit code.
 int run_participant(Model& model, const std::string& default_name, int argc, char** argv);
 
+// The command line of a participant with a config file of its own:
+//   PROGRAM [CONFIG.yaml] [--set dotted.key=value ...] [run_participant's options]
+struct ParticipantArgs {
+  std::string config_path;  // "" when none was given
+  std::string config_dir;   // its folder, for relative input paths ("" without a file)
+  YAML::Node config;        // the file (an empty map without one), --set applied
+  std::vector<char*> rest;  // argv[0] and run_participant's options
+};
+// Raises config::ConfigError for a second config file, a --set without a value, a malformed
+// override or an unreadable file; `require_config` makes a missing file an error too.
+ParticipantArgs parse_participant_args(int argc, char** argv, bool require_config);
+
 }  // namespace cosim
