@@ -17,6 +17,18 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 
+def overlap(run):
+    """Largest and median per-step deepest overlap over the smaller radius, from a DEM
+    participant's diagnostics (docs/dem_service.md), or None."""
+    with h5py.File(run["h5"], "r") as f:
+        for p in f.get("participants", {}):
+            d = f"participants/{p}/diagnostics/max_overlap_ratio"
+            if d in f:
+                v = f[d][:]
+                return float(np.nanmax(v)), float(np.nanmedian(v))
+    return None
+
+
 def read(run, signals):
     with h5py.File(run["h5"], "r") as f:
         t = f["time"][:]
@@ -63,6 +75,9 @@ def make(study, runs, out_dir):
     ref = next((r for r in ok if r.get("reference")), None)
     for r in ok:
         r["wall_from_h5"] = data[r["name"]][2]
+        ov = overlap(r)
+        if ov is not None:
+            r["max_overlap_ratio"], r["median_overlap_ratio"] = ov
         if ref is not None and r is not ref:
             r["error_raw"], r["error_filtered"] = errors(data[ref["name"]], data[r["name"]], signals, seconds)
 
@@ -127,13 +142,22 @@ def make(study, runs, out_dir):
              f"Error: RMS difference from the reference over {', '.join(s['label'] for s in signals)} at the "
              f"variant's macro time points, relative to the reference's RMS; filtered: after a {seconds:g} s "
              "moving average of both.", "",
-             "| run | exit | wall [s] | raw error [%] | filtered error [%] | note |", "| --- | --- | --- | --- | --- | --- |"]
+             "Overlap: the deepest contact overlap of each macro step over the smaller radius (DEM "
+             "diagnostics), largest and median over the run; beyond about 0.2 the linear contact "
+             "model is outside its range (grains sink into each other) and the forces are not soil's.", "",
+             "| run | exit | wall [s] | raw error [%] | filtered error [%] | overlap / r: max, median | note |",
+             "| --- | --- | --- | --- | --- | --- | --- |"]
     for r in runs:
         note = r.get("refused", r.get("failed", "reference" if r.get("reference") else ""))
+        ov = ""
+        if "max_overlap_ratio" in r:
+            ov = f"{r['max_overlap_ratio']:.2f}, {r['median_overlap_ratio']:.2f}"
+            if r["median_overlap_ratio"] > 0.2:
+                note = (note + "; " if note else "") + "overlaps beyond the contact model's range"
         raw = f"{100 * r['error_raw']:.2f}" if "error_raw" in r else ""
         filt = f"{100 * r['error_filtered']:.2f}" if "error_filtered" in r else ""
         wall = f"{r.get('wall_from_h5', r['wall_seconds']):.1f}"
-        lines.append(f"| {r['label']} | {r['exit_code']} | {wall} | {raw} | {filt} | {note} |")
+        lines.append(f"| {r['label']} | {r['exit_code']} | {wall} | {raw} | {filt} | {ov} | {note} |")
     lines += ["", f"Charts: {os.path.basename(forces_png)}, {os.path.basename(wp_png)}", ""]
     with open(os.path.join(out_dir, "report.md"), "w") as f:
         f.write("\n".join(lines))

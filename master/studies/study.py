@@ -125,7 +125,8 @@ def main():
                 runs.append(previous[v["name"]])
                 continue
             if a.plot_only:
-                sys.exit(f"study: no earlier run of {v['name']} to plot; run without --plot-only")
+                print(f"study: no earlier run of {v['name']}: left out (run it with --only {v['name']})")
+                continue
         r = run_variant(study, v, out_dir, binary)
         r["reference"] = v is study.get("reference")
         runs.append(r)
