@@ -116,7 +116,7 @@ TEST(ParticipantCore, RejectsBadInputsAndKeepsServing) {
   r = core.handle(wrong);
   ASSERT_TRUE(r);
   EXPECT_EQ(r->status, step_reply_t::REJECTED);
-  EXPECT_NE(r->message.find("'u' is missing"), std::string::npos) << r->message;
+  EXPECT_NE(r->message.find("'w' is not declared (declared: u)"), std::string::npos) << r->message;
   r = core.handle(request(0, 1.0));  // still serving, state untouched
   ASSERT_TRUE(r);
   EXPECT_EQ(r->status, step_reply_t::OK);

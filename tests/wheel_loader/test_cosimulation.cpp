@@ -41,8 +41,12 @@ Outputs cosimulate(const std::string& tag) {
   const int code = harness::run_master(
       {"time.end=" + std::to_string(kEnd), "output.csv=",
        "participants.loader.parameters={initial_position: 1.8}",
-       "participants.soil.parameters={particles.checkpoint: " + pile() + ", output.file: " +
-           r.soil_h5 + ", walls.1.point: [9.0, 0, 0], output.particles_every: 1.0, scene.threads: 1}"},
+       // The service checks its config file, checkpoint included, when it starts: the pile goes
+       // on its command line; the rest may come with the master's parameters.
+       "participants.soil.launch=[dem_service, " + harness::source("configs/soil/pile.yaml") +
+           ", --set, 'particles.checkpoint=" + pile() + "']",
+       "participants.soil.parameters={output.file: " + r.soil_h5 +
+           ", walls.1.point: [9.0, 0, 0], output.particles_every: 1.0, scene.threads: 1}"},
       r.master_h5, 600, "configs/wheel_loader.yaml");
   EXPECT_EQ(code, 0) << harness::read_text(r.master_h5 + ".log");
   return r;
