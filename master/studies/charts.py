@@ -8,6 +8,7 @@ Error of a variant against the reference run, for the signals the study lists:
             not reproducible from run to run and dominates the raw error.
 """
 import os
+import textwrap
 
 import h5py
 import matplotlib
@@ -91,7 +92,11 @@ def make(study, runs, out_dir):
         for r in ok:
             t, y, _ = data[r["name"]]
             style = dict(lw=0.8, color="k", ls="--") if r.get("reference") else dict(lw=0.9)
-            ax.plot(t, y[s["path"]] * float(s.get("scale", 1.0)), label=r["label"], **style)
+            label = r["label"]
+            if r.get("median_overlap_ratio", 0) > 0.2:  # flagged, not hidden: dotted and named
+                style["ls"] = ":"
+                label += f" (overlaps {r['median_overlap_ratio']:.1f} r: outside the contact model)"
+            ax.plot(t, y[s["path"]] * float(s.get("scale", 1.0)), label=label, **style)
         ax.set_title(s["label"], fontsize=10)
         ax.grid(alpha=0.3)
         if k // cols == rows - 1:
@@ -99,10 +104,10 @@ def make(study, runs, out_dir):
     axes[0][0].legend(fontsize=8)
     refused = [r for r in runs if "refused" in r]
     if refused:
-        fig.text(0.01, 0.005, "\n".join(f"not plotted: {r['label']}: {r['refused'][:180]}" for r in refused),
-                 fontsize=6.5, va="bottom", color="firebrick")
+        text = "\n".join(textwrap.fill(f"not plotted: {r['label']}: {r['refused']}", 190) for r in refused)
+        fig.text(0.01, 0.005, text, fontsize=6.5, va="bottom", color="firebrick")
     fig.suptitle(f"{study['name']}: " + study.get("description", ""), fontsize=11)
-    fig.tight_layout(rect=(0, 0.06 if refused else 0, 1, 0.96))
+    fig.tight_layout(rect=(0, 0.03 + 0.025 * text.count("\n") if refused else 0, 1, 0.96))
     forces_png = os.path.join(out_dir, "forces.png")
     fig.savefig(forces_png, dpi=120)
     plt.close(fig)
