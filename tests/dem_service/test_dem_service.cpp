@@ -11,6 +11,7 @@
 #include <cstdio>
 
 #include "../oscillator/harness.hpp"
+#include "dem/checkpoint.hpp"
 #include "dem/service.hpp"
 
 namespace {
@@ -25,7 +26,7 @@ constexpr Ticks kMacro = 5 * kDt;   // macro step of the in-process tests
 
 std::string scene_path() { return harness::source("tests/dem_service/scene.yaml"); }
 
-cosim::configure_t configure_message() {
+cosim::configure_t configure_message(const std::string& parameters = "") {
   cosim::configure_t c{};
   c.protocol_version = cosim::kProtocolVersion;
   c.session_id = 7;
@@ -33,7 +34,7 @@ cosim::configure_t configure_message() {
   c.t_start_ns = 0;
   c.t_end_ns = 1'000'000'000;
   c.macro_step_ns = kMacro;
-  c.parameters_yaml = "";
+  c.parameters_yaml = parameters;
   return c;
 }
 
@@ -77,11 +78,11 @@ cosim::step_request_t request(int64_t step, double dz = 0, int iteration = 0) {
 struct Service {
   std::unique_ptr<dem::ServiceModel> model;
   std::unique_ptr<cosim::ParticipantCore> core;
-  Service() {
+  explicit Service(const std::string& parameters = "") {
     model = std::make_unique<dem::ServiceModel>(cosim::config::load_file(scene_path()),
                                                 harness::source("tests/dem_service"));
     core = std::make_unique<cosim::ParticipantCore>("dem", *model);
-    auto ready = core->configure(configure_message());
+    auto ready = core->configure(configure_message(parameters));
     EXPECT_TRUE(ready && ready->ok) << (ready ? ready->error : "no answer");
   }
   cosim::step_reply_t step(const cosim::step_request_t& q) {
@@ -189,6 +190,24 @@ TEST(DemService, BadStepsAreRefusedAndTheServiceKeepsServing) {
   Service clean;
   clean.step(request(0));
   EXPECT_EQ(wrench(ok), wrench(clean.step(request(1))));
+}
+
+TEST(DemService, WritesPeriodicCheckpointsThatRestoreTheState) {
+  const std::string file = harness::temp_path("_checkpoint.h5");
+  std::remove(file.c_str());
+  // Every 1e-4 s of co-simulation time, i.e. after every second macro step of 5e-5 s.
+  Service s("{service.checkpoint_every: 1.0e-4, service.checkpoint: " + file + "}");
+  for (int k = 0; k < 3; ++k) ASSERT_EQ(s.step(request(k)).status, cosim::step_reply_t::OK);
+  const dem::State at_2 = dem::load_checkpoint(file);  // written after step 1 (t = 1e-4 s)
+  ASSERT_EQ(s.step(request(3)).status, cosim::step_reply_t::OK);
+  const dem::State at_4 = dem::load_checkpoint(file);  // overwritten after step 3 (t = 2e-4 s)
+  EXPECT_EQ(at_4.step, s.model->state().step);
+  EXPECT_EQ(at_4.step, at_2.step + 10);  // two macro steps of five DEM steps later
+  ASSERT_EQ(at_4.x.size(), s.model->state().x.size());
+  for (std::size_t i = 0; i < at_4.x.size(); ++i) {
+    ASSERT_EQ(at_4.x[i].x, s.model->state().x[i].x);
+    ASSERT_EQ(at_4.v[i].z, s.model->state().v[i].z);
+  }
 }
 
 TEST(DemService, BadConfigsAreRefusedAtStartWithTheKeyNamed) {
