@@ -191,36 +191,50 @@ void BroadPhase::build(const Scene& scene, State& s,
   }
 
   // Particle-triangle candidates: each triangle visits the cells its box (grown by the
-  // largest radius and the skin) overlaps.
+  // largest radius and the skin) overlaps. Threads take contiguous triangle ranges and their
+  // lists are joined in thread order: the same list as one thread makes.
   tri_candidates_.clear();
   const double margin = rmax + skin;
+  thread_tri_.resize(T);
   for (std::size_t m = 0; m < scene.tools.size(); ++m) {
     const Mesh& mesh = scene.tools[m].mesh;
     const Vec3* wv = tool_vertices[m].data();
-    for (std::int32_t t = 0; t < static_cast<std::int32_t>(mesh.triangles.size()); ++t) {
-      const auto& T3 = mesh.triangles[t];
-      const Vec3 a = wv[T3[0]], b = wv[T3[1]], c = wv[T3[2]];
-      const Vec3 bmin{std::min({a.x, b.x, c.x}) - margin, std::min({a.y, b.y, c.y}) - margin,
-                      std::min({a.z, b.z, c.z}) - margin};
-      const Vec3 bmax{std::max({a.x, b.x, c.x}) + margin, std::max({a.y, b.y, c.y}) + margin,
-                      std::max({a.z, b.z, c.z}) + margin};
-      if (n == 0 || bmax.x < lo.x || bmax.y < lo.y || bmax.z < lo.z || bmin.x > hi.x ||
-          bmin.y > hi.y || bmin.z > hi.z)
-        continue;
-      const long x0 = cell_coord(bmin.x, lo.x, nx), x1 = cell_coord(bmax.x, lo.x, nx);
-      const long y0 = cell_coord(bmin.y, lo.y, ny), y1 = cell_coord(bmax.y, lo.y, ny);
-      const long z0 = cell_coord(bmin.z, lo.z, nz), z1 = cell_coord(bmax.z, lo.z, nz);
-      for (long z = z0; z <= z1; ++z)
-        for (long y = y0; y <= y1; ++y)
-          for (long x = x0; x <= x1; ++x) {
-            const long cc = (z * ny + y) * nx + x;
-            for (std::int32_t p = cell_start_[cc]; p < cell_start_[cc + 1]; ++p) {
-              const double cut = s.radius[p] + skin;
-              if (closest_on_triangle(mesh, wv, t, s.x[p]).dist2 < cut * cut)
-                tri_candidates_.push_back({p, static_cast<std::int32_t>(m), t});
+    const std::size_t ntri = mesh.triangles.size();
+    const int TT = ntri >= 256 ? T : 1;  // a handful of triangles is not worth a fork
+#pragma omp parallel num_threads(TT)
+    {
+      const int th = omp_get_thread_num();
+      std::vector<TriCandidate>& out = thread_tri_[th];
+      out.clear();
+      const std::size_t t0 = ntri * th / TT, t1 = ntri * (th + 1) / TT;
+      for (std::size_t tt = t0; tt < t1; ++tt) {
+        const std::int32_t t = static_cast<std::int32_t>(tt);
+        const auto& T3 = mesh.triangles[tt];
+        const Vec3 a = wv[T3[0]], b = wv[T3[1]], c = wv[T3[2]];
+        const Vec3 bmin{std::min({a.x, b.x, c.x}) - margin, std::min({a.y, b.y, c.y}) - margin,
+                        std::min({a.z, b.z, c.z}) - margin};
+        const Vec3 bmax{std::max({a.x, b.x, c.x}) + margin, std::max({a.y, b.y, c.y}) + margin,
+                        std::max({a.z, b.z, c.z}) + margin};
+        if (n == 0 || bmax.x < lo.x || bmax.y < lo.y || bmax.z < lo.z || bmin.x > hi.x ||
+            bmin.y > hi.y || bmin.z > hi.z)
+          continue;
+        const long x0 = cell_coord(bmin.x, lo.x, nx), x1 = cell_coord(bmax.x, lo.x, nx);
+        const long y0 = cell_coord(bmin.y, lo.y, ny), y1 = cell_coord(bmax.y, lo.y, ny);
+        const long z0 = cell_coord(bmin.z, lo.z, nz), z1 = cell_coord(bmax.z, lo.z, nz);
+        for (long z = z0; z <= z1; ++z)
+          for (long y = y0; y <= y1; ++y)
+            for (long x = x0; x <= x1; ++x) {
+              const long cc = (z * ny + y) * nx + x;
+              for (std::int32_t p = cell_start_[cc]; p < cell_start_[cc + 1]; ++p) {
+                const double cut = s.radius[p] + skin;
+                if (closest_on_triangle(mesh, wv, t, s.x[p]).dist2 < cut * cut)
+                  out.push_back({p, static_cast<std::int32_t>(m), t});
+              }
             }
-          }
+      }
     }
+    for (int th = 0; th < TT; ++th)
+      tri_candidates_.insert(tri_candidates_.end(), thread_tri_[th].begin(), thread_tri_[th].end());
   }
   s.tri_offset.assign(n + 1, 0);
   for (const auto& c : tri_candidates_) ++s.tri_offset[c.particle + 1];

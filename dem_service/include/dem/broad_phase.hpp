@@ -34,6 +34,7 @@ class BroadPhase {
     std::int32_t particle, tool, tri;
   };
   std::vector<TriCandidate> tri_candidates_;
+  std::vector<std::vector<TriCandidate>> thread_tri_;  // per thread, joined in thread order
   std::vector<std::int32_t> tri_count_;
   int threads_ = 1;
 
