@@ -93,9 +93,14 @@ void ServiceModel::build(YAML::Node root, const std::string& what) {
 }
 
 void ServiceModel::configure(const YAML::Node& parameters, const cosim::RunInfo& run) {
-  YAML::Node root = YAML::Clone(root_);
-  cfg::apply_overrides(root, parameters, "participants." + run.participant + ".parameters");
-  build(root, "participants." + run.participant + ".parameters");
+  // The start-up build already holds this config's scene and initial state, unless the master
+  // amends it or an earlier session advanced the state: build again only then.
+  if (!pristine_ || (parameters && parameters.size() > 0)) {
+    YAML::Node root = YAML::Clone(root_);
+    cfg::apply_overrides(root, parameters, "participants." + run.participant + ".parameters");
+    build(root, "participants." + run.participant + ".parameters");
+  }
+  pristine_ = false;
   run_ = run;
   const Scene& scene = rc_->scene;
   engine_ = std::make_unique<Engine>(scene);

@@ -35,15 +35,8 @@ def flatten(prefix, value, out):
 
 
 def as_set_args(overrides):
-    args = []
-    for key, value in flatten("", overrides or {}, []):
-        text = yaml.safe_dump(value, default_flow_style=True, width=1 << 20).strip()
-        if text.endswith("\n..."):
-            text = text[:-4].strip()
-        if text.endswith("..."):
-            text = text[:-3].strip()
-        args += ["--set", f"{key}={text}"]
-    return args
+    # JSON is YAML's flow style: numbers, strings, lists and maps pass through --set unchanged.
+    return [a for key, value in flatten("", overrides or {}, []) for a in ("--set", f"{key}={json.dumps(value)}")]
 
 
 def slug(label):

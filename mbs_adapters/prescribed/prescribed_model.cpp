@@ -144,7 +144,7 @@ void PrescribedModel::flush() {
   record_->flush();
 }
 
-cosim::StepResult PrescribedModel::step(const cosim::StepInputs& in, bool want_average) {
+cosim::StepResult PrescribedModel::step(const cosim::StepInputs& in, bool /*want_average*/) {
   // Rows wait until the next step starts: a repeat (restore_snapshot) drops them instead.
   flush();
   for (const auto& tool : tools_) {
@@ -158,10 +158,7 @@ cosim::StepResult PrescribedModel::step(const cosim::StepInputs& in, bool want_a
   }
   cosim::StepResult r;
   r.outputs = poses_at(in.t_end());
-  if (want_average) {
-    // Average of the pose over the step is not a pose; the end value stands for it.
-    r.average = r.outputs;
-  }
+  // No interval average: the mean of a pose is not a pose. The reply says it has none.
   return r;
 }
 

@@ -71,6 +71,7 @@ class ServiceModel final : public cosim::Model {
   std::int64_t steps_done_ = 0;
   double snapshot_seconds_ = 0;
   bool finished_ = false;
+  bool pristine_ = true;  // rc_ is the start-up build, untouched by any session
   std::chrono::steady_clock::time_point wall0_, last_report_;
 };
 
