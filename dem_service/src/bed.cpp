@@ -2,8 +2,88 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numeric>
+#include <sstream>
+
+#include "cosim/yaml_config.hpp"
 
 namespace dem {
+
+double sample_radius(const Species& sp, std::uint64_t& rng) {
+  // splitmix64: the same numbers on every platform, unlike std:: distributions.
+  auto next = [&] {
+    std::uint64_t z = (rng += 0x9E3779B97F4A7C15ull);
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+    return static_cast<double>((z ^ (z >> 31)) >> 11) * 0x1.0p-53;
+  };
+  const RadiusDistribution& d = sp.radius;
+  switch (d.kind) {
+    case RadiusDistribution::Kind::constant:
+      return d.min;
+    case RadiusDistribution::Kind::uniform:
+      return d.min + (d.max - d.min) * next();
+    case RadiusDistribution::Kind::discrete: {
+      double u = next(), acc = 0;
+      for (std::size_t k = 0; k < d.values.size(); ++k) {
+        acc += d.weights[k];
+        if (u < acc) return d.values[k];
+      }
+      return d.values.back();
+    }
+  }
+  return d.min;
+}
+
+void fill_region(const Scene& scene, const FillRegion& region, State& s) {
+  const Species& sp = scene.species[region.species];
+  const double rmax = std::max(sp.radius.max, sp.radius.min);
+  // 15 % slack: the jitter is large enough that settling columns collapse into a random
+  // packing instead of staying stacked, and neighbours can never overlap.
+  const double pitch = 2 * rmax * 1.15;
+  // Half a pitch from the region's faces: a jittered particle stays inside the region.
+  const double e = pitch / 2;
+  const Vec3 lo = region.min + Vec3{e, e, e}, hi = region.max - Vec3{e, e, e};
+  const long nx = static_cast<long>(std::floor((hi.x - lo.x) / pitch)) + 1;
+  const long ny = static_cast<long>(std::floor((hi.y - lo.y) / pitch)) + 1;
+  const long nz = static_cast<long>(std::floor((hi.z - lo.z) / pitch)) + 1;
+  if (hi.x < lo.x || hi.y < lo.y || hi.z < lo.z || nx * ny * nz < region.count) {
+    std::ostringstream msg;
+    msg << "particles.fill: region holds at most "
+        << (hi.x < lo.x || hi.y < lo.y || hi.z < lo.z ? 0 : nx * ny * nz) << " particles of '"
+        << sp.name << "' (lattice pitch " << pitch << " m) but count is " << region.count
+        << "; enlarge the region or lower count";
+    throw cosim::config::ConfigError(msg.str());
+  }
+  std::uint64_t rng = region.seed * 0x2545F4914F6CDD1Dull + 12345;
+  auto uniform = [&] {
+    std::uint64_t z = (rng += 0x9E3779B97F4A7C15ull);
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+    return static_cast<double>((z ^ (z >> 31)) >> 11) * 0x1.0p-53;
+  };
+  long long placed = 0;
+  std::int64_t next_id = s.id.empty() ? 0 : *std::max_element(s.id.begin(), s.id.end()) + 1;
+  for (long iz = 0; iz < nz && placed < region.count; ++iz) {
+    // Random order within a layer so a partly filled top layer is not one-sided.
+    std::vector<long> cells(static_cast<std::size_t>(nx * ny));
+    std::iota(cells.begin(), cells.end(), 0);
+    for (std::size_t k = cells.size(); k > 1; --k)
+      std::swap(cells[k - 1], cells[static_cast<std::size_t>(uniform() * k)]);
+    for (long c : cells) {
+      if (placed >= region.count) break;
+      const double r = sample_radius(sp, rng);
+      const double slack = pitch / 2 - r;  // room to jitter without touching a neighbour
+      const Vec3 centre{lo.x + (c % nx) * pitch, lo.y + (c / nx) * pitch, lo.z + iz * pitch};
+      const Vec3 jitter{slack * (2 * uniform() - 1), slack * (2 * uniform() - 1),
+                        slack * (2 * uniform() - 1)};
+      const double mass = sp.density * 4.0 / 3.0 * M_PI * r * r * r;
+      add_particle(s, centre + 0.999 * jitter, {}, r, mass, region.species, next_id++);
+      ++placed;
+    }
+  }
+}
+
 
 SettleResult settle(Engine& engine, State& s, double ke_per_particle, double max_time,
                     const std::function<void(const SettleResult&)>& progress) {

@@ -5,9 +5,11 @@
 #include <filesystem>
 #include <map>
 #include <numeric>
+#include <stdexcept>
 #include <sstream>
 
 #include "cosim/yaml_config.hpp"
+#include "dem/bed.hpp"
 #include "dem/checkpoint.hpp"
 
 namespace dem {
@@ -27,39 +29,6 @@ std::string resolve(const std::string& base, const std::string& p) {
   const std::string beside = (std::filesystem::path(base) / p).string();
   if (!std::filesystem::exists(beside) && std::filesystem::exists(p)) return p;
   return beside;
-}
-
-ContactLaw parse_law(const YAML::Node& n, const std::string& path) {
-  cfg::check_keys(n, path,
-                  {"normal_stiffness", "stiffness_unit", "restitution", "normal_damping",
-                   "clip_attractive", "tangential_stiffness_ratio", "tangential_damping_ratio",
-                   "friction"});
-  ContactLaw l;
-  l.normal_stiffness = cfg::get_positive(n, path, "normal_stiffness");
-  l.stiffness_per_length = cfg::get_choice(n, path, "stiffness_unit", {"Pa", "N/m"}, "Pa") == "Pa";
-  const bool has_e = static_cast<bool>(n["restitution"]);
-  const bool has_eta = static_cast<bool>(n["normal_damping"]);
-  if (has_e == has_eta)
-    throw ConfigError(path + ": give exactly one of restitution (0..1) or normal_damping (N s/m)");
-  l.damping_from_restitution = has_e;
-  if (has_e) {
-    l.restitution = cfg::get_double(n, path, "restitution");
-    if (!(l.restitution > 0 && l.restitution <= 1))
-      throw ConfigError(path + ".restitution: " + std::to_string(l.restitution) +
-                        " is not in (0, 1]");
-  } else {
-    l.normal_damping = cfg::get_double(n, path, "normal_damping");
-  }
-  l.clip_attractive = cfg::get_bool_or(n, path, "clip_attractive", true);
-  l.tangential_stiffness_ratio = cfg::get_double_or(n, path, "tangential_stiffness_ratio", 1.0);
-  l.tangential_damping_ratio = cfg::get_double_or(n, path, "tangential_damping_ratio", 0.5);
-  l.friction = cfg::get_double_or(n, path, "friction", 0.5);
-  try {
-    finalize(l, path);
-  } catch (const std::invalid_argument& e) {
-    throw ConfigError(e.what());
-  }
-  return l;
 }
 
 RadiusDistribution parse_radius(const YAML::Node& n, const std::string& path) {
@@ -139,137 +108,56 @@ int species_index(const Scene& scene, const std::string& name, const std::string
   throw ConfigError(path + ": unknown species '" + name + "' (defined: " + names + ")");
 }
 
-}  // namespace
+// --- Parsing, one function per section. Nothing here reads a file or places a particle; an
+// absent optional key keeps the initialiser of its struct field (the one place a default is
+// declared, listed in docs/dem.md).
 
-double sample_radius(const Species& sp, std::uint64_t& rng) {
-  // splitmix64: the same numbers on every platform, unlike std:: distributions.
-  auto next = [&] {
-    std::uint64_t z = (rng += 0x9E3779B97F4A7C15ull);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    return static_cast<double>((z ^ (z >> 31)) >> 11) * 0x1.0p-53;
-  };
-  const RadiusDistribution& d = sp.radius;
-  switch (d.kind) {
-    case RadiusDistribution::Kind::constant:
-      return d.min;
-    case RadiusDistribution::Kind::uniform:
-      return d.min + (d.max - d.min) * next();
-    case RadiusDistribution::Kind::discrete: {
-      double u = next(), acc = 0;
-      for (std::size_t k = 0; k < d.values.size(); ++k) {
-        acc += d.weights[k];
-        if (u < acc) return d.values[k];
-      }
-      return d.values.back();
-    }
-  }
-  return d.min;
+void parse_stability(const YAML::Node& st, StabilityOptions& o) {
+  const std::string p = "scene.stability";
+  cfg::check_keys(st, p, {"min_steps_per_contact", "on_violation", "max_speed", "overlap_tolerance"});
+  o.min_steps_per_contact = cfg::get_double_or(st, p, "min_steps_per_contact", o.min_steps_per_contact);
+  if (!(o.min_steps_per_contact >= 1))
+    throw ConfigError("scene.stability.min_steps_per_contact: must be >= 1");
+  const bool warn = o.on_violation == DtViolation::warn;
+  o.on_violation = cfg::get_choice(st, p, "on_violation", {"refuse", "warn"},
+                                   warn ? "warn" : "refuse") == "warn"
+                       ? DtViolation::warn
+                       : DtViolation::refuse;
+  o.max_speed = cfg::get_double_or(st, p, "max_speed", o.max_speed);
+  if (!(o.max_speed > 0)) throw ConfigError("scene.stability.max_speed: must be > 0");
+  o.overlap_tolerance = cfg::get_double_or(st, p, "overlap_tolerance", o.overlap_tolerance);
+  if (!(o.overlap_tolerance >= 0))
+    throw ConfigError("scene.stability.overlap_tolerance: must be >= 0");
 }
 
-void fill_region(const Scene& scene, const FillRegion& region, State& s) {
-  const Species& sp = scene.species[region.species];
-  const double rmax = std::max(sp.radius.max, sp.radius.min);
-  // 15 % slack: the jitter is large enough that settling columns collapse into a random
-  // packing instead of staying stacked, and neighbours can never overlap.
-  const double pitch = 2 * rmax * 1.15;
-  // Half a pitch from the region's faces: a jittered particle stays inside the region.
-  const double e = pitch / 2;
-  const Vec3 lo = region.min + Vec3{e, e, e}, hi = region.max - Vec3{e, e, e};
-  const long nx = static_cast<long>(std::floor((hi.x - lo.x) / pitch)) + 1;
-  const long ny = static_cast<long>(std::floor((hi.y - lo.y) / pitch)) + 1;
-  const long nz = static_cast<long>(std::floor((hi.z - lo.z) / pitch)) + 1;
-  if (hi.x < lo.x || hi.y < lo.y || hi.z < lo.z || nx * ny * nz < region.count) {
-    std::ostringstream msg;
-    msg << "particles.fill: region holds at most "
-        << (hi.x < lo.x || hi.y < lo.y || hi.z < lo.z ? 0 : nx * ny * nz) << " particles of '"
-        << sp.name << "' (lattice pitch " << pitch << " m) but count is " << region.count
-        << "; enlarge the region or lower count";
-    throw ConfigError(msg.str());
-  }
-  std::uint64_t rng = region.seed * 0x2545F4914F6CDD1Dull + 12345;
-  auto uniform = [&] {
-    std::uint64_t z = (rng += 0x9E3779B97F4A7C15ull);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    return static_cast<double>((z ^ (z >> 31)) >> 11) * 0x1.0p-53;
-  };
-  long long placed = 0;
-  std::int64_t next_id = s.id.empty() ? 0 : *std::max_element(s.id.begin(), s.id.end()) + 1;
-  for (long iz = 0; iz < nz && placed < region.count; ++iz) {
-    // Random order within a layer so a partly filled top layer is not one-sided.
-    std::vector<long> cells(static_cast<std::size_t>(nx * ny));
-    std::iota(cells.begin(), cells.end(), 0);
-    for (std::size_t k = cells.size(); k > 1; --k)
-      std::swap(cells[k - 1], cells[static_cast<std::size_t>(uniform() * k)]);
-    for (long c : cells) {
-      if (placed >= region.count) break;
-      const double r = sample_radius(sp, rng);
-      const double slack = pitch / 2 - r;  // room to jitter without touching a neighbour
-      const Vec3 centre{lo.x + (c % nx) * pitch, lo.y + (c / nx) * pitch, lo.z + iz * pitch};
-      const Vec3 jitter{slack * (2 * uniform() - 1), slack * (2 * uniform() - 1),
-                        slack * (2 * uniform() - 1)};
-      const double mass = sp.density * 4.0 / 3.0 * M_PI * r * r * r;
-      add_particle(s, centre + 0.999 * jitter, {}, r, mass, region.species, next_id++);
-      ++placed;
-    }
-  }
-}
-
-RunConfig load_config(const YAML::Node& root, const std::string& base_dir) {
-  RunConfig rc;
-  Scene& sc = rc.scene;
-  cfg::check_keys(root, "", {"scene", "materials", "species", "contact", "walls", "tools",
-                             "particles", "settle", "run", "output"});
-  {
-    std::ostringstream text;
-    text << root;
-    rc.config_text = text.str();
-  }
-  // scene
-  const YAML::Node s = root["scene"];
+void parse_scene_options(const YAML::Node& s, Scene& sc) {
   if (!s) throw ConfigError("scene: missing (expected a map with dt, gravity, ...)");
   cfg::check_keys(s, "scene", {"dt", "gravity", "broad_phase_interval", "skin", "guard", "threads",
                                "min_particles_per_thread", "stability"});
   sc.dt = cfg::get_positive(s, "scene", "dt");
   if (s["gravity"]) sc.gravity = vec3(s, "scene", "gravity");
-  sc.broad_phase_interval = static_cast<int>(cfg::get_int_or(s, "scene", "broad_phase_interval", 5));
+  sc.broad_phase_interval =
+      static_cast<int>(cfg::get_int_or(s, "scene", "broad_phase_interval", sc.broad_phase_interval));
   if (sc.broad_phase_interval < 1)
     throw ConfigError("scene.broad_phase_interval: must be >= 1 (1 = broad phase every step)");
-  sc.skin = cfg::get_double_or(s, "scene", "skin", 0.5);
+  sc.skin = cfg::get_double_or(s, "scene", "skin", sc.skin);
   if (!(sc.skin > 0)) throw ConfigError("scene.skin: must be > 0 (a fraction of r_max, e.g. 0.5)");
-  sc.guard = cfg::get_choice(s, "scene", "guard", {"rebuild", "strict"}, "rebuild") == "strict"
+  const bool strict = sc.guard == GuardMode::strict;
+  sc.guard = cfg::get_choice(s, "scene", "guard", {"rebuild", "strict"},
+                             strict ? "strict" : "rebuild") == "strict"
                  ? GuardMode::strict
                  : GuardMode::rebuild;
-  sc.threads = static_cast<int>(cfg::get_int_or(s, "scene", "threads", 1));
+  sc.threads = static_cast<int>(cfg::get_int_or(s, "scene", "threads", sc.threads));
   if (sc.threads < 1) throw ConfigError("scene.threads: must be >= 1");
-  sc.min_particles_per_thread =
-      static_cast<int>(cfg::get_int_or(s, "scene", "min_particles_per_thread", 2000));
+  sc.min_particles_per_thread = static_cast<int>(
+      cfg::get_int_or(s, "scene", "min_particles_per_thread", sc.min_particles_per_thread));
   if (sc.min_particles_per_thread < 1)
     throw ConfigError("scene.min_particles_per_thread: must be >= 1 (1 = always use scene.threads)");
-  if (const YAML::Node st = s["stability"]) {
-    cfg::check_keys(st, "scene.stability",
-                    {"min_steps_per_contact", "on_violation", "max_speed", "overlap_tolerance"});
-    sc.stability.min_steps_per_contact =
-        cfg::get_double_or(st, "scene.stability", "min_steps_per_contact", 20);
-    if (!(sc.stability.min_steps_per_contact >= 1))
-      throw ConfigError("scene.stability.min_steps_per_contact: must be >= 1");
-    sc.stability.on_violation =
-        cfg::get_choice(st, "scene.stability", "on_violation", {"refuse", "warn"}, "refuse") ==
-                "warn"
-            ? DtViolation::warn
-            : DtViolation::refuse;
-    sc.stability.max_speed = cfg::get_double_or(st, "scene.stability", "max_speed", 100);
-    if (!(sc.stability.max_speed > 0)) throw ConfigError("scene.stability.max_speed: must be > 0");
-    sc.stability.overlap_tolerance =
-        cfg::get_double_or(st, "scene.stability", "overlap_tolerance", 0.01);
-    if (!(sc.stability.overlap_tolerance >= 0))
-      throw ConfigError("scene.stability.overlap_tolerance: must be >= 0");
-  }
+  if (const YAML::Node st = s["stability"]) parse_stability(st, sc.stability);
+}
 
-  // materials and species
+std::vector<Species> parse_species(const YAML::Node& mats, const YAML::Node& sps) {
   std::map<std::string, double> density;
-  const YAML::Node mats = root["materials"];
   if (!mats || !mats.IsMap() || mats.size() == 0)
     throw ConfigError("materials: missing (expected e.g. {sand: {density: 2600}})");
   for (const auto& kv : mats) {
@@ -278,9 +166,9 @@ RunConfig load_config(const YAML::Node& root, const std::string& base_dir) {
     cfg::check_keys(kv.second, p, {"density"});
     density[name] = cfg::get_positive(kv.second, p, "density");
   }
-  const YAML::Node sps = root["species"];
   if (!sps || !sps.IsSequence() || sps.size() == 0)
     throw ConfigError("species: missing (expected a list of {name, material, radius})");
+  std::vector<Species> out;
   for (std::size_t i = 0; i < sps.size(); ++i) {
     const std::string p = "species[" + std::to_string(i) + "]";
     cfg::check_keys(sps[i], p, {"name", "material", "radius"});
@@ -292,100 +180,119 @@ RunConfig load_config(const YAML::Node& root, const std::string& base_dir) {
     sp.density = density[mat];
     if (!sps[i]["radius"]) throw ConfigError(p + ".radius: missing (metres, or a distribution)");
     sp.radius = parse_radius(sps[i]["radius"], p + ".radius");
-    sc.species.push_back(sp);
+    out.push_back(sp);
   }
+  return out;
+}
 
-  // contact
-  const YAML::Node c = root["contact"];
+void parse_contact(const YAML::Node& c, Scene& sc) {
   if (!c) throw ConfigError("contact: missing (expected particle_particle and optional particle_wall)");
   cfg::check_keys(c, "contact", {"particle_particle", "particle_wall"});
   if (!c["particle_particle"]) throw ConfigError("contact.particle_particle: missing");
-  sc.particle_particle = parse_law(c["particle_particle"], "contact.particle_particle");
-  sc.particle_wall = c["particle_wall"] ? parse_law(c["particle_wall"], "contact.particle_wall")
-                                        : sc.particle_particle;
+  sc.particle_particle = parse_contact_law(c["particle_particle"], "contact.particle_particle");
+  sc.particle_wall = c["particle_wall"]
+                         ? parse_contact_law(c["particle_wall"], "contact.particle_wall")
+                         : sc.particle_particle;
+}
 
-  // walls
-  if (const YAML::Node w = root["walls"]) {
-    for (std::size_t i = 0; i < w.size(); ++i) {
-      const std::string p = "walls[" + std::to_string(i) + "]";
-      const std::string type = cfg::get_choice(w[i], p, "type", {"plane", "box"});
-      const std::string name = cfg::get_string(w[i], p, "name");
-      if (type == "plane") {
-        cfg::check_keys(w[i], p, {"name", "type", "point", "normal"});
-        Vec3 n = vec3(w[i], p, "normal");
-        if (!(norm(n) > 0)) throw ConfigError(p + ".normal: must be non-zero");
-        sc.walls.push_back({name, vec3(w[i], p, "point"), (1.0 / norm(n)) * n});
-      } else {
-        cfg::check_keys(w[i], p, {"name", "type", "min", "max", "open_top"});
-        const Vec3 lo = vec3(w[i], p, "min"), hi = vec3(w[i], p, "max");
-        if (!(hi.x > lo.x && hi.y > lo.y && hi.z > lo.z))
-          throw ConfigError(p + ": max must exceed min in x, y and z");
-        // A container: particles stay inside, so each face's normal points inwards.
-        sc.walls.push_back({name + "/xmin", lo, {1, 0, 0}});
-        sc.walls.push_back({name + "/xmax", hi, {-1, 0, 0}});
-        sc.walls.push_back({name + "/ymin", lo, {0, 1, 0}});
-        sc.walls.push_back({name + "/ymax", hi, {0, -1, 0}});
-        sc.walls.push_back({name + "/zmin", lo, {0, 0, 1}});
-        if (!cfg::get_bool_or(w[i], p, "open_top", true))
-          sc.walls.push_back({name + "/zmax", hi, {0, 0, -1}});
-      }
+std::vector<Wall> parse_walls(const YAML::Node& w) {
+  std::vector<Wall> walls;
+  if (!w) return walls;
+  for (std::size_t i = 0; i < w.size(); ++i) {
+    const std::string p = "walls[" + std::to_string(i) + "]";
+    const std::string type = cfg::get_choice(w[i], p, "type", {"plane", "box"});
+    const std::string name = cfg::get_string(w[i], p, "name");
+    if (type == "plane") {
+      cfg::check_keys(w[i], p, {"name", "type", "point", "normal"});
+      Vec3 n = vec3(w[i], p, "normal");
+      if (!(norm(n) > 0)) throw ConfigError(p + ".normal: must be non-zero");
+      walls.push_back({name, vec3(w[i], p, "point"), (1.0 / norm(n)) * n});
+    } else {
+      cfg::check_keys(w[i], p, {"name", "type", "min", "max", "open_top"});
+      const Vec3 lo = vec3(w[i], p, "min"), hi = vec3(w[i], p, "max");
+      if (!(hi.x > lo.x && hi.y > lo.y && hi.z > lo.z))
+        throw ConfigError(p + ": max must exceed min in x, y and z");
+      // A container: particles stay inside, so each face's normal points inwards.
+      walls.push_back({name + "/xmin", lo, {1, 0, 0}});
+      walls.push_back({name + "/xmax", hi, {-1, 0, 0}});
+      walls.push_back({name + "/ymin", lo, {0, 1, 0}});
+      walls.push_back({name + "/ymax", hi, {0, -1, 0}});
+      walls.push_back({name + "/zmin", lo, {0, 0, 1}});
+      if (!cfg::get_bool_or(w[i], p, "open_top", true))
+        walls.push_back({name + "/zmax", hi, {0, 0, -1}});
     }
   }
+  return walls;
+}
 
-  // tools
-  if (const YAML::Node t = root["tools"]) {
-    for (std::size_t i = 0; i < t.size(); ++i) {
-      const std::string p = "tools[" + std::to_string(i) + "]";
-      cfg::check_keys(t[i], p, {"name", "mesh", "scale", "reference_point", "motion"});
-      Tool tool;
-      tool.name = cfg::get_string(t[i], p, "name");
-      const double scale = cfg::get_positive_or(t[i], p, "scale", 1.0);
-      const Vec3 ref = t[i]["reference_point"] ? vec3(t[i], p, "reference_point") : Vec3{};
-      const std::string file = resolve(base_dir, cfg::get_string(t[i], p, "mesh"));
-      try {
-        tool.mesh = load_mesh(file, scale, ref);
-      } catch (const std::runtime_error& e) {
-        throw ConfigError(p + ".mesh: " + e.what());
-      }
-      if (const YAML::Node m = t[i]["motion"]) {
-        const std::string mp = p + ".motion";
-        cfg::check_keys(m, mp, {"interpolation", "keyframes", "csv"});
-        tool.motion.interpolation =
-            cfg::get_choice(m, mp, "interpolation", {"linear", "cubic"}, "linear") == "cubic"
-                ? ToolMotion::Interpolation::cubic
-                : ToolMotion::Interpolation::linear;
-        if (static_cast<bool>(m["keyframes"]) == static_cast<bool>(m["csv"]))
-          throw ConfigError(mp + ": give exactly one of keyframes or csv");
-        if (m["keyframes"]) {
-          tool.motion.keyframes = parse_keyframes(m["keyframes"], mp + ".keyframes");
-        } else {
-          try {
-            tool.motion.keyframes = load_keyframes_csv(resolve(base_dir, cfg::get_string(m, mp, "csv")));
-          } catch (const std::exception& e) {
-            throw ConfigError(mp + ".csv: " + e.what());
-          }
-        }
-      } else {
-        tool.motion.keyframes = {Keyframe{}};  // fixed: mesh frame = world frame
-      }
-      sc.tools.push_back(std::move(tool));
+// A tool as the config describes it: the files are read by load_tool.
+struct ToolSource {
+  std::string path;  // dotted, for messages
+  std::string name;
+  std::string mesh;  // file, as written
+  double scale = 1.0;
+  Vec3 reference_point;
+  ToolMotion motion;  // keyframes given inline (or the fixed pose), else empty
+  std::string csv;    // keyframes file, as written ("" = none)
+};
+
+std::vector<ToolSource> parse_tools(const YAML::Node& t) {
+  std::vector<ToolSource> tools;
+  if (!t) return tools;
+  for (std::size_t i = 0; i < t.size(); ++i) {
+    ToolSource tool;
+    const std::string& p = tool.path = "tools[" + std::to_string(i) + "]";
+    cfg::check_keys(t[i], p, {"name", "mesh", "scale", "reference_point", "motion"});
+    tool.name = cfg::get_string(t[i], p, "name");
+    tool.scale = cfg::get_positive_or(t[i], p, "scale", tool.scale);
+    if (t[i]["reference_point"]) tool.reference_point = vec3(t[i], p, "reference_point");
+    tool.mesh = cfg::get_string(t[i], p, "mesh");
+    if (const YAML::Node m = t[i]["motion"]) {
+      const std::string mp = p + ".motion";
+      cfg::check_keys(m, mp, {"interpolation", "keyframes", "csv"});
+      tool.motion.interpolation =
+          cfg::get_choice(m, mp, "interpolation", {"linear", "cubic"},
+                          tool.motion.interpolation == ToolMotion::Interpolation::cubic
+                              ? "cubic"
+                              : "linear") == "cubic"
+              ? ToolMotion::Interpolation::cubic
+              : ToolMotion::Interpolation::linear;
+      if (static_cast<bool>(m["keyframes"]) == static_cast<bool>(m["csv"]))
+        throw ConfigError(mp + ": give exactly one of keyframes or csv");
+      if (m["keyframes"])
+        tool.motion.keyframes = parse_keyframes(m["keyframes"], mp + ".keyframes");
+      else
+        tool.csv = cfg::get_string(m, mp, "csv");
+    } else {
+      tool.motion.keyframes = {Keyframe{}};  // fixed: mesh frame = world frame
     }
+    tools.push_back(std::move(tool));
   }
+  return tools;
+}
 
-  // particles
-  const YAML::Node parts = root["particles"];
+// A particle of particles.list, checked against its species.
+struct ListedParticle {
+  int species = 0;
+  Vec3 position, velocity;
+  double radius = 0;
+};
+
+// The particles section: what to load, place and fill, in that order.
+struct ParticleSources {
+  std::string checkpoint;  // as written ("" = none)
+  bool keep_time = false;
+  std::vector<ListedParticle> list;
+  std::vector<FillRegion> fill;
+};
+
+ParticleSources parse_particles(const YAML::Node& parts, const Scene& sc) {
   if (!parts) throw ConfigError("particles: missing (give fill, list or checkpoint)");
   cfg::check_keys(parts, "particles", {"fill", "list", "checkpoint", "keep_time"});
+  ParticleSources src;
   if (parts["checkpoint"]) {
-    const std::string file = resolve(base_dir, cfg::get_string(parts, "particles", "checkpoint"));
-    try {
-      rc.state = load_checkpoint(file);
-    } catch (const std::exception& e) {
-      throw ConfigError(std::string("particles.checkpoint: ") + e.what());
-    }
-    // A prepared bed starts a new scene at t = 0 (tool keyframes count from there); keep the
-    // checkpoint's time only to continue the same run.
-    if (!cfg::get_bool_or(parts, "particles", "keep_time", false)) rc.state.step = 0;
+    src.checkpoint = cfg::get_string(parts, "particles", "checkpoint");
+    src.keep_time = cfg::get_bool_or(parts, "particles", "keep_time", src.keep_time);
   }
   if (const YAML::Node f = parts["fill"]) {
     for (std::size_t i = 0; i < f.size(); ++i) {
@@ -397,60 +304,148 @@ RunConfig load_config(const YAML::Node& root, const std::string& base_dir) {
       r.max = vec3(f[i], p, "max");
       r.count = cfg::get_int(f[i], p, "count");
       if (r.count < 0) throw ConfigError(p + ".count: must be >= 0");
-      r.seed = static_cast<unsigned long long>(cfg::get_int_or(f[i], p, "seed", 1));
-      rc.fill.push_back(r);
+      r.seed = static_cast<unsigned long long>(
+          cfg::get_int_or(f[i], p, "seed", static_cast<long long>(r.seed)));
+      src.fill.push_back(r);
     }
   }
   if (const YAML::Node l = parts["list"]) {
     for (std::size_t i = 0; i < l.size(); ++i) {
       const std::string p = "particles.list[" + std::to_string(i) + "]";
       cfg::check_keys(l[i], p, {"species", "position", "velocity", "radius"});
-      const int spi = species_index(sc, cfg::get_string(l[i], p, "species"), p + ".species");
-      const Species& sp = sc.species[spi];
-      const double r = l[i]["radius"] ? cfg::get_double(l[i], p, "radius") : sp.radius.max;
-      if (!(r > 0) || !std::isfinite(r))
+      ListedParticle lp;
+      lp.species = species_index(sc, cfg::get_string(l[i], p, "species"), p + ".species");
+      lp.radius = l[i]["radius"] ? cfg::get_double(l[i], p, "radius")
+                                 : sc.species[lp.species].radius.max;
+      if (!(lp.radius > 0) || !std::isfinite(lp.radius))
         throw ConfigError(p + ".radius: must be a positive number of metres, got " +
-                          std::to_string(r));
-      const Vec3 v = l[i]["velocity"] ? vec3(l[i], p, "velocity") : Vec3{};
-      const std::int64_t id =
-          rc.state.id.empty() ? 0 : *std::max_element(rc.state.id.begin(), rc.state.id.end()) + 1;
-      add_particle(rc.state, vec3(l[i], p, "position"), v, r,
-                   sp.density * 4.0 / 3.0 * M_PI * r * r * r, spi, id);
+                          std::to_string(lp.radius));
+      if (l[i]["velocity"]) lp.velocity = vec3(l[i], p, "velocity");
+      lp.position = vec3(l[i], p, "position");
+      src.list.push_back(lp);
     }
   }
-  for (const FillRegion& r : rc.fill) fill_region(sc, r, rc.state);
+  return src;
+}
 
-  // settle, run, output
-  if (const YAML::Node st = root["settle"]) {
-    cfg::check_keys(st, "settle", {"ke_per_particle", "max_time", "checkpoint"});
-    rc.settle.enabled = true;
-    rc.settle.ke_per_particle = cfg::get_positive_or(st, "settle", "ke_per_particle", 1e-9);
-    rc.settle.max_time = cfg::get_positive_or(st, "settle", "max_time", 5.0);
-    // An output: relative to the working directory, like output.file.
-    rc.settle.checkpoint = cfg::get_string_or(st, "settle", "checkpoint", "");
+SettleOptions parse_settle(const YAML::Node& st) {
+  SettleOptions o;
+  if (!st) return o;
+  cfg::check_keys(st, "settle", {"ke_per_particle", "max_time", "checkpoint"});
+  o.enabled = true;
+  o.ke_per_particle = cfg::get_positive_or(st, "settle", "ke_per_particle", o.ke_per_particle);
+  o.max_time = cfg::get_positive_or(st, "settle", "max_time", o.max_time);
+  // An output: relative to the working directory, like output.file.
+  o.checkpoint = cfg::get_string_or(st, "settle", "checkpoint", o.checkpoint);
+  return o;
+}
+
+double parse_run(const YAML::Node& r, double duration) {
+  if (!r) return duration;
+  cfg::check_keys(r, "run", {"duration"});
+  duration = cfg::get_double(r, "run", "duration");
+  if (!(duration >= 0)) throw ConfigError("run.duration: must be >= 0 s");
+  return duration;
+}
+
+OutputOptions parse_output(const YAML::Node& o) {
+  OutputOptions out;
+  if (!o) return out;
+  cfg::check_keys(o, "output", {"file", "particles_every", "wrenches_every", "progress_every",
+                                "checkpoint"});
+  out.file = cfg::get_string_or(o, "output", "file", out.file);
+  out.particles_every = cfg::get_double_or(o, "output", "particles_every", out.particles_every);
+  out.wrenches_every = cfg::get_double_or(o, "output", "wrenches_every", out.wrenches_every);
+  out.progress_every = cfg::get_double_or(o, "output", "progress_every", out.progress_every);
+  out.checkpoint = cfg::get_string_or(o, "output", "checkpoint", out.checkpoint);
+  if (out.particles_every < 0 || out.wrenches_every < 0)
+    throw ConfigError("output.particles_every / wrenches_every: must be >= 0 s (0 = every step "
+                      "for wrenches, start and end for particles)");
+  return out;
+}
+
+// --- File loading: meshes, keyframe CSVs, checkpoints (paths relative to base_dir).
+
+Tool load_tool(const ToolSource& src, const std::string& base_dir) {
+  Tool tool;
+  tool.name = src.name;
+  try {
+    tool.mesh = load_mesh(resolve(base_dir, src.mesh), src.scale, src.reference_point);
+  } catch (const std::runtime_error& e) {
+    throw ConfigError(src.path + ".mesh: " + e.what());
   }
-  if (const YAML::Node r = root["run"]) {
-    cfg::check_keys(r, "run", {"duration"});
-    rc.duration = cfg::get_double(r, "run", "duration");
-    if (!(rc.duration >= 0)) throw ConfigError("run.duration: must be >= 0 s");
+  tool.motion = src.motion;
+  if (!src.csv.empty()) {
+    try {
+      tool.motion.keyframes = load_keyframes_csv(resolve(base_dir, src.csv));
+    } catch (const std::exception& e) {
+      throw ConfigError(src.path + ".motion.csv: " + e.what());
+    }
   }
-  if (const YAML::Node o = root["output"]) {
-    cfg::check_keys(o, "output", {"file", "particles_every", "wrenches_every", "progress_every",
-                                  "checkpoint"});
-    rc.output.file = cfg::get_string_or(o, "output", "file", rc.output.file);
-    rc.output.particles_every = cfg::get_double_or(o, "output", "particles_every", 0);
-    rc.output.wrenches_every = cfg::get_double_or(o, "output", "wrenches_every", 0);
-    rc.output.progress_every = cfg::get_double_or(o, "output", "progress_every", 2);
-    rc.output.checkpoint = cfg::get_string_or(o, "output", "checkpoint", "");
-    if (rc.output.particles_every < 0 || rc.output.wrenches_every < 0)
-      throw ConfigError("output.particles_every / wrenches_every: must be >= 0 s (0 = every step "
-                        "for wrenches, start and end for particles)");
+  return tool;
+}
+
+State load_bed(const ParticleSources& src, const std::string& base_dir) {
+  if (src.checkpoint.empty()) return State{};
+  State s;
+  try {
+    s = load_checkpoint(resolve(base_dir, src.checkpoint));
+  } catch (const std::exception& e) {
+    throw ConfigError(std::string("particles.checkpoint: ") + e.what());
   }
-  // Checkpointed beds may come from another scene: the tool count is this scene's.
-  rc.state.tool_pose.resize(sc.tools.size());
+  // A prepared bed starts a new scene at t = 0 (tool keyframes count from there); keep the
+  // checkpoint's time only to continue the same run.
+  if (!src.keep_time) s.step = 0;
+  return s;
+}
+
+// --- Generation: the listed particles, then the fill regions, after the loaded bed.
+
+void place_listed(const Scene& sc, const std::vector<ListedParticle>& list, State& s) {
+  for (const ListedParticle& lp : list) {
+    const Species& sp = sc.species[lp.species];
+    const double r = lp.radius;
+    const std::int64_t id = s.id.empty() ? 0 : *std::max_element(s.id.begin(), s.id.end()) + 1;
+    add_particle(s, lp.position, lp.velocity, r, sp.density * 4.0 / 3.0 * M_PI * r * r * r,
+                 lp.species, id);
+  }
+}
+
+// Checkpointed beds may come from another scene: the tool count is this scene's.
+void pose_tools(const Scene& sc, State& s) {
+  s.tool_pose.resize(sc.tools.size());
   for (std::size_t m = 0; m < sc.tools.size(); ++m)
-    rc.state.tool_pose[m] = sc.tools[m].motion.evaluate(rc.state.step * sc.dt);
-  if (rc.state.tool_pose_at_rebuild.size() != sc.tools.size()) rc.state.lists_valid = false;
+    s.tool_pose[m] = sc.tools[m].motion.evaluate(s.step * sc.dt);
+  if (s.tool_pose_at_rebuild.size() != sc.tools.size()) s.lists_valid = false;
+}
+
+}  // namespace
+
+RunConfig load_config(const YAML::Node& root, const std::string& base_dir) {
+  cfg::check_keys(root, "", {"scene", "materials", "species", "contact", "walls", "tools",
+                             "particles", "settle", "run", "output"});
+  RunConfig rc;
+  {
+    std::ostringstream text;
+    text << root;
+    rc.config_text = text.str();
+  }
+  Scene& sc = rc.scene;
+  parse_scene_options(root["scene"], sc);
+  sc.species = parse_species(root["materials"], root["species"]);
+  parse_contact(root["contact"], sc);
+  sc.walls = parse_walls(root["walls"]);
+  for (const ToolSource& t : parse_tools(root["tools"])) sc.tools.push_back(load_tool(t, base_dir));
+  const ParticleSources particles = parse_particles(root["particles"], sc);
+  rc.fill = particles.fill;
+  rc.settle = parse_settle(root["settle"]);
+  rc.duration = parse_run(root["run"], rc.duration);
+  rc.output = parse_output(root["output"]);
+
+  rc.state = load_bed(particles, base_dir);
+  place_listed(sc, particles.list, rc.state);
+  for (const FillRegion& r : rc.fill) fill_region(sc, r, rc.state);
+  pose_tools(sc, rc.state);
   return rc;
 }
 

@@ -1,8 +1,8 @@
 #include "cosim/yaml_config.hpp"
 
-#include <functional>
-
+#include <algorithm>
 #include <cstdlib>
+#include <functional>
 #include <sstream>
 
 namespace cosim::config {
@@ -22,6 +22,24 @@ std::string describe(const YAML::Node& value) {
   if (value.IsScalar()) return value.Scalar();
   if (value.IsSequence()) return "a list";
   return "a map";
+}
+
+// Levenshtein distance, ASCII case-insensitive (a typo of case counts as no edit).
+std::size_t edit_distance(std::string_view a, std::string_view b) {
+  auto lower = [](char c) { return c >= 'A' && c <= 'Z' ? static_cast<char>(c - 'A' + 'a') : c; };
+  std::vector<std::size_t> row(b.size() + 1);
+  for (std::size_t j = 0; j <= b.size(); ++j) row[j] = j;
+  for (std::size_t i = 1; i <= a.size(); ++i) {
+    std::size_t diagonal = row[0];
+    row[0] = i;
+    for (std::size_t j = 1; j <= b.size(); ++j) {
+      const std::size_t above = row[j];
+      row[j] = std::min({row[j] + 1, row[j - 1] + 1,
+                         diagonal + (lower(a[i - 1]) == lower(b[j - 1]) ? 0 : 1)});
+      diagonal = above;
+    }
+  }
+  return row[b.size()];
 }
 
 YAML::Node required(const YAML::Node& node, std::string_view path, const std::string& key,
@@ -125,6 +143,26 @@ void apply_override(YAML::Node& root, const std::string& assignment) {
   else chain.back()[parts.back()] = value;
 }
 
+std::string closest_key(std::string_view key, const std::vector<std::string>& allowed) {
+  // Up to one edit in short keys, two from six characters on: closer than that, a typo;
+  // farther, a different word.
+  const std::size_t limit = key.size() < 6 ? 1 : 2;
+  std::size_t best = limit + 1;
+  std::string match;
+  bool tie = false;
+  for (const auto& a : allowed) {
+    const std::size_t d = edit_distance(key, a);
+    if (d < best) {
+      best = d;
+      match = a;
+      tie = false;
+    } else if (d == best) {
+      tie = true;
+    }
+  }
+  return best <= limit && !tie ? match : std::string();
+}
+
 void check_keys(const YAML::Node& node, std::string_view path,
                 std::initializer_list<std::string_view> allowed) {
   check_keys(node, path, std::vector<std::string>(allowed.begin(), allowed.end()));
@@ -143,9 +181,11 @@ void check_keys(const YAML::Node& node, std::string_view path,
       ok = ok || a == key;
       names += (names.empty() ? "" : ", ") + a;
     }
-    if (!ok)
+    if (!ok) {
+      const std::string hint = closest_key(key, allowed);
       throw ConfigError(join_path(path, key) + ": unknown key '" + key + "' (allowed: " +
-                        names + ")");
+                        names + ")" + (hint.empty() ? "" : "; did you mean '" + hint + "'?"));
+    }
   }
 }
 

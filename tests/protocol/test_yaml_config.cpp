@@ -48,7 +48,37 @@ TEST(YamlConfig, UnknownKeysAreNamedWithTheAllowedOnes) {
     check_keys(n, "participants.mass1.parameters", {"mass", "stiffness"});
     FAIL() << "no error";
   } catch (const ConfigError& e) {
-    EXPECT_STREQ(e.what(), "participants.mass1.parameters.mas: unknown key 'mas' (allowed: mass, stiffness)");
+    EXPECT_STREQ(e.what(), "participants.mass1.parameters.mas: unknown key 'mas' (allowed: mass, stiffness); did you mean 'mass'?");
+  }
+}
+
+TEST(YamlConfig, UnknownKeysSuggestTheOnlyCloseAllowedKey) {
+  const std::vector<std::string> scene{"dt", "gravity", "broad_phase_interval", "skin", "guard",
+                                       "threads", "min_particles_per_thread", "stability"};
+  EXPECT_EQ(closest_key("thread", scene), "threads");                 // deletion
+  EXPECT_EQ(closest_key("gravty", scene), "gravity");                 // deletion in a long key
+  EXPECT_EQ(closest_key("broad_phase_intervall", scene), "broad_phase_interval");
+  EXPECT_EQ(closest_key("skni", scene), "");                          // two edits in a short key
+  EXPECT_EQ(closest_key("GUARD", scene), "guard");                    // case ignored
+  EXPECT_EQ(closest_key("gaurd", scene), "");                         // a swap is two edits
+  EXPECT_EQ(closest_key("time_step", scene), "");                     // a different word
+  EXPECT_EQ(closest_key("ab", {"a", "b", "abc"}), "");                // three at one edit: no guess
+  EXPECT_EQ(closest_key("mass", {"mass"}), "mass");
+
+  YAML::Node n = YAML::Load("frction: 0.5\n");
+  try {
+    check_keys(n, "contact.particle_particle", {"normal_stiffness", "restitution", "friction"});
+    FAIL() << "no error";
+  } catch (const ConfigError& e) {
+    EXPECT_STREQ(e.what(),
+                 "contact.particle_particle.frction: unknown key 'frction' (allowed: "
+                 "normal_stiffness, restitution, friction); did you mean 'friction'?");
+  }
+  try {
+    check_keys(YAML::Load("time_step: 1\n"), "scene", {"dt", "gravity"});
+    FAIL() << "no error";
+  } catch (const ConfigError& e) {
+    EXPECT_STREQ(e.what(), "scene.time_step: unknown key 'time_step' (allowed: dt, gravity)");
   }
 }
 

@@ -1,23 +1,18 @@
 // YAML config -> Scene + initial State + run options, strictly: unknown keys and bad values
-// are refused with cosim::config::ConfigError naming the dotted key and the fix.
-// The schema is documented in docs/dem.md.
+// are refused with cosim::config::ConfigError naming the dotted key and the fix. The schema
+// and its defaults are documented in docs/dem.md; a default is the initialiser of its struct
+// field here, in scene.hpp, contact_law.hpp or bed.hpp (the parser falls back to it).
 #pragma once
 
 #include <yaml-cpp/yaml.h>
 
 #include <string>
 
+#include "dem/bed.hpp"
 #include "dem/scene.hpp"
 #include "dem/state.hpp"
 
 namespace dem {
-
-struct FillRegion {
-  int species = 0;
-  Vec3 min, max;
-  long long count = 0;
-  unsigned long long seed = 1;
-};
 
 struct SettleOptions {
   bool enabled = false;
@@ -44,15 +39,9 @@ struct RunConfig {
   std::string config_text;  // the config as run (after --set), stored in the output
 };
 
+// Parses every section, then reads the files it names (meshes, keyframe CSVs, a checkpoint)
+// and generates the initial state (checkpoint, then particles.list, then particles.fill).
 // base_dir resolves relative mesh, CSV and checkpoint paths (the config file's folder).
 RunConfig load_config(const YAML::Node& root, const std::string& base_dir);
-
-// Samples one radius of species sp with the generator state `rng` (splitmix64).
-double sample_radius(const Species& sp, std::uint64_t& rng);
-
-// Fills the region with non-overlapping particles: a jittered lattice of pitch 2 r_max,
-// filled from the bottom layer up, radii drawn from the species distribution. Seeded and
-// reproducible on every platform (own generator).
-void fill_region(const Scene& scene, const FillRegion& region, State& s);
 
 }  // namespace dem

@@ -1,13 +1,49 @@
-// The contact law, in one place: linear spring-dashpot normal force, tangential spring with
-// history plus dashpot, Coulomb cap. Conventions in docs/physics.md.
+// The contact law, in one place: its parameters (with their defaults), the derived constants,
+// validation, YAML parsing, and the inline force functions of the hot loop: linear
+// spring-dashpot normal force, tangential spring with history plus dashpot, Coulomb cap.
+// Conventions in docs/physics.md, config keys in docs/dem.md.
 #pragma once
 
 #include <cmath>
+#include <string>
 
-#include "dem/scene.hpp"
 #include "dem/vec3.hpp"
 
+namespace YAML {
+class Node;
+}
+
 namespace dem {
+
+// Linear spring-dashpot with tangential history and Coulomb cap. The initialisers are the
+// config defaults (parse_contact_law reads them as the fallback of every optional key).
+struct ContactLaw {
+  // true: normal_stiffness is in Pa and k_N [N/m] = normal_stiffness * effective length.
+  bool stiffness_per_length = true;
+  double normal_stiffness = 0;  // required
+  // true: damping ratio zeta derived from `restitution`; false: `normal_damping` in N s/m.
+  bool damping_from_restitution = true;
+  double restitution = 0.5;
+  double zeta = 0;  // derived from restitution by finalize()
+  double normal_damping = 0;
+  bool clip_attractive = true;              // F_n >= 0 when true
+  double tangential_stiffness_ratio = 1.0;  // k_T / k_N
+  double tangential_damping_ratio = 0.5;    // eta_T / eta_N
+  double friction = 0.5;                    // Coulomb mu
+};
+
+// The only validation of a contact law, for config and programmatic laws alike: checks the
+// ranges and fills the derived fields (zeta from restitution). Throws std::invalid_argument
+// "<path>.<key>: ..." naming the value and the fix.
+void finalize(ContactLaw& law, const std::string& path);
+
+// Reads a contact law from its YAML map at dotted `path` (e.g. "contact.particle_particle"):
+// unknown keys, a wrong type, both or neither of restitution / normal_damping and the ranges
+// of finalize() are refused with cosim::config::ConfigError. The result is finalized.
+ContactLaw parse_contact_law(const YAML::Node& node, const std::string& path);
+
+// Damping ratio for restitution e: zeta = -ln e / sqrt(pi^2 + ln^2 e).
+double damping_ratio_from_restitution(double e);
 
 // Per-contact coefficients; effective length and mass depend on the pair.
 struct ContactCoefficients {
@@ -93,8 +129,5 @@ inline bool surely_apart(double d2, double rsum, double urel2, double dt) {
 // Period used by the dt check: the shortest of the damped and undamped normal contact
 // durations and the tangential half period, for the given effective length and mass.
 double stability_period(const ContactLaw& law, double length, double m_eff);
-
-// Damping ratio for restitution e: zeta = -ln e / sqrt(pi^2 + ln^2 e).
-double damping_ratio_from_restitution(double e);
 
 }  // namespace dem

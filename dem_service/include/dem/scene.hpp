@@ -5,27 +5,12 @@
 #include <string>
 #include <vector>
 
+#include "dem/contact_law.hpp"
 #include "dem/mesh.hpp"
 #include "dem/tool_motion.hpp"
 #include "dem/vec3.hpp"
 
 namespace dem {
-
-// Linear spring-dashpot with tangential history and Coulomb cap; see docs/physics.md.
-struct ContactLaw {
-  // true: normal_stiffness is in Pa and k_N [N/m] = normal_stiffness * effective length.
-  bool stiffness_per_length = true;
-  double normal_stiffness = 0;
-  // true: damping ratio zeta derived from `restitution`; false: `normal_damping` in N s/m.
-  bool damping_from_restitution = true;
-  double restitution = 0.5;
-  double zeta = 0;  // derived from restitution
-  double normal_damping = 0;
-  bool clip_attractive = true;              // F_n >= 0 when true
-  double tangential_stiffness_ratio = 1.0;  // k_T / k_N
-  double tangential_damping_ratio = 0.5;    // eta_T / eta_N
-  double friction = 0.5;                    // Coulomb mu
-};
 
 // Particle size distribution of one species.
 struct RadiusDistribution {
@@ -86,9 +71,5 @@ struct Scene {
   double r_max() const;
   double skin_distance() const { return skin * r_max(); }
 };
-
-// Fills derived fields (zeta from restitution) and checks ranges; throws std::invalid_argument
-// naming the field and the fix.
-void finalize(ContactLaw& law, const std::string& path);
 
 }  // namespace dem

@@ -30,12 +30,18 @@ void apply_override(YAML::Node& root, const std::string& assignment);
 // file. `what` names the map in errors (e.g. "participants.dem.parameters").
 void apply_overrides(YAML::Node& root, const YAML::Node& overrides, std::string_view what);
 
-// Raises ConfigError "<path>: unknown key 'k' (allowed: a, b, c)" for keys not in allowed,
-// and "<path>: expected a map" if node is not a map. path is the dotted path of node.
+// Raises ConfigError "<path>.k: unknown key 'k' (allowed: a, b, c)" for keys not in allowed,
+// followed by "; did you mean 'b'?" when closest_key finds one, and "<path>: expected a map"
+// if node is not a map. path is the dotted path of node.
 void check_keys(const YAML::Node& node, std::string_view path,
                 std::initializer_list<std::string_view> allowed);
 void check_keys(const YAML::Node& node, std::string_view path,
                 const std::vector<std::string>& allowed);
+
+// The allowed key a misspelt `key` most likely means: the only one within one edit
+// (insertion, deletion or substitution; ASCII case ignored) for keys under six characters, two
+// edits for longer ones. "" when none or several are that close.
+std::string closest_key(std::string_view key, const std::vector<std::string>& allowed);
 
 std::string join_path(std::string_view parent, std::string_view key);
 
