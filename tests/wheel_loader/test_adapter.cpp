@@ -7,6 +7,7 @@
 #include <cmath>
 #include <string>
 
+#include "config.hpp"  // master/src: the macro-step check
 #include "wheel_loader_model.hpp"
 
 using namespace wheel_loader;
@@ -56,7 +57,6 @@ TEST(wheel_loader_adapter, RefusesBadKeysAndValuesNamingThem) {
       {"{bucket.mass: 0}", "bucket.mass"},
       {"{bucket.mass: heavy}", "bucket.mass"},
       {"{inner_step: -1e-4}", "inner_step"},
-      {"{inner_step: 3e-4}", "inner_step"},  // does not divide the 1 ms macro step
       {"{drive.traction_coefficient: 3}", "drive.traction_coefficient"},
       {"{boom.inertia: [1, 1, 5]}", "boom.inertia"},
       {"{maneuver.tilt: [[1, 0], [0.5, 0.1]]}", "maneuver.tilt.1"},
@@ -69,6 +69,27 @@ TEST(wheel_loader_adapter, RefusesBadKeysAndValuesNamingThem) {
   for (const auto& [yaml, key] : cases) {
     const std::string e = refusal(yaml);
     EXPECT_NE(e.find(key), std::string::npos) << yaml << " -> '" << e << "'";
+  }
+}
+
+// An inner step that does not divide the 1 ms macro step: the adapter declares it, the
+// master's one macro-step check refuses it before the first step, naming both.
+TEST(wheel_loader_adapter, InnerStepThatDoesNotDivideTheMacroStepIsRefused) {
+  WheelLoaderModel m(cosim::config::load_file(kMachine));
+  m.configure(params("{inner_step: 3e-4}"), run_info());
+  master::Config c;
+  c.macro_step = run_info().macro_step;
+  cosim::ParticipantInfo info;
+  info.inner_step = m.inner_step();
+  try {
+    master::check_wiring(c, {{"loader", info}});
+    FAIL() << "accepted";
+  } catch (const cosim::config::ConfigError& e) {
+    const std::string msg = e.what();
+    EXPECT_NE(msg.find("time.macro_step: 1000000 ns is not a multiple of participant loader's "
+                       "inner step 300000 ns"),
+              std::string::npos)
+        << msg;
   }
 }
 
