@@ -9,22 +9,28 @@
 
 namespace dem {
 
+namespace {
+
+// splitmix64 to a uniform double in [0, 1): the same numbers on every platform, unlike std::
+// distributions.
+double uniform01(std::uint64_t& rng) {
+  std::uint64_t z = (rng += 0x9E3779B97F4A7C15ull);
+  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+  z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+  return static_cast<double>((z ^ (z >> 31)) >> 11) * 0x1.0p-53;
+}
+
+}  // namespace
+
 double sample_radius(const Species& sp, std::uint64_t& rng) {
-  // splitmix64: the same numbers on every platform, unlike std:: distributions.
-  auto next = [&] {
-    std::uint64_t z = (rng += 0x9E3779B97F4A7C15ull);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    return static_cast<double>((z ^ (z >> 31)) >> 11) * 0x1.0p-53;
-  };
   const RadiusDistribution& d = sp.radius;
   switch (d.kind) {
     case RadiusDistribution::Kind::constant:
       return d.min;
     case RadiusDistribution::Kind::uniform:
-      return d.min + (d.max - d.min) * next();
+      return d.min + (d.max - d.min) * uniform01(rng);
     case RadiusDistribution::Kind::discrete: {
-      double u = next(), acc = 0;
+      double u = uniform01(rng), acc = 0;
       for (std::size_t k = 0; k < d.values.size(); ++k) {
         acc += d.weights[k];
         if (u < acc) return d.values[k];
@@ -56,12 +62,6 @@ void fill_region(const Scene& scene, const FillRegion& region, State& s) {
     throw cosim::config::ConfigError(msg.str());
   }
   std::uint64_t rng = region.seed * 0x2545F4914F6CDD1Dull + 12345;
-  auto uniform = [&] {
-    std::uint64_t z = (rng += 0x9E3779B97F4A7C15ull);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    return static_cast<double>((z ^ (z >> 31)) >> 11) * 0x1.0p-53;
-  };
   long long placed = 0;
   std::int64_t next_id = s.id.empty() ? 0 : *std::max_element(s.id.begin(), s.id.end()) + 1;
   for (long iz = 0; iz < nz && placed < region.count; ++iz) {
@@ -69,14 +69,14 @@ void fill_region(const Scene& scene, const FillRegion& region, State& s) {
     std::vector<long> cells(static_cast<std::size_t>(nx * ny));
     std::iota(cells.begin(), cells.end(), 0);
     for (std::size_t k = cells.size(); k > 1; --k)
-      std::swap(cells[k - 1], cells[static_cast<std::size_t>(uniform() * k)]);
+      std::swap(cells[k - 1], cells[static_cast<std::size_t>(uniform01(rng) * k)]);
     for (long c : cells) {
       if (placed >= region.count) break;
       const double r = sample_radius(sp, rng);
       const double slack = pitch / 2 - r;  // room to jitter without touching a neighbour
       const Vec3 centre{lo.x + (c % nx) * pitch, lo.y + (c / nx) * pitch, lo.z + iz * pitch};
-      const Vec3 jitter{slack * (2 * uniform() - 1), slack * (2 * uniform() - 1),
-                        slack * (2 * uniform() - 1)};
+      const Vec3 jitter{slack * (2 * uniform01(rng) - 1), slack * (2 * uniform01(rng) - 1),
+                        slack * (2 * uniform01(rng) - 1)};
       const double mass = sp.density * 4.0 / 3.0 * M_PI * r * r * r;
       add_particle(s, centre + 0.999 * jitter, {}, r, mass, region.species, next_id++);
       ++placed;
