@@ -2,26 +2,27 @@
 
 #include <stdexcept>
 
+#include "dem/coupling.hpp"
 #include "dem/h5_util.hpp"
 
 namespace dem {
 namespace {
 
-// ToolPose as 13 doubles: position, orientation (w, x, y, z), velocity, angular velocity.
+// ToolPose rows in the layout of a kinematics value (cosim::Kinematics).
 std::vector<double> flatten(const std::vector<ToolPose>& poses) {
   std::vector<double> out;
-  for (const ToolPose& p : poses)
-    out.insert(out.end(), {p.position.x, p.position.y, p.position.z, p.orientation.w,
-                           p.orientation.x, p.orientation.y, p.orientation.z, p.velocity.x,
-                           p.velocity.y, p.velocity.z, p.angular_velocity.x, p.angular_velocity.y,
-                           p.angular_velocity.z});
+  for (const ToolPose& p : poses) {
+    const cosim::Value v = to_kinematics(p).to_value();
+    out.insert(out.end(), v.begin(), v.end());
+  }
   return out;
 }
 std::vector<ToolPose> unflatten(const std::vector<double>& v) {
-  std::vector<ToolPose> out(v.size() / 13);
+  constexpr std::size_t n = cosim::Kinematics::kSize;
+  std::vector<ToolPose> out(v.size() / n);
   for (std::size_t k = 0; k < out.size(); ++k) {
-    const double* d = &v[13 * k];
-    out[k] = {{d[0], d[1], d[2]}, {d[3], d[4], d[5], d[6]}, {d[7], d[8], d[9]}, {d[10], d[11], d[12]}};
+    const cosim::Value row(v.begin() + n * k, v.begin() + n * (k + 1));
+    out[k] = to_tool_pose(cosim::Kinematics::from_value(row));
   }
   return out;
 }

@@ -7,6 +7,7 @@
 
 #include "cosim/yaml_config.hpp"
 #include "dem/checkpoint.hpp"
+#include "dem/coupling.hpp"
 #include "dem/stability.hpp"
 
 namespace dem {
@@ -58,12 +59,9 @@ Ticks every_ticks(double seconds, const std::string& key, Ticks inner) {
 
 }  // namespace
 
-ToolPose tool_pose_from(const cosim::Value& v) {
-  ToolPose p;
-  p.position = {v[0], v[1], v[2]};
-  p.orientation = normalized(Quat{v[3], v[4], v[5], v[6]});
-  p.velocity = {v[7], v[8], v[9]};
-  p.angular_velocity = {v[10], v[11], v[12]};
+ToolPose tool_pose_from(const cosim::Kinematics& k) {
+  ToolPose p = to_tool_pose(k);
+  p.orientation = normalized(p.orientation);
   return p;
 }
 
@@ -147,7 +145,7 @@ cosim::Signals ServiceModel::initial_outputs() {
   const auto& tools = rc_->scene.tools;
   for (std::size_t m = 0; m < tools.size(); ++m) {
     const Vec3 r = rc_->state.tool_pose[m].position;
-    s[tools[m].name] = {cosim::SignalKind::Wrench, {0, 0, 0, 0, 0, 0, r.x, r.y, r.z}};
+    s[tools[m].name] = {cosim::SignalKind::Wrench, to_wrench(Wrench{}, r).to_value()};
   }
   return s;
 }
@@ -160,7 +158,7 @@ void ServiceModel::set_tool_poses(const cosim::StepInputs& in, Ticks t) {
       if (!std::isfinite(x))
         throw cosim::InputError("tool '" + tools[m].name + "': its pose polynomial gives NaN or "
                                 "infinity at t = " + std::to_string(cosim::to_seconds(t)) + " s");
-    rc_->state.tool_pose[m] = tool_pose_from(v);
+    rc_->state.tool_pose[m] = tool_pose_from(cosim::Kinematics::from_value(v));
   }
 }
 
@@ -221,18 +219,15 @@ cosim::StepResult ServiceModel::step(const cosim::StepInputs& in, bool want_aver
   cosim::StepResult r;
   const double inv_n = 1.0 / static_cast<double>(n);
   for (std::size_t m = 0; m < ntools; ++m) {
-    const Wrench& w = engine.tool_wrenches()[m];
-    const Vec3 p = s.tool_pose[m].position;
-    r.outputs[scene.tools[m].name] = {cosim::SignalKind::Wrench,
-                                      {w.force.x, w.force.y, w.force.z, w.torque.x, w.torque.y,
-                                       w.torque.z, p.x, p.y, p.z}};
+    const cosim::Wrench w = to_wrench(engine.tool_wrenches()[m], s.tool_pose[m].position);
+    r.outputs[scene.tools[m].name] = {cosim::SignalKind::Wrench, w.to_value()};
   }
   if (want_average) {
     cosim::Signals avg;
     for (std::size_t m = 0; m < ntools; ++m) {
-      const Vec3 f = inv_n * sum[m].force, tq = inv_n * sum[m].torque;
-      const Vec3 p = s.tool_pose[m].position;
-      avg[scene.tools[m].name] = {cosim::SignalKind::Wrench, {f.x, f.y, f.z, tq.x, tq.y, tq.z, p.x, p.y, p.z}};
+      const Wrench mean{inv_n * sum[m].force, inv_n * sum[m].torque};
+      const cosim::Wrench w = to_wrench(mean, s.tool_pose[m].position);
+      avg[scene.tools[m].name] = {cosim::SignalKind::Wrench, w.to_value()};
     }
     r.average = std::move(avg);
   }

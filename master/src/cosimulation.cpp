@@ -4,13 +4,15 @@
 #include <cmath>
 
 #include <cosim/bus.hpp>
-#include <cosim/rotation.hpp>
+#include <cosim/quantities.hpp>
 
 namespace master {
 
 using cosim::InputPolynomial;
+using cosim::Kinematics;
 using cosim::SignalKind;
 using cosim::Value;
+using cosim::Wrench;
 using Clock = std::chrono::steady_clock;
 
 namespace {
@@ -18,29 +20,18 @@ namespace {
 double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
 std::vector<double> deviation(SignalKind kind, const Value& predicted, const Value& received) {
-  if (kind != SignalKind::Kinematics) {
-    std::vector<double> d(predicted.size());
-    for (std::size_t i = 0; i < d.size(); ++i) d[i] = predicted[i] - received[i];
-    return d;
-  }
-  const auto r = cosim::quat_relative({received[3], received[4], received[5], received[6]},
-                                      {predicted[3], predicted[4], predicted[5], predicted[6]});
-  return {predicted[0] - received[0], predicted[1] - received[1], predicted[2] - received[2],
-          r[0], r[1], r[2],
-          predicted[7] - received[7], predicted[8] - received[8], predicted[9] - received[9],
-          predicted[10] - received[10], predicted[11] - received[11], predicted[12] - received[12]};
+  if (kind == SignalKind::Kinematics)
+    return Kinematics::from_value(predicted).difference(Kinematics::from_value(received));
+  std::vector<double> d(predicted.size());
+  for (std::size_t i = 0; i < d.size(); ++i) d[i] = predicted[i] - received[i];
+  return d;
 }
 
-// Power of a force (scalar, or wrench [f, t, r]) on a motion (scalar velocity, or kinematics
-// [p, q, v, w]): F v, or f . (v + w x (r - p)) + t . w.
+// Power of a force (scalar, or wrench) on a motion (scalar velocity, or kinematics): F v, or
+// Wrench::power.
 double power(SignalKind kind, const Value& F, const Value& V) {
   if (kind == SignalKind::Scalar) return F[0] * V[0];
-  const double rx = F[6] - V[0], ry = F[7] - V[1], rz = F[8] - V[2];
-  const double wx = V[10], wy = V[11], wz = V[12];
-  const double vx = V[7] + wy * rz - wz * ry;
-  const double vy = V[8] + wz * rx - wx * rz;
-  const double vz = V[9] + wx * ry - wy * rx;
-  return F[0] * vx + F[1] * vy + F[2] * vz + F[3] * wx + F[4] * wy + F[5] * wz;
+  return Wrench::from_value(F).power(Kinematics::from_value(V));
 }
 
 }  // namespace

@@ -106,7 +106,9 @@ void PrescribedModel::configure(const YAML::Node& parameters, const cosim::RunIn
     if (!*record_)
       throw cfg::ConfigError(path + ".record: cannot write '" + record_path_ +
                              "'; check that the folder exists");
-    *record_ << "time,tool,fx,fy,fz,tx,ty,tz,rx,ry,rz\n";
+    *record_ << "time,tool";
+    for (const auto& c : cosim::Wrench::component_names()) *record_ << "," << c;
+    *record_ << "\n";
   }
 }
 
@@ -126,11 +128,8 @@ cosim::Signals PrescribedModel::poses_at(Ticks t) const {
   cosim::Signals s;
   for (const auto& tool : tools_) {
     const Pose p = tool.trajectory.evaluate(cosim::to_seconds(t));
-    s[tool.name] = {cosim::SignalKind::Kinematics,
-                    {p.position[0], p.position[1], p.position[2], p.orientation[0],
-                     p.orientation[1], p.orientation[2], p.orientation[3], p.velocity[0],
-                     p.velocity[1], p.velocity[2], p.angular_velocity[0],
-                     p.angular_velocity[1], p.angular_velocity[2]}};
+    const cosim::Kinematics k{p.position, p.orientation, p.velocity, p.angular_velocity};
+    s[tool.name] = {cosim::SignalKind::Kinematics, k.to_value()};
   }
   return s;
 }
@@ -149,12 +148,15 @@ cosim::StepResult PrescribedModel::step(const cosim::StepInputs& in, bool /*want
   flush();
   for (const auto& tool : tools_) {
     // What arrived: the wrench polynomial at the step's start is the latest sample received.
-    const cosim::Value w = in.at(tool.wrench_input, in.t_start());
-    char row[512];
-    std::snprintf(row, sizeof row, "%.9f,%s,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g\n",
-                  cosim::to_seconds(in.t_start()), tool.name.c_str(), w[0], w[1], w[2], w[3], w[4],
-                  w[5], w[6], w[7], w[8]);
-    pending_.push_back(row);
+    const cosim::Value w = in.at(tool.wrench_input, in.t_start());  // [f t r]
+    char number[32];
+    std::snprintf(number, sizeof number, "%.9f", cosim::to_seconds(in.t_start()));
+    std::string row = number + ("," + tool.name);
+    for (double x : w) {
+      std::snprintf(number, sizeof number, ",%.17g", x);
+      row += number;
+    }
+    pending_.push_back(row + "\n");
   }
   cosim::StepResult r;
   r.outputs = poses_at(in.t_end());

@@ -85,11 +85,8 @@ class BucketWrench : public Force::Custom::Implementation {
   BucketWrench(const WheelLoader& wl, const MobilizedBody& bucket) : wl_(wl), bucket_(bucket) {}
   void calcForce(const State& s, Vector_<SpatialVec>& body, Vector_<SimTK::Vec3>&,
                  Vector&) const override {
-    const Wrench w = wl_.wrench_at(s.getTime());
-    const SimTK::Vec3 F = v3(w.force);
-    const SimTK::Vec3 origin = bucket_.getBodyOriginLocation(s);
-    // torque about the bucket origin = torque about the point + (point - origin) x force
-    bucket_.applyBodyForce(s, SpatialVec(v3(w.torque) + (v3(w.point) - origin) % F, F), body);
+    const Wrench w = wl_.wrench_at(s.getTime()).shifted_to(arr(bucket_.getBodyOriginLocation(s)));
+    bucket_.applyBodyForce(s, SpatialVec(v3(w.torque), v3(w.force)), body);
   }
   Real calcPotentialEnergy(const State&) const override { return 0; }
 
@@ -423,14 +420,14 @@ double WheelLoader::max_acceleration() const {
   return impl_->state.getUDot().normInf();
 }
 
-BucketKinematics WheelLoader::bucket() const {
+cosim::Kinematics WheelLoader::bucket() const {
   const State& s = impl_->state;
   impl_->system.realize(s, Stage::Velocity);
   const auto& b = impl_->bucket;
-  BucketKinematics k;
+  cosim::Kinematics k;
   k.position = arr(b.getBodyOriginLocation(s));
   const Quaternion q = b.getBodyRotation(s).convertRotationToQuaternion();
-  k.rotation = {q[0], q[1], q[2], q[3]};
+  k.orientation = {q[0], q[1], q[2], q[3]};
   k.velocity = arr(b.getBodyOriginVelocity(s));
   k.angular_velocity = arr(b.getBodyAngularVelocity(s));
   return k;

@@ -19,24 +19,17 @@
 #include <functional>
 #include <memory>
 
+#include "cosim/quantities.hpp"
 #include "parameters.hpp"
 
 namespace wheel_loader {
 
 using V3 = std::array<double, 3>;
 
-// Force [N] and torque [N m] in ground; the torque is about `point` (ground).
-struct Wrench {
-  V3 force{}, torque{}, point{};
-};
+// The coupling quantities (cosim/quantities.hpp: plain C++, no bus). The external wrench on
+// the bucket: force and torque in ground, the torque about `point` (ground).
+using Wrench = cosim::Wrench;
 using WrenchInput = std::function<Wrench(double t)>;
-
-struct BucketKinematics {
-  V3 position{};                  // bucket frame origin (A-pin centre), ground
-  std::array<double, 4> rotation{1, 0, 0, 0};  // unit quaternion bucket -> ground, [w x y z]
-  V3 velocity{};                  // of the origin, ground
-  V3 angular_velocity{};          // ground
-};
 
 // Section forces are the forces ON THE BUCKET from the boom (A) and from the tilt link (J),
 // in the bucket frame: long = x (towards the cutting edge), vert = z (up from the floor).
@@ -91,7 +84,9 @@ class WheelLoader {
   void advance(double t_end, const std::function<void()>& after_inner_step = {});
 
   double time() const;
-  BucketKinematics bucket() const;
+  // The bucket frame origin (A-pin centre), its orientation bucket -> ground and velocities,
+  // all in ground.
+  cosim::Kinematics bucket() const;
   Reports reports() const;
   // A bucket-frame point in ground, e.g. the cutting edge [edge_x, 0, floor_z].
   V3 bucket_point(const V3& in_bucket) const;

@@ -16,11 +16,11 @@ const char* const kScalars[] = {"a_long", "a_vert", "j_long", "j_vert", "lift_fo
                                 "normal_load", "bucket_pitch", "boom_angle", "edge_x", "edge_z"};
 constexpr int kNumScalars = sizeof(kScalars) / sizeof(kScalars[0]);
 
-double norm3(double x, double y, double z) { return std::sqrt(x * x + y * y + z * z); }
+double norm(const V3& x) { return std::sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]); }
 }  // namespace
 
 struct WheelLoaderModel::Sample {
-  Value bucket;  // 13
+  Kinematics bucket;
   double scalars[kNumScalars];
 };
 
@@ -53,10 +53,7 @@ Ports WheelLoaderModel::outputs() const {
 
 WheelLoaderModel::Sample WheelLoaderModel::sample() const {
   Sample s;
-  const BucketKinematics k = model_->bucket();
-  s.bucket = {k.position[0], k.position[1], k.position[2], k.rotation[0], k.rotation[1],
-              k.rotation[2], k.rotation[3], k.velocity[0], k.velocity[1], k.velocity[2],
-              k.angular_velocity[0], k.angular_velocity[1], k.angular_velocity[2]};
+  s.bucket = model_->bucket();
   const Reports r = model_->reports();
   const V3 edge = model_->cutting_edge();
   const double v[kNumScalars] = {r.a_long, r.a_vert, r.j_long, r.j_vert, r.lift_force,
@@ -67,9 +64,9 @@ WheelLoaderModel::Sample WheelLoaderModel::sample() const {
 }
 
 namespace {
-Signals to_signals(const Value& bucket, const double* scalars) {
+Signals to_signals(const Kinematics& bucket, const double* scalars) {
   Signals out;
-  out["bucket"] = {SignalKind::Kinematics, bucket};
+  out["bucket"] = {SignalKind::Kinematics, bucket.to_value()};
   for (int i = 0; i < kNumScalars; ++i) out[kScalars[i]] = {SignalKind::Scalar, {scalars[i]}};
   return out;
 }
@@ -86,11 +83,8 @@ void WheelLoaderModel::check_input(const StepInputs& in) const {
   const V3 origin = model_->bucket().position;
   for (double s : {0.0, 0.5, 1.0}) {
     const Ticks t = in.t_start() + static_cast<Ticks>(std::llround(s * (in.t_end() - in.t_start())));
-    const Value w = in.at("bucket_wrench", t);
-    const double F = norm3(w[0], w[1], w[2]);
-    const double r[3] = {w[6] - origin[0], w[7] - origin[1], w[8] - origin[2]};
-    const double T = norm3(w[3] + r[1] * w[2] - r[2] * w[1], w[4] + r[2] * w[0] - r[0] * w[2],
-                           w[5] + r[0] * w[1] - r[1] * w[0]);
+    const Wrench w = Wrench::from_value(in.at("bucket_wrench", t)).shifted_to(origin);
+    const double F = norm(w.force), T = norm(w.torque);
     std::ostringstream msg;
     if (F > p_.max_force)
       msg << "bucket_wrench: force " << F << " N at t = " << to_seconds(t)
@@ -108,44 +102,39 @@ StepResult WheelLoaderModel::step(const StepInputs& in, bool want_average) {
   check_input(in);
   const InputPolynomial poly = in.polynomial("bucket_wrench");
   const double t0 = to_seconds(in.t_start()), H = to_seconds(in.t_end() - in.t_start());
-  model_->set_bucket_wrench([poly, t0, H](double t) {
-    const Value w = poly.evaluate((t - t0) / H);
-    Wrench out;
-    out.force = {w[0], w[1], w[2]};
-    out.torque = {w[3], w[4], w[5]};
-    out.point = {w[6], w[7], w[8]};
-    return out;
-  });
+  model_->set_bucket_wrench(
+      [poly, t0, H](double t) { return Wrench::from_value(poly.evaluate((t - t0) / H)); });
   StepResult result;
   if (!want_average) {
     model_->advance(to_seconds(in.t_end()));
   } else {
-    // trapezoid average over the inner steps; the orientation as the normalized mean
-    // quaternion (its sign kept on the start's hemisphere)
-    Sample first = sample(), sum = first;
-    for (auto& v : sum.bucket) v *= 0.5;
+    // trapezoid average over the inner steps, component by component; the orientation as the
+    // normalized mean quaternion (its sign kept on the start's hemisphere)
+    const Sample first = sample();
+    Sample last = first, sum = first;
+    Value bucket_sum = first.bucket.to_value();
+    for (auto& v : bucket_sum) v *= 0.5;
     for (auto& v : sum.scalars) v *= 0.5;
-    Sample last = first;
+    auto add_half = [&](const Sample& x) {
+      const Value b = x.bucket.to_value();
+      for (std::size_t i = 0; i < b.size(); ++i) bucket_sum[i] += b[i] * 0.5;
+      for (int i = 0; i < kNumScalars; ++i) sum.scalars[i] += x.scalars[i] * 0.5;
+    };
     int n = 0;
     model_->advance(to_seconds(in.t_end()), [&] {
-      if (n > 0) {
-        for (std::size_t i = 0; i < 13; ++i) sum.bucket[i] += last.bucket[i] * 0.5;
-        for (int i = 0; i < kNumScalars; ++i) sum.scalars[i] += last.scalars[i] * 0.5;
-      }
+      if (n > 0) add_half(last);
       last = sample();
-      double dot = 0;
-      for (int i = 3; i < 7; ++i) dot += last.bucket[i] * first.bucket[i];
-      if (dot < 0)
-        for (int i = 3; i < 7; ++i) last.bucket[i] = -last.bucket[i];
-      for (std::size_t i = 0; i < 13; ++i) sum.bucket[i] += last.bucket[i] * 0.5;
-      for (int i = 0; i < kNumScalars; ++i) sum.scalars[i] += last.scalars[i] * 0.5;
+      Quat& q = last.bucket.orientation;
+      const Quat& q0 = first.bucket.orientation;
+      if (q[0] * q0[0] + q[1] * q0[1] + q[2] * q0[2] + q[3] * q0[3] < 0)
+        for (double& c : q) c = -c;
+      add_half(last);
       ++n;
     });
-    for (auto& v : sum.bucket) v /= n;
+    for (auto& v : bucket_sum) v /= n;
     for (auto& v : sum.scalars) v /= n;
-    const double qn = std::sqrt(sum.bucket[3] * sum.bucket[3] + sum.bucket[4] * sum.bucket[4] +
-                                sum.bucket[5] * sum.bucket[5] + sum.bucket[6] * sum.bucket[6]);
-    for (int i = 3; i < 7; ++i) sum.bucket[i] /= qn;
+    sum.bucket = Kinematics::from_value(bucket_sum);
+    sum.bucket.orientation = quat_normalized(sum.bucket.orientation);
     result.average = to_signals(sum.bucket, sum.scalars);
   }
   const Sample end = sample();

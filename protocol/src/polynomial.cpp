@@ -8,14 +8,12 @@ namespace cosim {
 
 std::vector<double> to_tangent(SignalKind kind, const Value& v, const Quat& reference) {
   if (kind != SignalKind::Kinematics) return v;
-  const Vec3 r = quat_relative(reference, Quat{v[3], v[4], v[5], v[6]});
-  return {v[0], v[1], v[2], r[0], r[1], r[2], v[7], v[8], v[9], v[10], v[11], v[12]};
+  return Kinematics::from_value(v).to_tangent(reference);
 }
 
 Value from_tangent(SignalKind kind, const std::vector<double>& t, const Quat& reference) {
   if (kind != SignalKind::Kinematics) return t;
-  const Quat q = quat_normalized(quat_multiply(reference, quat_exp(Vec3{t[3], t[4], t[5]})));
-  return {t[0], t[1], t[2], q[0], q[1], q[2], q[3], t[6], t[7], t[8], t[9], t[10], t[11]};
+  return Kinematics::from_tangent(t, reference).to_value();
 }
 
 Value InputPolynomial::evaluate(double s) const {
@@ -31,7 +29,7 @@ InputPolynomial InputPolynomial::constant(SignalKind kind, const Value& value) {
   InputPolynomial p;
   p.kind = kind;
   if (kind == SignalKind::Kinematics)
-    p.orientation_reference = quat_normalized({value[3], value[4], value[5], value[6]});
+    p.orientation_reference = quat_normalized(Kinematics::from_value(value).orientation);
   p.coefficients = to_tangent(kind, value, p.orientation_reference);
   return p;
 }
@@ -49,8 +47,8 @@ InputPolynomial fit_polynomial(SignalKind kind, const std::vector<double>& s,
   p.kind = kind;
   p.n_coefficients = order + 1;
   if (kind == SignalKind::Kinematics) {
-    const Value& r = values[reference_sample];
-    p.orientation_reference = quat_normalized({r[3], r[4], r[5], r[6]});
+    p.orientation_reference =
+        quat_normalized(Kinematics::from_value(values[reference_sample]).orientation);
   }
   const int n = tangent_size(kind);
   Eigen::MatrixXd V(m, order + 1);
@@ -123,10 +121,10 @@ polynomial_set_t to_message(const Polynomials& polynomials) {
         k.name = name;
         for (int i = 0; i < 4; ++i) k.orientation_reference[i] = p.orientation_reference[i];
         k.n_coefficients = p.n_coefficients;
-        k.position = rows(p, 0);
-        k.rotation_vector = rows(p, 3);
-        k.linear_velocity = rows(p, 6);
-        k.angular_velocity = rows(p, 9);
+        k.position = rows(p, Kinematics::kTangentPosition);
+        k.rotation_vector = rows(p, Kinematics::kTangentRotation);
+        k.linear_velocity = rows(p, Kinematics::kTangentVelocity);
+        k.angular_velocity = rows(p, Kinematics::kTangentAngularVelocity);
         m.kinematics.push_back(k);
         break;
       }
@@ -134,9 +132,9 @@ polynomial_set_t to_message(const Polynomials& polynomials) {
         wrench_polynomial_t w{};
         w.name = name;
         w.n_coefficients = p.n_coefficients;
-        w.force = rows(p, 0);
-        w.torque = rows(p, 3);
-        w.reference_point = rows(p, 6);
+        w.force = rows(p, Wrench::kForce);
+        w.torque = rows(p, Wrench::kTorque);
+        w.reference_point = rows(p, Wrench::kPoint);
         m.wrenches.push_back(w);
         break;
       }
@@ -167,10 +165,10 @@ Polynomials from_message(const polynomial_set_t& m, const std::string& what) {
   for (const auto& k : m.kinematics) {
     const std::string where = what + " input '" + k.name + "'";
     auto& p = start(k.name, SignalKind::Kinematics, k.n_coefficients);
-    put_rows(p, 0, k.position, where);
-    put_rows(p, 3, k.rotation_vector, where);
-    put_rows(p, 6, k.linear_velocity, where);
-    put_rows(p, 9, k.angular_velocity, where);
+    put_rows(p, Kinematics::kTangentPosition, k.position, where);
+    put_rows(p, Kinematics::kTangentRotation, k.rotation_vector, where);
+    put_rows(p, Kinematics::kTangentVelocity, k.linear_velocity, where);
+    put_rows(p, Kinematics::kTangentAngularVelocity, k.angular_velocity, where);
     check_finite(p, where);
     const Quat q{k.orientation_reference[0], k.orientation_reference[1],
                  k.orientation_reference[2], k.orientation_reference[3]};
@@ -183,9 +181,9 @@ Polynomials from_message(const polynomial_set_t& m, const std::string& what) {
   for (const auto& w : m.wrenches) {
     const std::string where = what + " input '" + w.name + "'";
     auto& p = start(w.name, SignalKind::Wrench, w.n_coefficients);
-    put_rows(p, 0, w.force, where);
-    put_rows(p, 3, w.torque, where);
-    put_rows(p, 6, w.reference_point, where);
+    put_rows(p, Wrench::kForce, w.force, where);
+    put_rows(p, Wrench::kTorque, w.torque, where);
+    put_rows(p, Wrench::kPoint, w.reference_point, where);
     check_finite(p, where);
   }
   return out;

@@ -24,20 +24,21 @@ SignalKind kind_from_wire(std::int8_t kind, const std::string& what) {
 int value_size(SignalKind kind) {
   switch (kind) {
     case SignalKind::Scalar: return 1;
-    case SignalKind::Kinematics: return 13;
-    case SignalKind::Wrench: return 9;
+    case SignalKind::Kinematics: return Kinematics::kSize;
+    case SignalKind::Wrench: return Wrench::kSize;
   }
   return 0;
 }
 
-int tangent_size(SignalKind kind) { return kind == SignalKind::Kinematics ? 12 : value_size(kind); }
+int tangent_size(SignalKind kind) {
+  return kind == SignalKind::Kinematics ? Kinematics::kTangentSize : value_size(kind);
+}
 
 std::vector<std::string> component_names(SignalKind kind) {
   switch (kind) {
     case SignalKind::Scalar: return {"value"};
-    case SignalKind::Kinematics:
-      return {"px", "py", "pz", "qw", "qx", "qy", "qz", "vx", "vy", "vz", "wx", "wy", "wz"};
-    case SignalKind::Wrench: return {"fx", "fy", "fz", "tx", "ty", "tz", "rx", "ry", "rz"};
+    case SignalKind::Kinematics: return Kinematics::component_names();
+    case SignalKind::Wrench: return Wrench::component_names();
   }
   return {};
 }
@@ -65,39 +66,60 @@ void validate_value(SignalKind kind, const Value& value, const std::string& what
       throw ProtocolError(what + ": component " + component_names(kind)[i] +
                           " is not finite (NaN or infinity)");
   if (kind == SignalKind::Kinematics) {
-    const double n = std::sqrt(value[3] * value[3] + value[4] * value[4] + value[5] * value[5] +
-                               value[6] * value[6]);
+    const double n = quat_norm(Kinematics::from_value(value).orientation);
     if (std::abs(n - 1.0) > 1e-6)
       throw ProtocolError(what + ": orientation is not a unit quaternion (norm " +
                           std::to_string(n) + "); normalize it before sending");
   }
 }
 
+namespace {
+// Copies n numbers into one of LCM's fixed arrays.
+template <class To, class From>
+void copy(To& to, const From& from, int n) {
+  for (int i = 0; i < n; ++i) to[i] = from[i];
+}
+Vec3 vec3(const double (&a)[3]) { return {a[0], a[1], a[2]}; }
+}  // namespace
+
+kinematics_t to_wire(const Kinematics& k) {
+  kinematics_t m{};
+  copy(m.position, k.position, 3);
+  copy(m.orientation, k.orientation, 4);
+  copy(m.linear_velocity, k.velocity, 3);
+  copy(m.angular_velocity, k.angular_velocity, 3);
+  return m;
+}
+
+Kinematics from_wire(const kinematics_t& m) {
+  const auto& q = m.orientation;
+  return {vec3(m.position), {q[0], q[1], q[2], q[3]}, vec3(m.linear_velocity),
+          vec3(m.angular_velocity)};
+}
+
+wrench_t to_wire(const Wrench& w) {
+  wrench_t m{};
+  copy(m.force, w.force, 3);
+  copy(m.torque, w.torque, 3);
+  copy(m.reference_point, w.point, 3);
+  return m;
+}
+
+Wrench from_wire(const wrench_t& m) {
+  return {vec3(m.force), vec3(m.torque), vec3(m.reference_point)};
+}
+
 signal_set_t to_message(const Signals& signals) {
   signal_set_t m{};
   for (const auto& [name, s] : signals) {
-    const auto& v = s.value;
     switch (s.kind) {
-      case SignalKind::Scalar: m.scalars.push_back({name, v.at(0)}); break;
-      case SignalKind::Kinematics: {
-        named_kinematics_t k{};
-        k.name = name;
-        for (int i = 0; i < 3; ++i) k.value.position[i] = v.at(i);
-        for (int i = 0; i < 4; ++i) k.value.orientation[i] = v.at(3 + i);
-        for (int i = 0; i < 3; ++i) k.value.linear_velocity[i] = v.at(7 + i);
-        for (int i = 0; i < 3; ++i) k.value.angular_velocity[i] = v.at(10 + i);
-        m.kinematics.push_back(k);
+      case SignalKind::Scalar: m.scalars.push_back({name, s.value.at(0)}); break;
+      case SignalKind::Kinematics:
+        m.kinematics.push_back({name, to_wire(Kinematics::from_value(s.value))});
         break;
-      }
-      case SignalKind::Wrench: {
-        named_wrench_t w{};
-        w.name = name;
-        for (int i = 0; i < 3; ++i) w.value.force[i] = v.at(i);
-        for (int i = 0; i < 3; ++i) w.value.torque[i] = v.at(3 + i);
-        for (int i = 0; i < 3; ++i) w.value.reference_point[i] = v.at(6 + i);
-        m.wrenches.push_back(w);
+      case SignalKind::Wrench:
+        m.wrenches.push_back({name, to_wire(Wrench::from_value(s.value))});
         break;
-      }
     }
   }
   set_counts(m);
@@ -114,20 +136,9 @@ Signals from_message(const signal_set_t& m, const std::string& what) {
     out[name] = Signal{kind, std::move(v)};
   };
   for (const auto& s : m.scalars) add(s.name, SignalKind::Scalar, {s.value});
-  for (const auto& k : m.kinematics) {
-    const auto& x = k.value;
-    add(k.name, SignalKind::Kinematics,
-        {x.position[0], x.position[1], x.position[2], x.orientation[0], x.orientation[1],
-         x.orientation[2], x.orientation[3], x.linear_velocity[0], x.linear_velocity[1],
-         x.linear_velocity[2], x.angular_velocity[0], x.angular_velocity[1],
-         x.angular_velocity[2]});
-  }
-  for (const auto& w : m.wrenches) {
-    const auto& x = w.value;
-    add(w.name, SignalKind::Wrench,
-        {x.force[0], x.force[1], x.force[2], x.torque[0], x.torque[1], x.torque[2],
-         x.reference_point[0], x.reference_point[1], x.reference_point[2]});
-  }
+  for (const auto& k : m.kinematics)
+    add(k.name, SignalKind::Kinematics, from_wire(k.value).to_value());
+  for (const auto& w : m.wrenches) add(w.name, SignalKind::Wrench, from_wire(w.value).to_value());
   return out;
 }
 

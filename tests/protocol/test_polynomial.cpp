@@ -70,15 +70,15 @@ TEST(Polynomial, OrientationIsPredictedOnTheRotationGroup) {
   std::vector<Value> v;
   for (double t : s) {
     const Quat q = at(t);
-    v.push_back({1, 2, 3, q[0], q[1], q[2], q[3], 0, 0, 0, w[0], w[1], w[2]});
+    v.push_back(Kinematics{{1, 2, 3}, q, {0, 0, 0}, w}.to_value());
   }
   const auto p = fit_polynomial(SignalKind::Kinematics, s, v, 1, 1);
   for (double t : {0.3, 1.0}) {
-    const Value got = p.evaluate(t);
+    const Quat got = Kinematics::from_value(p.evaluate(t)).orientation;
     const Quat want = at(t);
-    const double dot = got[3] * want[0] + got[4] * want[1] + got[5] * want[2] + got[6] * want[3];
+    const double dot = got[0] * want[0] + got[1] * want[1] + got[2] * want[2] + got[3] * want[3];
     EXPECT_NEAR(std::abs(dot), 1.0, 1e-12) << "t = " << t;
-    EXPECT_NEAR(quat_norm({got[3], got[4], got[5], got[6]}), 1.0, 1e-14);
+    EXPECT_NEAR(quat_norm(got), 1.0, 1e-14);
   }
 }
 

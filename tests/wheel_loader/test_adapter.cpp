@@ -32,14 +32,19 @@ std::string refusal(const std::string& yaml, Ticks macro = 1'000'000) {
   return "";
 }
 
-cosim::Polynomials wrench(double fx, double fz, double ty, const cosim::Value& point,
+cosim::Polynomials wrench(double fx, double fz, double ty, const cosim::Vec3& point,
                           double dfx = 0) {
   cosim::InputPolynomial p;
   p.kind = cosim::SignalKind::Wrench;
   p.n_coefficients = 2;
-  p.coefficients = {fx, 0, fz, 0, ty, 0, point[0], point[1], point[2],
-                    dfx, 0, 0, 0, 0, 0, 0, 0, 0};
+  p.coefficients = cosim::Wrench{{fx, 0, fz}, {0, ty, 0}, point}.to_value();
+  const cosim::Value slope = cosim::Wrench{{dfx, 0, 0}, {}, {}}.to_value();
+  p.coefficients.insert(p.coefficients.end(), slope.begin(), slope.end());
   return {{"bucket_wrench", p}};
+}
+
+cosim::Vec3 bucket_position(const cosim::Signals& outputs) {
+  return cosim::Kinematics::from_value(outputs.at("bucket").value).position;
 }
 
 }  // namespace
@@ -107,24 +112,25 @@ TEST(wheel_loader_adapter, PortsAndInitialOutputs) {
     EXPECT_TRUE(out.count(n)) << n;
   const auto& b = out.at("bucket").value;
   cosim::validate_value(cosim::SignalKind::Kinematics, b, "bucket");
+  const auto k = cosim::Kinematics::from_value(b);
   // at rest in equilibrium, moving at 1.2 m/s, bucket frame origin at the A-pin
-  EXPECT_NEAR(b[7], 1.2, 1e-9);
+  EXPECT_NEAR(k.velocity[0], 1.2, 1e-9);
   EXPECT_NEAR(out.at("speed").value[0], 1.2, 1e-9);
-  EXPECT_NEAR(b[0], 2.6, 0.01);
+  EXPECT_NEAR(k.position[0], 2.6, 0.01);
   EXPECT_NEAR(out.at("edge_z").value[0], 0.05, 0.01);  // bucket just above the ground
 }
 
 TEST(wheel_loader_adapter, RefusesAnInsaneWrenchAndKeepsItsState) {
   WheelLoaderModel m(cosim::config::load_file(kMachine));
   m.configure(params("{}"), run_info());
-  const auto x0 = m.initial_outputs().at("bucket").value;
-  const auto bad = wrench(-6e6, 0, 0, {x0[0], x0[1], x0[2]});
+  const cosim::Vec3 x0 = bucket_position(m.initial_outputs());
+  const auto bad = wrench(-6e6, 0, 0, x0);
   m.save_snapshot();
   EXPECT_THROW(m.step(cosim::StepInputs(0, 1'000'000, bad), false), cosim::InputError);
   m.restore_snapshot();  // as ParticipantCore does after an InputError
   const auto far = wrench(-1e5, 0, 0, {x0[0] + 1000, x0[1], x0[2] + 300});  // torque 3e7 N m
   EXPECT_THROW(m.step(cosim::StepInputs(0, 1'000'000, far), false), cosim::InputError);
-  const auto ok = wrench(-1e5, 0, 0, {x0[0], x0[1], x0[2]});
+  const auto ok = wrench(-1e5, 0, 0, x0);
   const auto r = m.step(cosim::StepInputs(0, 1'000'000, ok), false);
   EXPECT_NEAR(r.outputs.at("x_machine").value[0], 1.2e-3, 1e-4);
 }
@@ -134,8 +140,7 @@ TEST(wheel_loader_adapter, RefusesAnInsaneWrenchAndKeepsItsState) {
 TEST(wheel_loader_adapter, SnapshotRepeatsAStepBitForBit) {
   WheelLoaderModel m(cosim::config::load_file(kMachine));
   m.configure(params("{initial_speed: 1.2}"), run_info(2'000'000));
-  const auto b0 = m.initial_outputs().at("bucket").value;
-  const cosim::Value ref{b0[0], b0[1], b0[2]};
+  const cosim::Vec3 ref = bucket_position(m.initial_outputs());
   Ticks t = 0;
   for (int i = 0; i < 5; ++i, t += 2'000'000)
     m.step(cosim::StepInputs(t, t + 2'000'000, wrench(-5e4, 2e4, 1e3, ref, -1e4)), false);

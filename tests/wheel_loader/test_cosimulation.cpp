@@ -4,6 +4,7 @@
 // each other on an oversubscribed machine slow everything down many times over.
 // The bucket picks up soil, the bearing forces are finite, of the expected sign and size,
 // the machine slows on contact, and a second run gives the same numbers bit for bit.
+#include <cosim/quantities.hpp>
 #include <gtest/gtest.h>
 #include <hdf5.h>
 
@@ -77,17 +78,19 @@ std::vector<std::string> snapshots(const std::string& h5) {
 // Mass of the particles inside the bucket's cavity (bucket frame: 0 < x < cutting edge at
 // 1.65 m, floor -0.45 m < z < top of the back plate 0.85 m, |y| < 1.5 m; machine.yaml).
 double mass_in_bucket(const std::string& soil_h5, const std::string& snapshot,
-                      const std::vector<double>& pose) {
+                      const cosim::Kinematics& pose) {
   const auto x = column(soil_h5, snapshot + "/position");
   const auto r = column(soil_h5, snapshot + "/radius");
-  const double w = pose[3], qx = pose[4], qy = pose[5], qz = pose[6];
+  const auto& q = pose.orientation;
+  const auto& p = pose.position;
+  const double w = q[0], qx = q[1], qy = q[2], qz = q[3];
   // Rows of R (bucket -> ground); R^T maps ground offsets into the bucket frame.
   const double R[3][3] = {{1 - 2 * (qy * qy + qz * qz), 2 * (qx * qy - w * qz), 2 * (qx * qz + w * qy)},
                           {2 * (qx * qy + w * qz), 1 - 2 * (qx * qx + qz * qz), 2 * (qy * qz - w * qx)},
                           {2 * (qx * qz - w * qy), 2 * (qy * qz + w * qx), 1 - 2 * (qx * qx + qy * qy)}};
   double mass = 0;
   for (std::size_t i = 0; i < r.size(); ++i) {
-    const double d[3] = {x[3 * i] - pose[0], x[3 * i + 1] - pose[1], x[3 * i + 2] - pose[2]};
+    const double d[3] = {x[3 * i] - p[0], x[3 * i + 1] - p[1], x[3 * i + 2] - p[2]};
     double b[3];
     for (int c = 0; c < 3; ++c) b[c] = R[0][c] * d[0] + R[1][c] * d[1] + R[2][c] * d[2];
     if (b[0] > 0 && b[0] < 1.65 && b[2] > -0.45 && b[2] < 0.85 && std::abs(b[1]) < 1.5)
@@ -107,17 +110,25 @@ TEST(WheelLoaderCosimulation, FillsTheBucketSlowsDownAndIsDeterministic) {
   const auto speed = column(a.master_h5, out + "speed");
   const auto a_long = column(a.master_h5, out + "a_long"), a_vert = column(a.master_h5, out + "a_vert");
   const auto j_long = column(a.master_h5, out + "j_long"), j_vert = column(a.master_h5, out + "j_vert");
-  const auto soil = column(a.master_h5, "participants/soil/outputs/bucket");  // 9 per row
-  const auto bucket = column(a.master_h5, out + "bucket");                     // 13 per row
+  const auto soil = column(a.master_h5, "participants/soil/outputs/bucket");  // wrench rows
+  const auto bucket = column(a.master_h5, out + "bucket");                     // kinematics rows
   const std::size_t n = t.size(), last = n - 1;
+  auto soil_at = [&](std::size_t i) {
+    constexpr std::size_t m = cosim::Wrench::kSize;
+    return cosim::Wrench::from_value({soil.begin() + m * i, soil.begin() + m * (i + 1)});
+  };
+  auto bucket_at = [&](std::size_t i) {
+    constexpr std::size_t m = cosim::Kinematics::kSize;
+    return cosim::Kinematics::from_value({bucket.begin() + m * i, bucket.begin() + m * (i + 1)});
+  };
 
   for (const auto* s : {&a_long, &a_vert, &j_long, &j_vert})
     for (double v : *s) ASSERT_TRUE(std::isfinite(v) && std::abs(v) < 2e6);
   // Before contact the soil is silent; by the end it resists: pushes the bucket back (-x)
   // with tens to hundreds of kN, the traction limit of a 27 t machine is ~160 kN.
-  EXPECT_EQ(soil[9 * 10 + 0], 0.0);
+  EXPECT_EQ(soil_at(10).force[0], 0.0);
   double resist = 0;
-  for (std::size_t i = n / 2; i < n; ++i) resist = std::max(resist, -soil[9 * i]);
+  for (std::size_t i = n / 2; i < n; ++i) resist = std::max(resist, -soil_at(i).force[0]);
   EXPECT_GT(resist, 30e3);
   EXPECT_LT(resist, 1e6);
   // The boom pushes the bucket into the pile: the A-bearing's longitudinal force (towards the
@@ -135,10 +146,8 @@ TEST(WheelLoaderCosimulation, FillsTheBucketSlowsDownAndIsDeterministic) {
   // The bucket picks up soil.
   const auto snaps = snapshots(a.soil_h5);
   ASSERT_GE(snaps.size(), 2u);
-  const std::vector<double> pose0(bucket.begin(), bucket.begin() + 13);
-  const std::vector<double> pose_end(bucket.begin() + 13 * last, bucket.begin() + 13 * last + 13);
-  const double m0 = mass_in_bucket(a.soil_h5, snaps.front(), pose0);
-  const double m1 = mass_in_bucket(a.soil_h5, snaps.back(), pose_end);
+  const double m0 = mass_in_bucket(a.soil_h5, snaps.front(), bucket_at(0));
+  const double m1 = mass_in_bucket(a.soil_h5, snaps.back(), bucket_at(last));
   std::printf("soil in the bucket: %.0f kg at t = 0, %.0f kg at t = %.1f s\n", m0, m1, kEnd);
   EXPECT_EQ(m0, 0.0);
   EXPECT_GT(m1, 1000.0);

@@ -75,7 +75,8 @@ class ServiceModel final : public cosim::Model {
   std::chrono::steady_clock::time_point wall0_, last_report_;
 };
 
-// Pose of a tool from a kinematics value [p, q, v, w] (validated by the protocol).
-ToolPose tool_pose_from(const cosim::Value& v);
+// Pose of a tool from its kinematics input (validated by the protocol), the quaternion
+// normalised.
+ToolPose tool_pose_from(const cosim::Kinematics& k);
 
 }  // namespace dem

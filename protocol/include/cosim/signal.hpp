@@ -1,17 +1,21 @@
-// Signals a participant reads and writes: a kind, a name and a flat value.
-// Value layouts: scalar [v]; kinematics [px py pz, qw qx qy qz, vx vy vz, wx wy wz];
-// wrench [fx fy fz, tx ty tz, rx ry rz] (torque about the reference point r).
+// Signals a participant reads and writes: a kind, a name and a flat value. A scalar's value is
+// [v]; kinematics and wrench values have the layouts of cosim::Kinematics and cosim::Wrench
+// (quantities.hpp), which convert them to typed form here and to the wire types below.
 #pragma once
 
+#include <cosim/kinematics_t.hpp>
 #include <cosim/named_scalar_t.hpp>
 #include <cosim/port_t.hpp>
 #include <cosim/signal_set_t.hpp>
+#include <cosim/wrench_t.hpp>
 
 #include <map>
 #include <stdexcept>
 #include <string>
 #include <string_view>
 #include <vector>
+
+#include "cosim/quantities.hpp"
 
 namespace cosim {
 
@@ -33,8 +37,6 @@ int value_size(SignalKind kind);    // 1, 13, 9
 int tangent_size(SignalKind kind);  // 1, 12, 9: orientation as a rotation vector
 // Component names for CSV headers and HDF5 attributes.
 std::vector<std::string> component_names(SignalKind kind);
-
-using Value = std::vector<double>;
 
 struct Signal {
   SignalKind kind = SignalKind::Scalar;
@@ -64,6 +66,12 @@ void set_counts(Set& m) {
   m.n_kinematics = static_cast<int32_t>(m.kinematics.size());
   m.n_wrenches = static_cast<int32_t>(m.wrenches.size());
 }
+
+// The typed quantities on the wire.
+kinematics_t to_wire(const Kinematics& k);
+Kinematics from_wire(const kinematics_t& k);
+wrench_t to_wire(const Wrench& w);
+Wrench from_wire(const wrench_t& w);
 
 signal_set_t to_message(const Signals& signals);
 // Validates every entry (names, duplicates, finiteness, unit quaternions).
