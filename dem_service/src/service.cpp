@@ -13,7 +13,8 @@
 namespace dem {
 
 namespace cfg = cosim::config;
-using cosim::Ticks;
+using cosim::Duration;
+using cosim::TimePoint;
 using Clock = std::chrono::steady_clock;
 
 namespace {
@@ -51,9 +52,10 @@ std::string resolve(const std::string& base, const std::string& path) {
   return base + "/" + path;
 }
 
-Ticks every_ticks(double seconds, const std::string& key, Ticks inner) {
-  if (seconds <= 0) return 0;
-  const Ticks t = cosim::seconds_to_ticks(seconds, key);
+// An output interval: zero for none, else at least one inner step.
+Duration every(double seconds, const std::string& key, Duration inner) {
+  if (seconds <= 0) return Duration::zero();
+  const Duration t = cosim::seconds_to_duration(seconds, key);
   return std::max(t, inner);
 }
 
@@ -82,7 +84,7 @@ void ServiceModel::build(YAML::Node root, const std::string& what) {
   check_dt(rc->scene, warn);
   if (!warn.str().empty()) std::cerr << "dem_service: " << warn.str();
   validate_state(rc->scene, rc->state);
-  inner_step_ = cosim::seconds_to_ticks(rc->scene.dt, "scene.dt");
+  inner_step_ = cosim::seconds_to_duration(rc->scene.dt, "scene.dt");
   if (std::abs(cosim::to_seconds(inner_step_) - rc->scene.dt) > 1e-12 * rc->scene.dt)
     throw cfg::ConfigError("scene.dt: " + std::to_string(rc->scene.dt) +
                            " s is not a whole number of nanoseconds; the co-simulation counts "
@@ -105,13 +107,13 @@ void ServiceModel::configure(const YAML::Node& parameters, const cosim::RunInfo&
   out_.reset();
   finished_ = false;
   const OutputOptions& o = rc_->output;
-  particles_every_ = every_ticks(o.particles_every, "output.particles_every", inner_step_);
-  wrenches_every_ = every_ticks(o.wrenches_every, "output.wrenches_every", inner_step_);
-  checkpoint_every_ = every_ticks(options_.checkpoint_every, "service.checkpoint_every", inner_step_);
+  particles_every_ = every(o.particles_every, "output.particles_every", inner_step_);
+  wrenches_every_ = every(o.wrenches_every, "output.wrenches_every", inner_step_);
+  checkpoint_every_ = every(options_.checkpoint_every, "service.checkpoint_every", inner_step_);
   t_now_ = run.t_start;
   next_particles_ = run.t_start;
   next_checkpoint_ = run.t_start + checkpoint_every_;
-  last_particles_ = -1;
+  last_particles_.reset();
   steps_done_ = 0;
   snapshot_seconds_ = 0;
   snapshot_.reset();
@@ -150,7 +152,7 @@ cosim::Signals ServiceModel::initial_outputs() {
   return s;
 }
 
-void ServiceModel::set_tool_poses(const cosim::StepInputs& in, Ticks t) {
+void ServiceModel::set_tool_poses(const cosim::StepInputs& in, TimePoint t) {
   const auto& tools = rc_->scene.tools;
   for (std::size_t m = 0; m < tools.size(); ++m) {
     const cosim::Value v = in.at(tools[m].name, t);
@@ -185,10 +187,10 @@ cosim::StepResult ServiceModel::step(const cosim::StepInputs& in, bool want_aver
   const std::int64_t early0 = s.early_rebuilds, rebuilds0 = s.rebuilds;
   const std::size_t ntools = scene.tools.size();
   std::vector<Wrench> sum(ntools);
-  const Ticks n = (in.t_end() - in.t_start()) / inner_step_;
+  const std::int64_t n = in.length() / inner_step_;
   double max_overlap = 0, max_ratio = 0;
   // Particle snapshots only at a step's start: that state is accepted (a repeat starts from it).
-  if (out_ && particles_every_ && in.t_start() >= next_particles_ && in.t_start() != last_particles_) {
+  if (out_ && particles_every_ > Duration::zero() && in.t_start() >= next_particles_ && in.t_start() != last_particles_) {
     const auto w = Clock::now();
     out_->snapshot(s, cosim::to_seconds(in.t_start()));  // flushes the accepted rows too
     snapshot_rows_ = out_->buffered_rows();
@@ -196,8 +198,8 @@ cosim::StepResult ServiceModel::step(const cosim::StepInputs& in, bool want_aver
     next_particles_ += particles_every_ * ((in.t_start() - next_particles_) / particles_every_ + 1);
     engine.timing().output += seconds_since(w);
   }
-  for (Ticks k = 0; k < n; ++k) {
-    const Ticks t = in.t_start() + k * inner_step_;
+  for (std::int64_t k = 0; k < n; ++k) {
+    const TimePoint t = in.t_start() + k * inner_step_;
     set_tool_poses(in, t);
     engine.step(s);  // forces at t with the poses at t, then positions to t + dt
     for (std::size_t m = 0; m < ntools; ++m) {
@@ -207,7 +209,8 @@ cosim::StepResult ServiceModel::step(const cosim::StepInputs& in, bool want_aver
     const ContactStats& c = engine.contact_stats();
     max_overlap = std::max(max_overlap, c.max_overlap);
     max_ratio = std::max(max_ratio, c.max_overlap_ratio);
-    if (out_ && wrenches_every_ && (t - run_.t_start) % wrenches_every_ == 0) {
+    if (out_ && wrenches_every_ > Duration::zero() &&
+        (t - run_.t_start) % wrenches_every_ == Duration::zero()) {
       const auto w = Clock::now();
       out_->sample_wrenches(s, engine, cosim::to_seconds(t));
       engine.timing().output += seconds_since(w);
@@ -231,7 +234,7 @@ cosim::StepResult ServiceModel::step(const cosim::StepInputs& in, bool want_aver
     }
     r.average = std::move(avg);
   }
-  if (checkpoint_every_ && t_now_ >= next_checkpoint_) {
+  if (checkpoint_every_ > Duration::zero() && t_now_ >= next_checkpoint_) {
     const auto w = Clock::now();
     save_checkpoint(s, resolve("", options_.checkpoint));
     next_checkpoint_ += checkpoint_every_ * ((t_now_ - next_checkpoint_) / checkpoint_every_ + 1);

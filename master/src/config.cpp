@@ -80,12 +80,12 @@ Config parse_config(const YAML::Node& root, const std::string& source_text) {
   if (!root["time"]) throw ConfigError("time: missing (expected a map with start, end, macro_step)");
   const auto& time = root["time"];
   cfg::check_keys(time, "time", {"start", "end", "macro_step"});
-  c.t_start = cosim::seconds_to_ticks(cfg::get_double_or(time, "time", "start", 0.0), "time.start");
-  c.t_end = cosim::seconds_to_ticks(seconds_key(time, "time", "end"), "time.end");
-  c.macro_step = cosim::seconds_to_ticks(seconds_key(time, "time", "macro_step"), "time.macro_step");
-  if (c.macro_step <= 0) throw ConfigError("time.macro_step: must be > 0");
+  c.t_start = cosim::seconds_to_time_point(cfg::get_double_or(time, "time", "start", 0.0), "time.start");
+  c.t_end = cosim::seconds_to_time_point(seconds_key(time, "time", "end"), "time.end");
+  c.macro_step = cosim::seconds_to_duration(seconds_key(time, "time", "macro_step"), "time.macro_step");
+  if (c.macro_step <= Duration::zero()) throw ConfigError("time.macro_step: must be > 0");
   if (c.t_end <= c.t_start) throw ConfigError("time.end: must be after time.start");
-  if ((c.t_end - c.t_start) % c.macro_step != 0)
+  if ((c.t_end - c.t_start) % c.macro_step != Duration::zero())
     throw ConfigError("time.end: end - start must be a whole number of macro steps (time.macro_step = " +
                       std::to_string(cosim::to_seconds(c.macro_step)) + " s)");
   // scheme
@@ -305,10 +305,10 @@ void check_wiring(const Config& c, const std::map<std::string, cosim::Participan
         throw ConfigError("connections: input " + name + "." + in.name +
                           " is not connected (add {from: <participant>.<output>, to: " + name + "." + in.name + "})");
     }
-    if (c.macro_step % info.inner_step != 0)
-      throw ConfigError("time.macro_step: " + std::to_string(c.macro_step) +
+    if (c.macro_step % info.inner_step != Duration::zero())
+      throw ConfigError("time.macro_step: " + std::to_string(cosim::to_ns(c.macro_step)) +
                         " ns is not a multiple of participant " + name + "'s inner step " +
-                        std::to_string(info.inner_step) +
+                        std::to_string(cosim::to_ns(info.inner_step)) +
                         " ns; choose a multiple of it or change that participant's inner step");
   }
   for (std::size_t i = 0; i < c.power.size(); ++i) {

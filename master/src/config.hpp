@@ -12,7 +12,8 @@
 
 namespace master {
 
-using cosim::Ticks;
+using cosim::Duration;
+using cosim::TimePoint;
 
 enum class Scheme { Jacobi, GaussSeidel };
 
@@ -52,7 +53,8 @@ struct OutputSpec {
 
 struct Config {
   std::string bus_url;
-  Ticks t_start = 0, t_end = 0, macro_step = 0;
+  TimePoint t_start{}, t_end{};
+  Duration macro_step{};
   Scheme scheme = Scheme::Jacobi;
   std::vector<std::string> order;  // Gauss-Seidel sequence
   int startup_iterations = 2;

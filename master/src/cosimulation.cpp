@@ -53,9 +53,9 @@ void CoSimulation::connect() {
     c.protocol_version = cosim::kProtocolVersion;
     c.session_id = transport_.session();
     c.participant = p.name;
-    c.t_start_ns = config_.t_start;
-    c.t_end_ns = config_.t_end;
-    c.macro_step_ns = config_.macro_step;
+    c.t_start_ns = cosim::to_ns(config_.t_start);
+    c.t_end_ns = cosim::to_ns(config_.t_end);
+    c.macro_step_ns = cosim::to_ns(config_.macro_step);
     c.parameters_yaml = p.parameters_yaml;
     configs.push_back(c);
   }
@@ -77,7 +77,8 @@ void CoSimulation::connect() {
 }
 
 std::vector<cosim::step_request_t> CoSimulation::requests(const std::vector<std::string>& group,
-                                                   int64_t step, int iteration, Ticks t0, Ticks t1) {
+                                                          int64_t step, int iteration,
+                                                          TimePoint t0, TimePoint t1) {
   std::vector<cosim::step_request_t> out;
   for (const auto& name : group) {
     cosim::step_request_t q{};
@@ -86,8 +87,8 @@ std::vector<cosim::step_request_t> CoSimulation::requests(const std::vector<std:
     q.step_index = step;
     q.iteration = iteration;
     q.attempt = 0;
-    q.t_start_ns = t0;
-    q.t_end_ns = t1;
+    q.t_start_ns = cosim::to_ns(t0);
+    q.t_end_ns = cosim::to_ns(t1);
     q.want_average = false;
     cosim::Polynomials inputs;
     for (std::size_t i = 0; i < config_.connections.size(); ++i)
@@ -99,7 +100,7 @@ std::vector<cosim::step_request_t> CoSimulation::requests(const std::vector<std:
   return out;
 }
 
-void CoSimulation::run_step(int64_t step, Ticks t0, Ticks t1) {
+void CoSimulation::run_step(int64_t step, TimePoint t0, TimePoint t1) {
   const auto start = Clock::now();
   double waiting = 0;
   StepRecord rec;
@@ -168,7 +169,7 @@ void CoSimulation::run() {
   for (auto* o : observers_) o->on_start(setup_);
   int64_t step = 0;
   try {
-    for (Ticks t = config_.t_start; t < config_.t_end; t += config_.macro_step, ++step)
+    for (TimePoint t = config_.t_start; t < config_.t_end; t += config_.macro_step, ++step)
       run_step(step, t, t + config_.macro_step);
   } catch (const std::exception& e) {
     transport_.terminate(true, e.what());

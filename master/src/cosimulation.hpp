@@ -28,7 +28,7 @@ struct PowerRecord {
 
 struct StepRecord {
   int64_t step_index = 0;
-  Ticks t_start = 0, t_end = 0;
+  TimePoint t_start{}, t_end{};
   int iterations = 1;
   std::map<std::string, cosim::Signals> outputs;
   std::map<std::string, std::vector<std::pair<std::string, double>>> diagnostics;
@@ -67,8 +67,8 @@ class CoSimulation {
 
  private:
   std::vector<cosim::step_request_t> requests(const std::vector<std::string>& group, int64_t step,
-                                       int iteration, Ticks t0, Ticks t1);
-  void run_step(int64_t step, Ticks t0, Ticks t1);
+                                       int iteration, TimePoint t0, TimePoint t1);
+  void run_step(int64_t step, TimePoint t0, TimePoint t1);
 
   const Config& config_;
   cosim::Transport& transport_;

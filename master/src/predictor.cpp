@@ -4,7 +4,7 @@
 
 namespace master {
 
-void Predictor::record(Ticks t, const cosim::Value& value) {
+void Predictor::record(TimePoint t, const cosim::Value& value) {
   if (!samples_.empty() && samples_.back().first == t) {
     samples_.back().second = value;
     return;
@@ -16,14 +16,16 @@ void Predictor::record(Ticks t, const cosim::Value& value) {
   while (samples_.size() > static_cast<std::size_t>(spec_.samples) + 1) samples_.pop_front();
 }
 
-cosim::InputPolynomial Predictor::predict(Ticks t_start, Ticks t_end) const {
+cosim::InputPolynomial Predictor::predict(TimePoint t_start, TimePoint t_end) const {
   std::vector<double> s;
   std::vector<cosim::Value> v;
-  const double H = static_cast<double>(t_end - t_start);
+  const Duration H = t_end - t_start;
+  // s of a sample: its time since t_start over H, both in ns as doubles.
   // The latest spec_.samples samples with t <= t_end.
   for (auto it = samples_.rbegin(); it != samples_.rend() && static_cast<int>(s.size()) < spec_.samples; ++it) {
     if (it->first > t_end) continue;
-    s.insert(s.begin(), static_cast<double>(it->first - t_start) / H);
+    s.insert(s.begin(), static_cast<double>(cosim::to_ns(it->first - t_start)) /
+                            static_cast<double>(cosim::to_ns(H)));
     v.insert(v.begin(), it->second);
   }
   if (s.empty()) throw std::logic_error("predictor has no sample");

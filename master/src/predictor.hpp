@@ -16,16 +16,16 @@ class Predictor {
  public:
   Predictor(cosim::SignalKind kind, PredictorSpec spec) : kind_(kind), spec_(spec) {}
   // Adds the sample at t, replacing one already there (an iterated step's newer value).
-  void record(Ticks t, const cosim::Value& value);
+  void record(TimePoint t, const cosim::Value& value);
   // The polynomial over [t_start, t_end] from the latest samples at times <= t_end. With fewer
   // samples than the predictor needs (the first steps), the order drops to what they allow.
-  cosim::InputPolynomial predict(Ticks t_start, Ticks t_end) const;
+  cosim::InputPolynomial predict(TimePoint t_start, TimePoint t_end) const;
   const PredictorSpec& spec() const { return spec_; }
 
  private:
   cosim::SignalKind kind_;
   PredictorSpec spec_;
-  std::deque<std::pair<Ticks, cosim::Value>> samples_;
+  std::deque<std::pair<TimePoint, cosim::Value>> samples_;
 };
 
 }  // namespace master

@@ -233,14 +233,15 @@ void H5Recorder::on_step(const StepRecord& r) {
     I.conns[i].received->append(cr.received);
     I.conns[i].deviation->append(cr.deviation);
   }
-  const double H = cosim::to_seconds(c.macro_step);
+  const Duration H = c.macro_step;
+  const double h = cosim::to_seconds(H);
   for (std::size_t i = 0; i < r.power.size(); ++i) {
     auto& p = I.pows[i];
     p.force_side->append(r.power[i].force_side);
     p.motion_side->append(r.power[i].motion_side);
     p.residual->append(r.power[i].residual);
     // trapezoid over macro steps; the first step counts its end value only
-    p.energy += std::isnan(p.last) ? r.power[i].residual * H : 0.5 * (p.last + r.power[i].residual) * H;
+    p.energy += std::isnan(p.last) ? r.power[i].residual * h : 0.5 * (p.last + r.power[i].residual) * h;
     p.last = r.power[i].residual;
     p.energy_residual->append(p.energy);
   }
@@ -299,7 +300,7 @@ void CsvWriter::on_start(const RunSetup& s) {
   row(s.config->t_start, initial);
 }
 
-void CsvWriter::row(Ticks t, const std::map<std::string, cosim::Signals>& outputs) {
+void CsvWriter::row(TimePoint t, const std::map<std::string, cosim::Signals>& outputs) {
   std::fprintf(file_, "%.9f", cosim::to_seconds(t));
   for (const auto& [name, sig] : columns_)
     for (double v : outputs.at(name).at(sig).value) std::fprintf(file_, ",%.17g", v);

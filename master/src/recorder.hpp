@@ -34,7 +34,7 @@ class CsvWriter final : public Observer {
   void on_finish(bool ok, const std::string& message) override;
 
  private:
-  void row(Ticks t, const std::map<std::string, cosim::Signals>& outputs);
+  void row(TimePoint t, const std::map<std::string, cosim::Signals>& outputs);
   std::string path_;
   std::FILE* file_ = nullptr;
   std::vector<std::pair<std::string, std::string>> columns_;  // participant, signal
@@ -52,7 +52,7 @@ class Progress final : public Observer {
   const RunSetup* setup_ = nullptr;
   std::chrono::steady_clock::time_point start_, last_print_;
   int64_t steps_done_ = 0;
-  Ticks t_done_ = 0;
+  TimePoint t_done_{};
   double wall_steps_ = 0, master_ = 0;
   std::map<std::string, double> compute_, round_trip_;
 };

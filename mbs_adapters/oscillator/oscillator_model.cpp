@@ -7,7 +7,7 @@ namespace oscillator {
 using namespace cosim;
 namespace cfg = cosim::config;
 
-Parameters read_parameters(Side side, const YAML::Node& node, Ticks* inner_step) {
+Parameters read_parameters(Side side, const YAML::Node& node, Duration* inner_step) {
   Parameters p;
   const std::string path = "parameters";
   if (side == Side::Mass1) {
@@ -34,9 +34,9 @@ Parameters read_parameters(Side side, const YAML::Node& node, Ticks* inner_step)
   }
   for (double v : {p.c1, p.d1, p.c2, p.d2, p.cc, p.dc})
     if (v < 0) throw cfg::ConfigError(path + ": stiffness and damping values must be >= 0");
-  *inner_step = seconds_to_ticks(cfg::get_positive_or(node, path, "inner_step", 5e-6),
-                                 path + ".inner_step");
-  if (*inner_step <= 0) throw cfg::ConfigError(path + ".inner_step: must be at least 1 ns");
+  *inner_step = seconds_to_duration(cfg::get_positive_or(node, path, "inner_step", 5e-6),
+                                    path + ".inner_step");
+  if (*inner_step <= Duration::zero()) throw cfg::ConfigError(path + ".inner_step: must be at least 1 ns");
   return p;
 }
 
@@ -78,7 +78,7 @@ StepResult OscillatorModel::step(const StepInputs& in, bool want_average) {
     const auto& poly = in.polynomial(names[i]);
     for (int j = 0; j < poly.n_coefficients; ++j) a[j](i) = poly.coefficients[j];
   }
-  const int n_inner = static_cast<int>((in.t_end() - in.t_start()) / inner_step_);
+  const int n_inner = static_cast<int>(in.length() / inner_step_);
   StepResult r;
   const Eigen::VectorXd avg = half_->advance_with_average(a, n_inner);
   Eigen::VectorXd u_end(m);

@@ -16,7 +16,7 @@ class OscillatorModel final : public cosim::Model {
   void configure(const YAML::Node& parameters, const cosim::RunInfo& run) override;
   cosim::Ports inputs() const override;
   cosim::Ports outputs() const override;
-  cosim::Ticks inner_step() const override { return inner_step_; }
+  cosim::Duration inner_step() const override { return inner_step_; }
   cosim::Signals initial_outputs() override;
   cosim::StepResult step(const cosim::StepInputs& in, bool want_average) override;
   bool can_repeat() const override { return true; }
@@ -27,12 +27,12 @@ class OscillatorModel final : public cosim::Model {
   cosim::Signals to_signals(const Eigen::VectorXd& out) const;
   Side side_;
   Parameters p_;
-  cosim::Ticks inner_step_ = 0;
+  cosim::Duration inner_step_{};
   std::unique_ptr<Half> half_;
   Eigen::Vector2d snapshot_ = Eigen::Vector2d::Zero();
 };
 
 // Reads one half's parameters (keys listed in docs/config.md); raises config::ConfigError.
-Parameters read_parameters(Side side, const YAML::Node& node, cosim::Ticks* inner_step);
+Parameters read_parameters(Side side, const YAML::Node& node, cosim::Duration* inner_step);
 
 }  // namespace oscillator

@@ -8,7 +8,7 @@
 namespace prescribed {
 
 namespace cfg = cosim::config;
-using cosim::Ticks;
+using cosim::TimePoint;
 
 namespace {
 
@@ -95,9 +95,9 @@ void PrescribedModel::configure(const YAML::Node& parameters, const cosim::RunIn
   cfg::check_keys(root, path, {"tools", "inner_step", "record"});
   tools_ = read_tools(root, path, base_dir_);
   // Nothing is integrated: the inner step only says which macro steps fit (any, at 1 ns).
-  inner_step_ = cosim::seconds_to_ticks(cfg::get_positive_or(root, path, "inner_step", 1e-9),
-                                        path + ".inner_step");
-  if (inner_step_ <= 0) throw cfg::ConfigError(path + ".inner_step: must be at least 1 ns");
+  inner_step_ = cosim::seconds_to_duration(cfg::get_positive_or(root, path, "inner_step", 1e-9),
+                                           path + ".inner_step");
+  if (inner_step_ <= cosim::Duration::zero()) throw cfg::ConfigError(path + ".inner_step: must be at least 1 ns");
   record_path_ = cfg::get_string_or(root, path, "record", "");
   record_.reset();
   pending_.clear();
@@ -124,7 +124,7 @@ cosim::Ports PrescribedModel::outputs() const {
   return p;
 }
 
-cosim::Signals PrescribedModel::poses_at(Ticks t) const {
+cosim::Signals PrescribedModel::poses_at(TimePoint t) const {
   cosim::Signals s;
   for (const auto& tool : tools_) {
     const Pose p = tool.trajectory.evaluate(cosim::to_seconds(t));
@@ -134,7 +134,7 @@ cosim::Signals PrescribedModel::poses_at(Ticks t) const {
   return s;
 }
 
-cosim::Signals PrescribedModel::initial_outputs() { return poses_at(0); }
+cosim::Signals PrescribedModel::initial_outputs() { return poses_at(TimePoint{}); }
 
 void PrescribedModel::flush() {
   if (!record_) return;

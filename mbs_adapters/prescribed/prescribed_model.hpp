@@ -27,7 +27,7 @@ class PrescribedModel final : public cosim::Model {
   void configure(const YAML::Node& parameters, const cosim::RunInfo& run) override;
   cosim::Ports inputs() const override;
   cosim::Ports outputs() const override;
-  cosim::Ticks inner_step() const override { return inner_step_; }
+  cosim::Duration inner_step() const override { return inner_step_; }
   cosim::Signals initial_outputs() override;
   cosim::StepResult step(const cosim::StepInputs& in, bool want_average) override;
   bool can_repeat() const override { return true; }  // nothing evolves but time
@@ -38,13 +38,13 @@ class PrescribedModel final : public cosim::Model {
   const std::vector<ToolTrack>& tools() const { return tools_; }
 
  private:
-  cosim::Signals poses_at(cosim::Ticks t) const;
+  cosim::Signals poses_at(cosim::TimePoint t) const;
   void flush();
 
   YAML::Node root_;
   std::string base_dir_;
   std::vector<ToolTrack> tools_;
-  cosim::Ticks inner_step_ = 1;
+  cosim::Duration inner_step_ = cosim::nanoseconds(1);
   std::string record_path_;
   std::unique_ptr<std::ofstream> record_;
   std::vector<std::string> pending_;  // rows of the current step until the next one starts

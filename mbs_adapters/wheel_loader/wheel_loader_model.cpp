@@ -31,8 +31,8 @@ void WheelLoaderModel::configure(const YAML::Node& parameters, const RunInfo& ru
   if (!root || root.IsNull()) root = YAML::Node(YAML::NodeType::Map);
   cfg::apply_overrides(root, parameters, "participants." + run.participant + ".parameters");
   p_ = read_parameters(root);
-  inner_step_ = seconds_to_ticks(p_.inner_step, "inner_step");
-  if (inner_step_ <= 0) throw cfg::ConfigError("inner_step: must be at least 1 ns");
+  inner_step_ = seconds_to_duration(p_.inner_step, "inner_step");
+  if (inner_step_ <= Duration::zero()) throw cfg::ConfigError("inner_step: must be at least 1 ns");
   // Whether it divides the macro step is the master's check (check_wiring), once for everyone.
   try {
     model_ = std::make_unique<WheelLoader>(p_, to_seconds(run.t_start));
@@ -82,7 +82,8 @@ Signals WheelLoaderModel::initial_outputs() {
 void WheelLoaderModel::check_input(const StepInputs& in) const {
   const V3 origin = model_->bucket().position;
   for (double s : {0.0, 0.5, 1.0}) {
-    const Ticks t = in.t_start() + static_cast<Ticks>(std::llround(s * (in.t_end() - in.t_start())));
+    const TimePoint t =
+        in.t_start() + nanoseconds(std::llround(s * static_cast<double>(to_ns(in.length()))));
     const Wrench w = Wrench::from_value(in.at("bucket_wrench", t)).shifted_to(origin);
     const double F = norm(w.force), T = norm(w.torque);
     std::ostringstream msg;
@@ -101,7 +102,7 @@ void WheelLoaderModel::check_input(const StepInputs& in) const {
 StepResult WheelLoaderModel::step(const StepInputs& in, bool want_average) {
   check_input(in);
   const InputPolynomial poly = in.polynomial("bucket_wrench");
-  const double t0 = to_seconds(in.t_start()), H = to_seconds(in.t_end() - in.t_start());
+  const double t0 = to_seconds(in.t_start()), H = to_seconds(in.length());
   model_->set_bucket_wrench(
       [poly, t0, H](double t) { return Wrench::from_value(poly.evaluate((t - t0) / H)); });
   StepResult result;

@@ -23,7 +23,7 @@ class WheelLoaderModel final : public cosim::Model {
   void configure(const YAML::Node& parameters, const cosim::RunInfo& run) override;
   cosim::Ports inputs() const override;
   cosim::Ports outputs() const override;
-  cosim::Ticks inner_step() const override { return inner_step_; }
+  cosim::Duration inner_step() const override { return inner_step_; }
   cosim::Signals initial_outputs() override;
   cosim::StepResult step(const cosim::StepInputs& in, bool want_average) override;
   bool can_repeat() const override { return true; }
@@ -39,7 +39,7 @@ class WheelLoaderModel final : public cosim::Model {
 
   YAML::Node base_;
   Parameters p_;
-  cosim::Ticks inner_step_ = 0;
+  cosim::Duration inner_step_{};
   std::unique_ptr<WheelLoader> model_;
 };
 

@@ -15,7 +15,7 @@ ParticipantInfo Transport::accept_ready(const ready_t& r) const {
     info.inputs = ports_from_message(r.inputs, what + " inputs");
     info.outputs = ports_from_message(r.outputs, what + " outputs");
     if (r.inner_step_ns <= 0) throw ProtocolError("reports inner step " + std::to_string(r.inner_step_ns));
-    info.inner_step = r.inner_step_ns;
+    info.inner_step = nanoseconds(r.inner_step_ns);
     info.can_repeat = r.can_repeat;
     info.initial_outputs = from_message(r.initial_outputs, what + " initial outputs");
     check_against_ports(info.initial_outputs, info.outputs, what + " initial outputs");
@@ -29,7 +29,7 @@ StepAnswer Transport::accept(const step_request_t& q, const step_reply_t& r,
                              const ParticipantInfo& info, double round_trip) const {
   const std::string what = "participant '" + q.participant + "' step " +
                            std::to_string(q.step_index) + " (t = " +
-                           std::to_string(to_seconds(q.t_start_ns)) + " s)";
+                           std::to_string(to_seconds(time_point_ns(q.t_start_ns))) + " s)";
   if (r.status == step_reply_t::REJECTED)
     throw LinkError(q.participant, what + " refused the request: " + r.message);
   if (r.status != step_reply_t::OK)

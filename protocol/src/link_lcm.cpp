@@ -100,7 +100,7 @@ class LcmTransport final : public Transport {
           std::ostringstream msg;
           msg.precision(3);
           msg << "participant '" << name << "' stopped answering: no reply to step "
-              << p.request.step_index << " (t = " << to_seconds(p.request.t_start_ns)
+              << p.request.step_index << " (t = " << to_seconds(time_point_ns(p.request.t_start_ns))
               << " s) after " << p.request.attempt + 1 << " attempts " << s.timeout_s
               << " s apart; last heartbeat ";
           if (peers_[name].heard) msg << seconds_since(*peers_[name].heard) << " s ago";

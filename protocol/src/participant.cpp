@@ -11,8 +11,8 @@
 
 namespace cosim {
 
-Value StepInputs::at(const std::string& name, Ticks t) const {
-  const double s = static_cast<double>(t - t_start_) / static_cast<double>(t_end_ - t_start_);
+Value StepInputs::at(const std::string& name, TimePoint t) const {
+  const double s = static_cast<double>(to_ns(t - t_start_)) / static_cast<double>(to_ns(length()));
   return polynomial(name).evaluate(s);
 }
 
@@ -55,16 +55,17 @@ std::optional<ready_t> ParticipantCore::configure(const configure_t& m) {
       throw config::ConfigError(std::string("parameters are not valid YAML: ") + e.what());
     }
     if (params.IsNull()) params = YAML::Node(YAML::NodeType::Map);
-    run_ = RunInfo{name_, m.t_start_ns, m.t_end_ns, m.macro_step_ns};
+    run_ = RunInfo{name_, time_point_ns(m.t_start_ns), time_point_ns(m.t_end_ns),
+                   nanoseconds(m.macro_step_ns)};
     model_.configure(params, run_);
     inputs_ = model_.inputs();
     outputs_ = model_.outputs();
-    const Ticks inner = model_.inner_step();
-    if (inner <= 0) throw ProtocolError("model reports a non-positive inner step");
+    const Duration inner = model_.inner_step();
+    if (inner <= Duration::zero()) throw ProtocolError("model reports a non-positive inner step");
     const Signals initial = model_.initial_outputs();
     check_against_ports(initial, outputs_, "initial outputs");
     for (const auto& [n, s] : initial) validate_value(s.kind, s.value, "initial output '" + n + "'");
-    r.inner_step_ns = inner;
+    r.inner_step_ns = to_ns(inner);
     r.can_repeat = model_.can_repeat();
     r.inputs = to_message(inputs_);
     r.n_inputs = static_cast<int32_t>(r.inputs.size());
@@ -73,7 +74,7 @@ std::optional<ready_t> ParticipantCore::configure(const configure_t& m) {
     r.initial_outputs = to_message(initial);
     r.ok = true;
     session_ = m.session_id;
-    t_now_ = t_before_last_ = m.t_start_ns;
+    t_now_ = t_before_last_ = run_.t_start;
     ready_ = r;
   } catch (const std::exception& e) {
     r.error = e.what();
@@ -119,18 +120,19 @@ std::optional<step_reply_t> ParticipantCore::handle(const step_request_t& q) {
                       std::to_string(last_step_ + 1));
   if (redo && !model_.can_repeat())
     return refuse(q, step_reply_t::REJECTED, "this participant cannot repeat a step");
-  const Ticks expected_start = redo ? t_before_last_ : t_now_;
-  if (q.t_start_ns != expected_start || q.t_end_ns <= q.t_start_ns || q.t_end_ns > run_.t_end)
+  const TimePoint expected_start = redo ? t_before_last_ : t_now_;
+  const TimePoint t_start = time_point_ns(q.t_start_ns), t_end = time_point_ns(q.t_end_ns);
+  if (t_start != expected_start || t_end <= t_start || t_end > run_.t_end)
     return refuse(q, step_reply_t::REJECTED,
                   "step " + std::to_string(q.step_index) + " spans [" +
                       std::to_string(q.t_start_ns) + ", " + std::to_string(q.t_end_ns) +
-                      "] ns but must start at " + std::to_string(expected_start) +
-                      " ns and end after it, no later than " + std::to_string(run_.t_end));
-  if ((q.t_end_ns - q.t_start_ns) % model_.inner_step() != 0)
+                      "] ns but must start at " + std::to_string(to_ns(expected_start)) +
+                      " ns and end after it, no later than " + std::to_string(to_ns(run_.t_end)));
+  if ((t_end - t_start) % model_.inner_step() != Duration::zero())
     return refuse(q, step_reply_t::REJECTED,
                   "step length " + std::to_string(q.t_end_ns - q.t_start_ns) +
                       " ns is not a multiple of the inner step " +
-                      std::to_string(model_.inner_step()) + " ns");
+                      std::to_string(to_ns(model_.inner_step())) + " ns");
   return run_step(q);
 }
 
@@ -153,7 +155,8 @@ step_reply_t ParticipantCore::run_step(const step_request_t& q) {
       model_.restore_snapshot();
     else if (model_.can_repeat())
       model_.save_snapshot();
-    result = model_.step(StepInputs(q.t_start_ns, q.t_end_ns, inputs), q.want_average);
+    const StepInputs in(time_point_ns(q.t_start_ns), time_point_ns(q.t_end_ns), inputs);
+    result = model_.step(in, q.want_average);
     check_against_ports(result.outputs, outputs_, "outputs");
     for (const auto& [n, s] : result.outputs) validate_value(s.kind, s.value, "output '" + n + "'");
     if (q.want_average && result.average) {
@@ -179,8 +182,8 @@ step_reply_t ParticipantCore::run_step(const step_request_t& q) {
   for (const auto& [n, v] : result.diagnostics) r.diagnostics.push_back({n, v});
   r.n_diagnostics = static_cast<int32_t>(r.diagnostics.size());
   r.compute_seconds = seconds;
-  if (!redo) t_before_last_ = q.t_start_ns;
-  t_now_ = q.t_end_ns;
+  if (!redo) t_before_last_ = time_point_ns(q.t_start_ns);
+  t_now_ = time_point_ns(q.t_end_ns);
   last_step_ = q.step_index;
   last_iteration_ = q.iteration;
   cached_ = r;

@@ -142,7 +142,7 @@ int run_participant(Model& model, const std::string& default_name, int argc, cha
         const int64_t busy = core.busy_step();
         h.state = busy >= 0 ? heartbeat_t::BUSY : heartbeat_t::IDLE;
         h.step_index = busy >= 0 ? busy : core.last_step();
-        h.sim_time_ns = core.time();
+        h.sim_time_ns = to_ns(core.time());
         lcm.publish(channel::heartbeat(core.session()), &h);
       } else {
         announce_t a{};

@@ -7,7 +7,7 @@
 
 namespace cosim {
 
-Ticks seconds_to_ticks(double seconds, const std::string& what) {
+Duration seconds_to_duration(double seconds, const std::string& what) {
   if (!std::isfinite(seconds) || seconds < 0 || seconds > 9.0e9)
     throw config::ConfigError(what + ": expected a time in seconds between 0 and 9e9, got " +
                               std::to_string(seconds));
@@ -19,7 +19,11 @@ Ticks seconds_to_ticks(double seconds, const std::string& what) {
     msg << what << ": " << seconds << " s is not a whole number of nanoseconds";
     throw config::ConfigError(msg.str());
   }
-  return static_cast<Ticks>(whole);
+  return Duration(static_cast<std::int64_t>(whole));
+}
+
+TimePoint seconds_to_time_point(double seconds, const std::string& what) {
+  return TimePoint(seconds_to_duration(seconds, what));
 }
 
 }  // namespace cosim

@@ -19,10 +19,9 @@ namespace {
 using cosim::InputPolynomial;
 using cosim::Polynomials;
 using cosim::SignalKind;
-using cosim::Ticks;
 
-constexpr Ticks kDt = 10'000;       // the scene's dt, 1e-5 s
-constexpr Ticks kMacro = 5 * kDt;   // macro step of the in-process tests
+constexpr std::int64_t kDt = 10'000;      // ns: the scene's dt, 1e-5 s
+constexpr std::int64_t kMacro = 5 * kDt;  // ns: macro step of the in-process tests
 
 std::string scene_path() { return harness::source("tests/dem_service/scene.yaml"); }
 
@@ -55,9 +54,10 @@ double plate_height() {
 }
 
 // The blade pushed through the bed at 2 m/s (a particle diameter in 5 ms).
-cosim::Value blade_pose(Ticks t, double dz = 0) {
-  const double s = cosim::to_seconds(t);
-  return {0.05 + 2 * s, 0.05, plate_height() + dz, 1, 0, 0, 0, 2, 0, 0, 0, 0, 0};
+cosim::Value blade_pose(std::int64_t t_ns, double dz = 0) {
+  const double s = cosim::to_seconds(cosim::time_point_ns(t_ns));
+  return cosim::Kinematics{{0.05 + 2 * s, 0.05, plate_height() + dz}, {1, 0, 0, 0}, {2, 0, 0}, {}}
+      .to_value();
 }
 
 cosim::step_request_t request(int64_t step, double dz = 0, int iteration = 0) {
@@ -114,7 +114,7 @@ TEST(DemService, DeclaresOneKinematicInputAndOneWrenchOutputPerTool) {
   EXPECT_EQ(in[0].kind, SignalKind::Kinematics);
   EXPECT_EQ(out[0].name, "blade");
   EXPECT_EQ(out[0].kind, SignalKind::Wrench);
-  EXPECT_EQ(s.model->inner_step(), kDt);
+  EXPECT_EQ(s.model->inner_step(), cosim::nanoseconds(kDt));
 }
 
 TEST(DemService, RepeatedStepIsBitIdenticalAndOtherInputsEqualAFreshRun) {

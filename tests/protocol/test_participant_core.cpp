@@ -18,11 +18,11 @@ class Counter final : public Model {
   }
   Ports inputs() const override { return {{"u", SignalKind::Scalar}}; }
   Ports outputs() const override { return {{"x", SignalKind::Scalar}}; }
-  Ticks inner_step() const override { return 1'000'000; }
+  Duration inner_step() const override { return nanoseconds(1'000'000); }
   Signals initial_outputs() override { return {{"x", {SignalKind::Scalar, {x}}}}; }
   StepResult step(const StepInputs& in, bool) override {
     ++steps_taken;
-    for (Ticks t = in.t_start(); t < in.t_end(); t += inner_step()) x += in.at("u", t)[0] * 1e-3;
+    for (TimePoint t = in.t_start(); t < in.t_end(); t += inner_step()) x += in.at("u", t)[0] * 1e-3;
     return {{{"x", {SignalKind::Scalar, {x}}}}, std::nullopt, {}};
   }
   bool can_repeat() const override { return true; }

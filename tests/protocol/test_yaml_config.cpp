@@ -83,9 +83,9 @@ TEST(YamlConfig, UnknownKeysSuggestTheOnlyCloseAllowedKey) {
 }
 
 TEST(YamlConfig, TimesAreWholeNanoseconds) {
-  EXPECT_EQ(cosim::seconds_to_ticks(1e-3, "t"), 1'000'000);
-  EXPECT_EQ(cosim::seconds_to_ticks(1.25e-4, "t"), 125'000);
-  EXPECT_EQ(cosim::seconds_to_ticks(4e-4, "t"), 400'000);
-  EXPECT_THROW(cosim::seconds_to_ticks(1.5e-10, "t"), ConfigError);
-  EXPECT_THROW(cosim::seconds_to_ticks(-1, "t"), ConfigError);
+  EXPECT_EQ(cosim::seconds_to_duration(1e-3, "t"), cosim::nanoseconds(1'000'000));
+  EXPECT_EQ(cosim::seconds_to_duration(1.25e-4, "t"), cosim::nanoseconds(125'000));
+  EXPECT_EQ(cosim::seconds_to_time_point(4e-4, "t"), cosim::time_point_ns(400'000));
+  EXPECT_THROW(cosim::seconds_to_duration(1.5e-10, "t"), ConfigError);
+  EXPECT_THROW(cosim::seconds_to_time_point(-1, "t"), ConfigError);
 }

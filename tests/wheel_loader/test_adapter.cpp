@@ -11,18 +11,22 @@
 #include "wheel_loader_model.hpp"
 
 using namespace wheel_loader;
-using cosim::Ticks;
+using cosim::Duration;
+using cosim::TimePoint;
+using cosim::nanoseconds;
 
 namespace {
 
 const std::string kMachine = std::string(SOURCE_DIR) + "/configs/wheel_loader/machine.yaml";
 
-cosim::RunInfo run_info(Ticks macro = 1'000'000) { return {"loader", 0, 20 * cosim::kTicksPerSecond, macro}; }
+cosim::RunInfo run_info(Duration macro = nanoseconds(1'000'000)) {
+  return {"loader", TimePoint{}, cosim::time_point_ns(20'000'000'000), macro};
+}
 
 YAML::Node params(const std::string& yaml) { return YAML::Load(yaml); }
 
 // The config error message for these parameters (empty if accepted).
-std::string refusal(const std::string& yaml, Ticks macro = 1'000'000) {
+std::string refusal(const std::string& yaml, Duration macro = nanoseconds(1'000'000)) {
   WheelLoaderModel m(cosim::config::load_file(kMachine));
   try {
     m.configure(params(yaml), run_info(macro));
@@ -101,7 +105,7 @@ TEST(wheel_loader_adapter, InnerStepThatDoesNotDivideTheMacroStepIsRefused) {
 TEST(wheel_loader_adapter, PortsAndInitialOutputs) {
   WheelLoaderModel m(cosim::config::load_file(kMachine));
   m.configure(params("{}"), run_info());
-  EXPECT_EQ(m.inner_step(), 100'000);
+  EXPECT_EQ(m.inner_step(), nanoseconds(100'000));
   ASSERT_EQ(m.inputs().size(), 1u);
   EXPECT_EQ(m.inputs()[0].name, "bucket_wrench");
   EXPECT_EQ(m.inputs()[0].kind, cosim::SignalKind::Wrench);
@@ -123,15 +127,16 @@ TEST(wheel_loader_adapter, PortsAndInitialOutputs) {
 TEST(wheel_loader_adapter, RefusesAnInsaneWrenchAndKeepsItsState) {
   WheelLoaderModel m(cosim::config::load_file(kMachine));
   m.configure(params("{}"), run_info());
+  const TimePoint t1 = cosim::time_point_ns(1'000'000);
   const cosim::Vec3 x0 = bucket_position(m.initial_outputs());
   const auto bad = wrench(-6e6, 0, 0, x0);
   m.save_snapshot();
-  EXPECT_THROW(m.step(cosim::StepInputs(0, 1'000'000, bad), false), cosim::InputError);
+  EXPECT_THROW(m.step(cosim::StepInputs(TimePoint{}, t1, bad), false), cosim::InputError);
   m.restore_snapshot();  // as ParticipantCore does after an InputError
   const auto far = wrench(-1e5, 0, 0, {x0[0] + 1000, x0[1], x0[2] + 300});  // torque 3e7 N m
-  EXPECT_THROW(m.step(cosim::StepInputs(0, 1'000'000, far), false), cosim::InputError);
+  EXPECT_THROW(m.step(cosim::StepInputs(TimePoint{}, t1, far), false), cosim::InputError);
   const auto ok = wrench(-1e5, 0, 0, x0);
-  const auto r = m.step(cosim::StepInputs(0, 1'000'000, ok), false);
+  const auto r = m.step(cosim::StepInputs(TimePoint{}, t1, ok), false);
   EXPECT_NEAR(r.outputs.at("x_machine").value[0], 1.2e-3, 1e-4);
 }
 
@@ -139,18 +144,19 @@ TEST(wheel_loader_adapter, RefusesAnInsaneWrenchAndKeepsItsState) {
 // is the trapezoid mean of the inner samples.
 TEST(wheel_loader_adapter, SnapshotRepeatsAStepBitForBit) {
   WheelLoaderModel m(cosim::config::load_file(kMachine));
-  m.configure(params("{initial_speed: 1.2}"), run_info(2'000'000));
+  m.configure(params("{initial_speed: 1.2}"), run_info(nanoseconds(2'000'000)));
   const cosim::Vec3 ref = bucket_position(m.initial_outputs());
-  Ticks t = 0;
-  for (int i = 0; i < 5; ++i, t += 2'000'000)
-    m.step(cosim::StepInputs(t, t + 2'000'000, wrench(-5e4, 2e4, 1e3, ref, -1e4)), false);
+  const Duration H = nanoseconds(2'000'000);
+  TimePoint t{};
+  for (int i = 0; i < 5; ++i, t += H)
+    m.step(cosim::StepInputs(t, t + H, wrench(-5e4, 2e4, 1e3, ref, -1e4)), false);
   m.save_snapshot();
   const auto in = wrench(-8e4, 3e4, -2e3, ref, 2e4);
-  const auto first = m.step(cosim::StepInputs(t, t + 2'000'000, in), true);
+  const auto first = m.step(cosim::StepInputs(t, t + H, in), true);
   m.restore_snapshot();
-  const auto other = m.step(cosim::StepInputs(t, t + 2'000'000, wrench(0, 0, 0, ref)), false);
+  const auto other = m.step(cosim::StepInputs(t, t + H, wrench(0, 0, 0, ref)), false);
   m.restore_snapshot();
-  const auto again = m.step(cosim::StepInputs(t, t + 2'000'000, in), true);
+  const auto again = m.step(cosim::StepInputs(t, t + H, in), true);
   ASSERT_TRUE(first.average && again.average);
   for (const auto& [name, s] : first.outputs) {
     EXPECT_EQ(s.value, again.outputs.at(name).value) << name;  // bitwise

@@ -35,7 +35,7 @@ class ServiceModel final : public cosim::Model {
   void configure(const YAML::Node& parameters, const cosim::RunInfo& run) override;
   cosim::Ports inputs() const override;
   cosim::Ports outputs() const override;
-  cosim::Ticks inner_step() const override { return inner_step_; }
+  cosim::Duration inner_step() const override { return inner_step_; }
   cosim::Signals initial_outputs() override;
   cosim::StepResult step(const cosim::StepInputs& in, bool want_average) override;
   bool can_repeat() const override { return options_.snapshot; }
@@ -53,7 +53,7 @@ class ServiceModel final : public cosim::Model {
 
  private:
   void build(YAML::Node root, const std::string& what);
-  void set_tool_poses(const cosim::StepInputs& in, cosim::Ticks t);
+  void set_tool_poses(const cosim::StepInputs& in, cosim::TimePoint t);
 
   YAML::Node root_;  // as loaded, before the master's parameters
   std::string base_dir_;
@@ -61,13 +61,14 @@ class ServiceModel final : public cosim::Model {
   std::unique_ptr<Engine> engine_;
   std::unique_ptr<RunOutput> out_;
   ServiceOptions options_;
-  cosim::Ticks inner_step_ = 0;
+  cosim::Duration inner_step_{};
   cosim::RunInfo run_;
-  cosim::Ticks particles_every_ = 0, wrenches_every_ = 0, checkpoint_every_ = 0;
-  cosim::Ticks next_particles_ = 0, next_checkpoint_ = 0, last_particles_ = -1;
+  cosim::Duration particles_every_{}, wrenches_every_{}, checkpoint_every_{};  // zero: none
+  cosim::TimePoint next_particles_{}, next_checkpoint_{};
+  std::optional<cosim::TimePoint> last_particles_;  // none yet
   std::optional<State> snapshot_;
   std::size_t snapshot_rows_ = 0;
-  cosim::Ticks t_now_ = 0;
+  cosim::TimePoint t_now_{};
   std::int64_t steps_done_ = 0;
   double snapshot_seconds_ = 0;
   bool finished_ = false;

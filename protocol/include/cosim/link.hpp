@@ -49,7 +49,7 @@ struct FaultPlan {
 
 struct ParticipantInfo {
   Ports inputs, outputs;
-  Ticks inner_step = 0;
+  Duration inner_step{};
   bool can_repeat = false;
   Signals initial_outputs;
 };

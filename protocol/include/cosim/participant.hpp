@@ -25,24 +25,25 @@ namespace cosim {
 
 struct RunInfo {
   std::string participant;
-  Ticks t_start = 0;
-  Ticks t_end = 0;
-  Ticks macro_step = 0;
+  TimePoint t_start{};
+  TimePoint t_end{};
+  Duration macro_step{};
 };
 
 // What a model sees of one macro step.
 class StepInputs {
  public:
-  StepInputs(Ticks t_start, Ticks t_end, const Polynomials& inputs)
+  StepInputs(TimePoint t_start, TimePoint t_end, const Polynomials& inputs)
       : t_start_(t_start), t_end_(t_end), inputs_(inputs) {}
-  Ticks t_start() const { return t_start_; }
-  Ticks t_end() const { return t_end_; }
+  TimePoint t_start() const { return t_start_; }
+  TimePoint t_end() const { return t_end_; }
+  Duration length() const { return t_end_ - t_start_; }
   // The input `name` at time t (t_start <= t <= t_end), from its polynomial.
-  Value at(const std::string& name, Ticks t) const;
+  Value at(const std::string& name, TimePoint t) const;
   const InputPolynomial& polynomial(const std::string& name) const;
 
  private:
-  Ticks t_start_, t_end_;
+  TimePoint t_start_, t_end_;
   const Polynomials& inputs_;
 };
 
@@ -64,7 +65,7 @@ class Model {
   virtual void configure(const YAML::Node& parameters, const RunInfo& run) = 0;
   virtual Ports inputs() const = 0;
   virtual Ports outputs() const = 0;
-  virtual Ticks inner_step() const = 0;
+  virtual Duration inner_step() const = 0;
   virtual Signals initial_outputs() = 0;
   // Advances the model over [in.t_start(), in.t_end()].
   virtual StepResult step(const StepInputs& in, bool want_average) = 0;
@@ -83,7 +84,7 @@ class ParticipantCore {
   int64_t session() const { return session_; }
   int64_t busy_step() const { return busy_step_.load(); }   // -1 when idle
   int64_t last_step() const { return last_step_; }
-  Ticks time() const { return t_now_; }
+  TimePoint time() const { return t_now_; }
   uint64_t ignored_messages() const { return ignored_; }
 
   // Binds to the session on success. A repeated configure of the bound session gets the
@@ -104,8 +105,8 @@ class ParticipantCore {
   std::optional<ready_t> ready_;
   int64_t last_step_ = -1;     // last completed step index
   int32_t last_iteration_ = -1;
-  Ticks t_now_ = 0;            // end of the last completed step
-  Ticks t_before_last_ = 0;    // its start, for repeats
+  TimePoint t_now_{};          // end of the last completed step
+  TimePoint t_before_last_{};  // its start, for repeats
   std::optional<step_reply_t> cached_;
   std::atomic<int64_t> busy_step_{-1};
   uint64_t ignored_ = 0;
