@@ -84,8 +84,10 @@ TEST(Polynomial, OrientationIsPredictedOnTheRotationGroup) {
 
 TEST(Polynomial, WireRoundTripAndValidation) {
   Polynomials in;
-  in["f"] = InputPolynomial::constant(SignalKind::Wrench, {1, 2, 3, 4, 5, 6, 7, 8, 9});
-  in["k"] = InputPolynomial::constant(SignalKind::Kinematics, {1, 2, 3, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0});
+  const Wrench f{{1, 2, 3}, {4, 5, 6}, {7, 8, 9}};
+  const Kinematics k{{1, 2, 3}, {1, 0, 0, 0}, {}, {}};
+  in["f"] = InputPolynomial::constant(SignalKind::Wrench, f.to_value());
+  in["k"] = InputPolynomial::constant(SignalKind::Kinematics, k.to_value());
   in["s"] = InputPolynomial::constant(SignalKind::Scalar, {4.5});
   auto msg = to_message(in);
   auto out = from_message(msg, "test");

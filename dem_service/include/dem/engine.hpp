@@ -20,6 +20,8 @@ struct SimulationError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+// The soil's wrench on a tool as the contact loops sum it, in the hot-loop Vec3. It stays inside
+// the engine: outside it is a cosim::Wrench (dem/coupling.hpp converts, with the point).
 struct Wrench {
   Vec3 force;   // on the tool, ground frame
   Vec3 torque;  // about the tool's reference point, ground frame

@@ -12,7 +12,8 @@
 namespace dem {
 
 // Pose of a tool: world position of its reference point, orientation of the mesh frame, and
-// the velocities used for contact damping and friction.
+// the velocities used for contact damping and friction. The engine's form of a
+// cosim::Kinematics (dem/coupling.hpp converts), in the hot-loop Vec3/Quat.
 struct ToolPose {
   Vec3 position;
   Quat orientation;
