@@ -96,6 +96,22 @@ void put_rows(InputPolynomial& p, int offset, const std::vector<std::vector<doub
   }
 }
 
+// Every coefficient-row field of a wire polynomial with its offset in tangent coordinates: the
+// one map that to_message and from_message both use. K is the message type, const or not.
+template <class K, class F>
+void kinematics_rows(K& k, F&& f) {
+  f(Kinematics::kTangentPosition, k.position);
+  f(Kinematics::kTangentRotation, k.rotation_vector);
+  f(Kinematics::kTangentVelocity, k.linear_velocity);
+  f(Kinematics::kTangentAngularVelocity, k.angular_velocity);
+}
+template <class W, class F>
+void wrench_rows(W& w, F&& f) {
+  f(Wrench::kForce, w.force);
+  f(Wrench::kTorque, w.torque);
+  f(Wrench::kPoint, w.reference_point);
+}
+
 void check_order(int32_t n, const std::string& what) {
   if (n < 1 || n > kMaxPolynomialOrder + 1)
     throw ProtocolError(what + ": n_coefficients is " + std::to_string(n) + ", allowed 1.." +
@@ -121,10 +137,7 @@ polynomial_set_t to_message(const Polynomials& polynomials) {
         k.name = name;
         for (int i = 0; i < 4; ++i) k.orientation_reference[i] = p.orientation_reference[i];
         k.n_coefficients = p.n_coefficients;
-        k.position = rows(p, Kinematics::kTangentPosition);
-        k.rotation_vector = rows(p, Kinematics::kTangentRotation);
-        k.linear_velocity = rows(p, Kinematics::kTangentVelocity);
-        k.angular_velocity = rows(p, Kinematics::kTangentAngularVelocity);
+        kinematics_rows(k, [&](int offset, auto& r) { r = rows(p, offset); });
         m.kinematics.push_back(k);
         break;
       }
@@ -132,9 +145,7 @@ polynomial_set_t to_message(const Polynomials& polynomials) {
         wrench_polynomial_t w{};
         w.name = name;
         w.n_coefficients = p.n_coefficients;
-        w.force = rows(p, Wrench::kForce);
-        w.torque = rows(p, Wrench::kTorque);
-        w.reference_point = rows(p, Wrench::kPoint);
+        wrench_rows(w, [&](int offset, auto& r) { r = rows(p, offset); });
         m.wrenches.push_back(w);
         break;
       }
@@ -165,10 +176,7 @@ Polynomials from_message(const polynomial_set_t& m, const std::string& what) {
   for (const auto& k : m.kinematics) {
     const std::string where = what + " input '" + k.name + "'";
     auto& p = start(k.name, SignalKind::Kinematics, k.n_coefficients);
-    put_rows(p, Kinematics::kTangentPosition, k.position, where);
-    put_rows(p, Kinematics::kTangentRotation, k.rotation_vector, where);
-    put_rows(p, Kinematics::kTangentVelocity, k.linear_velocity, where);
-    put_rows(p, Kinematics::kTangentAngularVelocity, k.angular_velocity, where);
+    kinematics_rows(k, [&](int offset, const auto& r) { put_rows(p, offset, r, where); });
     check_finite(p, where);
     const Quat q{k.orientation_reference[0], k.orientation_reference[1],
                  k.orientation_reference[2], k.orientation_reference[3]};
@@ -181,9 +189,7 @@ Polynomials from_message(const polynomial_set_t& m, const std::string& what) {
   for (const auto& w : m.wrenches) {
     const std::string where = what + " input '" + w.name + "'";
     auto& p = start(w.name, SignalKind::Wrench, w.n_coefficients);
-    put_rows(p, Wrench::kForce, w.force, where);
-    put_rows(p, Wrench::kTorque, w.torque, where);
-    put_rows(p, Wrench::kPoint, w.reference_point, where);
+    wrench_rows(w, [&](int offset, const auto& r) { put_rows(p, offset, r, where); });
     check_finite(p, where);
   }
   return out;
