@@ -58,29 +58,13 @@ double seconds_key(const YAML::Node& n, const std::string& path, const std::stri
   return cfg::get_double(n, path, key);
 }
 
-}  // namespace
+// --- One parser per section; an absent optional key keeps its field's initialiser.
 
-Config parse_config(const YAML::Node& root, const std::string& source_text) {
-  Config c;
-  c.source_text = source_text;
-  {
-    YAML::Emitter out;
-    out << root;
-    c.effective_yaml = out.c_str();
-  }
-  cfg::check_keys(root, "", {"bus", "time", "scheme", "order", "startup_iterations",
-                              "connect_timeout", "participants", "predictors", "connections",
-                              "power", "output", "faults"});
-  // bus
-  if (root["bus"]) {
-    cfg::check_keys(root["bus"], "bus", {"url"});
-    c.bus_url = cfg::get_string_or(root["bus"], "bus", "url", "");
-  }
-  // time
-  if (!root["time"]) throw ConfigError("time: missing (expected a map with start, end, macro_step)");
-  const auto& time = root["time"];
+void parse_time(const YAML::Node& time, Config& c) {
+  if (!time) throw ConfigError("time: missing (expected a map with start, end, macro_step)");
   cfg::check_keys(time, "time", {"start", "end", "macro_step"});
-  c.t_start = cosim::seconds_to_time_point(cfg::get_double_or(time, "time", "start", 0.0), "time.start");
+  c.t_start = cosim::seconds_to_time_point(
+      cfg::get_double_or(time, "time", "start", cosim::to_seconds(c.t_start)), "time.start");
   c.t_end = cosim::seconds_to_time_point(seconds_key(time, "time", "end"), "time.end");
   c.macro_step = cosim::seconds_to_duration(seconds_key(time, "time", "macro_step"), "time.macro_step");
   if (c.macro_step <= Duration::zero()) throw ConfigError("time.macro_step: must be > 0");
@@ -88,74 +72,91 @@ Config parse_config(const YAML::Node& root, const std::string& source_text) {
   if ((c.t_end - c.t_start) % c.macro_step != Duration::zero())
     throw ConfigError("time.end: end - start must be a whole number of macro steps (time.macro_step = " +
                       std::to_string(cosim::to_seconds(c.macro_step)) + " s)");
-  // scheme
-  const std::string scheme = cfg::get_choice(root, "", "scheme", {"jacobi", "gauss_seidel"}, "jacobi");
+}
+
+// scheme, startup_iterations, connect_timeout: top-level scalars.
+void parse_run_options(const YAML::Node& root, Config& c) {
+  const std::string scheme = cfg::get_choice(root, "", "scheme", {"jacobi", "gauss_seidel"},
+                                             c.scheme == Scheme::Jacobi ? "jacobi" : "gauss_seidel");
   c.scheme = scheme == "jacobi" ? Scheme::Jacobi : Scheme::GaussSeidel;
-  const long long iters = cfg::get_int_or(root, "", "startup_iterations", 2);
+  const long long iters = cfg::get_int_or(root, "", "startup_iterations", c.startup_iterations);
   if (iters < 0 || iters > 20)
     throw ConfigError("startup_iterations: " + std::to_string(iters) + " is not allowed (allowed: 0 to 20)");
   c.startup_iterations = static_cast<int>(iters);
-  c.connect_timeout = cfg::get_positive_or(root, "", "connect_timeout", 30.0);
-  // participants
-  const auto& parts = root["participants"];
+  c.connect_timeout = cfg::get_positive_or(root, "", "connect_timeout", c.connect_timeout);
+}
+
+ParticipantSpec parse_participant(const std::string& name, const YAML::Node& value) {
+  ParticipantSpec p;
+  p.name = name;
+  const std::string path = "participants." + p.name;
+  if (!cosim::valid_name(p.name) || p.name == "master")
+    throw ConfigError(path + ": '" + p.name + "' is not a valid participant name (1 to 32 characters of A-Z, a-z, 0-9, _; not 'master')");
+  const YAML::Node node = value.IsNull() ? YAML::Node(YAML::NodeType::Map) : value;
+  cfg::check_keys(node, path, {"launch", "timeout", "retries", "parameters"});
+  if (node["launch"] && !node["launch"].IsNull()) {  // null: started by the user
+    if (!node["launch"].IsSequence() || node["launch"].size() == 0)
+      throw ConfigError(path + ".launch: expected a non-empty list [program, arg, ...]");
+    for (const auto& a : node["launch"]) {
+      if (!a.IsScalar()) throw ConfigError(path + ".launch: every entry must be a string");
+      p.launch.push_back(a.Scalar());
+    }
+  }
+  p.link.timeout_s = cfg::get_positive_or(node, path, "timeout", p.link.timeout_s);
+  const long long retries = cfg::get_int_or(node, path, "retries", p.link.retries);
+  if (retries < 0 || retries > 100)
+    throw ConfigError(path + ".retries: " + std::to_string(retries) + " is not allowed (allowed: 0 to 100)");
+  p.link.retries = static_cast<int>(retries);
+  if (node["parameters"]) {
+    if (!node["parameters"].IsMap() && !node["parameters"].IsNull())
+      throw ConfigError(path + ".parameters: expected a map");
+    YAML::Emitter out;
+    out << node["parameters"];
+    p.parameters_yaml = out.c_str();
+  }
+  return p;
+}
+
+std::vector<ParticipantSpec> parse_participants(const YAML::Node& parts) {
   if (!parts || !parts.IsMap() || parts.size() == 0)
     throw ConfigError("participants: missing (expected a map: name -> {launch, timeout, retries, parameters})");
-  for (const auto& kv : parts) {
-    ParticipantSpec p;
-    p.name = kv.first.as<std::string>();
-    const std::string path = "participants." + p.name;
-    if (!cosim::valid_name(p.name) || p.name == "master")
-      throw ConfigError(path + ": '" + p.name + "' is not a valid participant name (1 to 32 characters of A-Z, a-z, 0-9, _; not 'master')");
-    const YAML::Node node = kv.second.IsNull() ? YAML::Node(YAML::NodeType::Map) : kv.second;
-    cfg::check_keys(node, path, {"launch", "timeout", "retries", "parameters"});
-    if (node["launch"] && !node["launch"].IsNull()) {  // null: started by the user
-      if (!node["launch"].IsSequence() || node["launch"].size() == 0)
-        throw ConfigError(path + ".launch: expected a non-empty list [program, arg, ...]");
-      for (const auto& a : node["launch"]) {
-        if (!a.IsScalar()) throw ConfigError(path + ".launch: every entry must be a string");
-        p.launch.push_back(a.Scalar());
-      }
-    }
-    p.link.timeout_s = cfg::get_positive_or(node, path, "timeout", 2.0);
-    const long long retries = cfg::get_int_or(node, path, "retries", 3);
-    if (retries < 0 || retries > 100)
-      throw ConfigError(path + ".retries: " + std::to_string(retries) + " is not allowed (allowed: 0 to 100)");
-    p.link.retries = static_cast<int>(retries);
-    if (node["parameters"]) {
-      if (!node["parameters"].IsMap() && !node["parameters"].IsNull())
-        throw ConfigError(path + ".parameters: expected a map");
-      YAML::Emitter out;
-      out << node["parameters"];
-      p.parameters_yaml = out.c_str();
-    }
-    c.participants.push_back(p);
-  }
-  // Gauss-Seidel order
-  if (root["order"]) {
-    if (!root["order"].IsSequence()) throw ConfigError("order: expected a list of participant names");
-    for (const auto& n : root["order"]) c.order.push_back(n.as<std::string>());
+  std::vector<ParticipantSpec> out;
+  for (const auto& kv : parts) out.push_back(parse_participant(kv.first.as<std::string>(), kv.second));
+  return out;
+}
+
+// The Gauss-Seidel sequence: every participant once (file order when not given).
+std::vector<std::string> parse_order(const YAML::Node& n, const Config& c) {
+  std::vector<std::string> order;
+  if (n) {
+    if (!n.IsSequence()) throw ConfigError("order: expected a list of participant names");
+    for (const auto& name : n) order.push_back(name.as<std::string>());
   } else {
-    for (const auto& p : c.participants) c.order.push_back(p.name);
+    for (const auto& p : c.participants) order.push_back(p.name);
   }
-  {
-    std::set<std::string> in_order(c.order.begin(), c.order.end());
-    if (in_order.size() != c.order.size() || in_order.size() != c.participants.size())
-      throw ConfigError("order: must list every participant exactly once");
-    for (const auto& n : c.order) c.participant(n);  // raises for unknown names
-  }
-  // named predictors
+  std::set<std::string> in_order(order.begin(), order.end());
+  if (in_order.size() != order.size() || in_order.size() != c.participants.size())
+    throw ConfigError("order: must list every participant exactly once");
+  for (const auto& name : order) c.participant(name);  // raises for unknown names
+  return order;
+}
+
+std::map<std::string, PredictorSpec> parse_predictors(const YAML::Node& n) {
   std::map<std::string, PredictorSpec> named;
-  if (root["predictors"]) {
-    if (!root["predictors"].IsMap()) throw ConfigError("predictors: expected a map name -> {order, samples}");
-    for (const auto& kv : root["predictors"]) {
-      const auto name = kv.first.as<std::string>();
-      named[name] = parse_predictor(kv.second, "predictors." + name);
-    }
+  if (!n) return named;
+  if (!n.IsMap()) throw ConfigError("predictors: expected a map name -> {order, samples}");
+  for (const auto& kv : n) {
+    const auto name = kv.first.as<std::string>();
+    named[name] = parse_predictor(kv.second, "predictors." + name);
   }
-  // connections
-  const auto& conns = root["connections"];
+  return named;
+}
+
+std::vector<ConnectionSpec> parse_connections(const YAML::Node& conns, const Config& c,
+                                              const std::map<std::string, PredictorSpec>& named) {
   if (!conns || !conns.IsSequence() || conns.size() == 0)
     throw ConfigError("connections: missing (expected a list of {from: p.signal, to: p.signal, predictor: ...})");
+  std::vector<ConnectionSpec> out;
   std::set<std::string> inputs_seen;
   for (std::size_t i = 0; i < conns.size(); ++i) {
     const std::string path = "connections." + std::to_string(i);
@@ -183,48 +184,83 @@ Config parse_config(const YAML::Node& root, const std::string& source_text) {
     } else {
       k.predictor = parse_predictor(pred, path + ".predictor");
     }
-    c.connections.push_back(k);
+    out.push_back(k);
   }
-  // power pairs
-  if (root["power"]) {
-    if (!root["power"].IsSequence()) throw ConfigError("power: expected a list of {name, force, velocity}");
-    for (std::size_t i = 0; i < root["power"].size(); ++i) {
-      const std::string path = "power." + std::to_string(i);
-      const auto& n = root["power"][i];
-      cfg::check_keys(n, path, {"name", "force", "velocity"});
-      PowerSpec p;
-      p.force = parse_endpoint(n, path, "force", c);
-      p.velocity = parse_endpoint(n, path, "velocity", c);
-      p.name = cfg::get_string_or(n, path, "name", p.force.str() + "_x_" + p.velocity.str());
-      c.power.push_back(p);
+  return out;
+}
+
+std::vector<PowerSpec> parse_power(const YAML::Node& n, const Config& c) {
+  std::vector<PowerSpec> out;
+  if (!n) return out;
+  if (!n.IsSequence()) throw ConfigError("power: expected a list of {name, force, velocity}");
+  for (std::size_t i = 0; i < n.size(); ++i) {
+    const std::string path = "power." + std::to_string(i);
+    cfg::check_keys(n[i], path, {"name", "force", "velocity"});
+    PowerSpec p;
+    p.force = parse_endpoint(n[i], path, "force", c);
+    p.velocity = parse_endpoint(n[i], path, "velocity", c);
+    p.name = cfg::get_string_or(n[i], path, "name", p.force.str() + "_x_" + p.velocity.str());
+    out.push_back(p);
+  }
+  return out;
+}
+
+OutputSpec parse_output(const YAML::Node& o) {
+  OutputSpec out;
+  if (!o) return out;
+  cfg::check_keys(o, "output", {"file", "csv", "progress"});
+  out.file = cfg::get_string_or(o, "output", "file", out.file);
+  out.csv_file = cfg::get_string_or(o, "output", "csv", out.csv_file);
+  out.progress = cfg::get_choice(o, "output", "progress", {"auto", "on", "off"}, out.progress);
+  return out;
+}
+
+// For tests: lose a request or reply once.
+cosim::FaultPlan parse_faults(const YAML::Node& f, const Config& c) {
+  cosim::FaultPlan faults;
+  if (!f) return faults;
+  cfg::check_keys(f, "faults", {"drop_request", "drop_reply"});
+  for (const char* key : {"drop_request", "drop_reply"}) {
+    if (!f[key]) continue;
+    if (!f[key].IsSequence()) throw ConfigError(std::string("faults.") + key + ": expected a list of {participant, step}");
+    for (std::size_t i = 0; i < f[key].size(); ++i) {
+      const std::string path = std::string("faults.") + key + "." + std::to_string(i);
+      cfg::check_keys(f[key][i], path, {"participant", "step"});
+      const auto who = cfg::get_string(f[key][i], path, "participant");
+      c.participant(who);
+      const auto step = cfg::get_int(f[key][i], path, "step");
+      (std::string(key) == "drop_request" ? faults.drop_request : faults.drop_reply)
+          .insert({who, step});
     }
   }
-  // output
-  if (root["output"]) {
-    const auto& o = root["output"];
-    cfg::check_keys(o, "output", {"file", "csv", "progress"});
-    c.output.file = cfg::get_string_or(o, "output", "file", "");
-    c.output.csv_file = cfg::get_string_or(o, "output", "csv", "");
-    c.output.progress = cfg::get_choice(o, "output", "progress", {"auto", "on", "off"}, "auto");
+  return faults;
+}
+
+}  // namespace
+
+Config parse_config(const YAML::Node& root, const std::string& source_text) {
+  Config c;
+  c.source_text = source_text;
+  {
+    YAML::Emitter out;
+    out << root;
+    c.effective_yaml = out.c_str();
   }
-  // faults (tests): lose a request or reply once
-  if (root["faults"]) {
-    const auto& f = root["faults"];
-    cfg::check_keys(f, "faults", {"drop_request", "drop_reply"});
-    for (const char* key : {"drop_request", "drop_reply"}) {
-      if (!f[key]) continue;
-      if (!f[key].IsSequence()) throw ConfigError(std::string("faults.") + key + ": expected a list of {participant, step}");
-      for (std::size_t i = 0; i < f[key].size(); ++i) {
-        const std::string path = std::string("faults.") + key + "." + std::to_string(i);
-        cfg::check_keys(f[key][i], path, {"participant", "step"});
-        const auto who = cfg::get_string(f[key][i], path, "participant");
-        c.participant(who);
-        const auto step = cfg::get_int(f[key][i], path, "step");
-        (std::string(key) == "drop_request" ? c.faults.drop_request : c.faults.drop_reply)
-            .insert({who, step});
-      }
-    }
+  cfg::check_keys(root, "", {"bus", "time", "scheme", "order", "startup_iterations",
+                              "connect_timeout", "participants", "predictors", "connections",
+                              "power", "output", "faults"});
+  if (root["bus"]) {
+    cfg::check_keys(root["bus"], "bus", {"url"});
+    c.bus_url = cfg::get_string_or(root["bus"], "bus", "url", c.bus_url);
   }
+  parse_time(root["time"], c);
+  parse_run_options(root, c);
+  c.participants = parse_participants(root["participants"]);
+  c.order = parse_order(root["order"], c);
+  c.connections = parse_connections(root["connections"], c, parse_predictors(root["predictors"]));
+  c.power = parse_power(root["power"], c);
+  c.output = parse_output(root["output"]);
+  c.faults = parse_faults(root["faults"], c);
   return c;
 }
 

@@ -1,5 +1,7 @@
 // The master's configuration: read once from YAML (+ --set overrides), validated strictly,
-// then checked against what the participants declare before the first step.
+// then checked against what the participants declare before the first step. A field's
+// initialiser is the default of its key (the parser falls back to it; docs/config.md lists
+// them, tests/master checks the two agree).
 #pragma once
 
 #include <cosim/link.hpp>

@@ -1,0 +1,103 @@
+// docs/config.md gives the master's defaults in its key table. This test reads every row whose
+// default is a literal in backticks and checks it against the code: a config that sets the key
+// to the documented value must parse to the same Config as one that leaves it out (the parser
+// falls back to the field initialisers in config.hpp, the one place a default is declared).
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <regex>
+#include <sstream>
+
+#include "config.hpp"
+
+namespace {
+
+// Only the required keys: two participants and one connection.
+const char* kMinimal = R"(
+time: {end: 1.0, macro_step: 1.0e-3}
+participants: {a: null, b: {}}
+connections: [{from: a.x, to: b.x}]
+)";
+
+// Every parsed field except the config's own text.
+std::string describe(const master::Config& c) {
+  std::ostringstream o;
+  o.precision(17);
+  auto parameters = [](const std::string& yaml) {
+    // what the participant receives: no parameters and an empty map are the same
+    const YAML::Node n = YAML::Load(yaml);
+    return n.IsNull() || (n.IsMap() && n.size() == 0) ? std::string("{}") : yaml;
+  };
+  o << "bus '" << c.bus_url << "' time " << c.t_start.time_since_epoch().count() << ' '
+    << c.t_end.time_since_epoch().count() << ' ' << c.macro_step.count() << " scheme " << static_cast<int>(c.scheme) << " order";
+  for (const auto& n : c.order) o << ' ' << n;
+  o << " startup " << c.startup_iterations << " connect " << c.connect_timeout << '\n';
+  for (const auto& p : c.participants) {
+    o << "participant " << p.name << " launch";
+    for (const auto& a : p.launch) o << " '" << a << "'";
+    o << " timeout " << p.link.timeout_s << " retries " << p.link.retries << " parameters "
+      << parameters(p.parameters_yaml) << '\n';
+  }
+  for (const auto& k : c.connections)
+    o << "connection " << k.from.str() << ' ' << k.to.str() << ' ' << k.predictor.order << ' '
+      << k.predictor.samples << " '" << k.predictor_name << "'\n";
+  for (const auto& p : c.power)
+    o << "power " << p.name << ' ' << p.force.str() << ' ' << p.velocity.str() << '\n';
+  o << "output '" << c.output.file << "' '" << c.output.csv_file << "' " << c.output.progress
+    << " faults " << c.faults.drop_request.size() << ' ' << c.faults.drop_reply.size() << '\n';
+  return o.str();
+}
+
+master::Config parse(const std::vector<std::string>& sets) {
+  YAML::Node root = YAML::Load(kMinimal);
+  for (const auto& s : sets) cosim::config::apply_override(root, s);
+  return master::parse_config(root, kMinimal);
+}
+
+struct Documented {
+  std::string key, value;
+};
+
+// Rows "| `key` | meaning | `value` ... |" of docs/config.md's first table.
+std::vector<Documented> documented_defaults() {
+  std::ifstream in(std::string(SOURCE_DIR) + "/docs/config.md");
+  EXPECT_TRUE(in) << "cannot read docs/config.md";
+  std::vector<Documented> out;
+  const std::regex row(R"(^\| `([^`]+)` \|.*\| `([^`]*)`( \([^|]*\))? \|$)");
+  for (std::string line; std::getline(in, line);) {
+    if (line.rfind("## ", 0) == 0) break;  // the participants' parameters follow
+    std::smatch m;
+    if (std::regex_match(line, m, row)) out.push_back({m[1], m[2]});
+  }
+  return out;
+}
+
+TEST(master_ConfigDefaults, DocsMatchTheCode) {
+  const std::string base = describe(parse({}));
+  const auto rows = documented_defaults();
+  EXPECT_GE(rows.size(), 9u) << "docs/config.md: the defaults in backticks went missing";
+  for (const Documented& d : rows) {
+    const std::string key = std::regex_replace(d.key, std::regex("<name>"), "a");
+    std::string with;
+    try {
+      with = describe(parse({key + "=" + d.value}));
+    } catch (const std::exception& e) {
+      ADD_FAILURE() << "docs/config.md: `" << d.key << "` = `" << d.value << "`: " << e.what();
+      continue;
+    }
+    EXPECT_EQ(with, base) << "docs/config.md documents `" << d.key << "` = `" << d.value
+                          << "`, but the code's default differs";
+  }
+}
+
+// The check above can fail: a different value changes the parsed config.
+TEST(master_ConfigDefaults, AWrongDefaultIsNoticed) {
+  const std::string base = describe(parse({}));
+  for (const char* set : {"scheme=gauss_seidel", "startup_iterations=3", "connect_timeout=31",
+                          "participants.a.timeout=2.5", "participants.a.retries=4",
+                          "participants.a.parameters={k: 1}", "output.progress=on",
+                          "output.file=x.h5", "time.start=0.5"})
+    EXPECT_NE(describe(parse({set})), base) << set;
+}
+
+}  // namespace
