@@ -152,6 +152,16 @@ std::map<std::string, PredictorSpec> parse_predictors(const YAML::Node& n) {
   return named;
 }
 
+const PredictorSpec& named_predictor(const std::map<std::string, PredictorSpec>& named,
+                                     const std::string& name, const std::string& path) {
+  const auto it = named.find(name);
+  if (it != named.end()) return it->second;
+  std::string names;
+  for (const auto& [n, s] : named) names += (names.empty() ? "" : ", ") + n;
+  throw ConfigError(path + ": unknown predictor '" + name + "' (defined under predictors: " +
+                    (names.empty() ? "none" : names) + ")");
+}
+
 std::vector<ConnectionSpec> parse_connections(const YAML::Node& conns, const Config& c,
                                               const std::map<std::string, PredictorSpec>& named) {
   if (!conns || !conns.IsSequence() || conns.size() == 0)
@@ -168,21 +178,10 @@ std::vector<ConnectionSpec> parse_connections(const YAML::Node& conns, const Con
       throw ConfigError(path + ": a participant cannot feed itself (" + k.from.str() + " -> " + k.to.str() + ")");
     if (!inputs_seen.insert(k.to.str()).second)
       throw ConfigError(path + ".to: input " + k.to.str() + " is connected twice");
-    const auto& pred = conns[i]["predictor"];
-    if (!pred) {
-      k.predictor = PredictorSpec{};
-    } else if (pred.IsScalar()) {
-      k.predictor_name = pred.Scalar();
-      auto it = named.find(k.predictor_name);
-      if (it == named.end()) {
-        std::string names;
-        for (const auto& [n, s] : named) names += (names.empty() ? "" : ", ") + n;
-        throw ConfigError(path + ".predictor: unknown predictor '" + k.predictor_name +
-                          "' (defined under predictors: " + (names.empty() ? "none" : names) + ")");
-      }
-      k.predictor = it->second;
-    } else {
-      k.predictor = parse_predictor(pred, path + ".predictor");
+    if (const YAML::Node pred = conns[i]["predictor"]) {
+      if (pred.IsScalar()) k.predictor_name = pred.Scalar();
+      k.predictor = pred.IsScalar() ? named_predictor(named, k.predictor_name, path + ".predictor")
+                                    : parse_predictor(pred, path + ".predictor");
     }
     out.push_back(k);
   }
