@@ -62,6 +62,23 @@ TEST(dem_BadInput, UnknownKeysNamed) {
   expect_has(error_of({"contact.particle_particle.stifness=3"}), "stifness");
 }
 
+TEST(dem_BadInput, ATypoGetsTheKeyItMeans) {
+  expect_has(error_of({"contact.particle_particle.frction=0.3"}), "did you mean 'friction'?");
+  expect_has(error_of({"scene.thread=2"}), "did you mean 'threads'?");
+  const auto msg = error_of({"scene.time_step=1e-5"});
+  EXPECT_EQ(msg.find("did you mean"), std::string::npos) << msg;  // no allowed key is close
+}
+
+TEST(dem_BadInput, ContactLawRangesNameTheValueAndTheFix) {
+  const auto msg = error_of({"contact.particle_particle.friction=-0.1"});
+  expect_has(msg, "contact.particle_particle.friction: -0.1 is not allowed");
+  expect_has(msg, ">= 0");
+  expect_has(error_of({"contact.particle_particle.normal_stiffness=0"}),
+             "contact.particle_particle.normal_stiffness: 0 is not allowed");
+  expect_has(error_of({"contact.particle_wall={normal_stiffness: 4.0e7, normal_damping: -1}"}),
+             "contact.particle_wall.normal_damping: -1 is not allowed");
+}
+
 TEST(dem_BadInput, ZeroOrNegativeRadius) {
   expect_has(error_of({"species[0]=x"}), "");  // malformed override must not crash
   expect_has(error_of({"particles.list=[{species: grain, position: [0,0,0], radius: 0}]"}),
