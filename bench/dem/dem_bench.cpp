@@ -9,7 +9,6 @@
 // skip the settling.
 #include <omp.h>
 
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -18,6 +17,7 @@
 #include <string>
 #include <vector>
 
+#include "cosim/stopwatch.hpp"
 #include "dem/bed.hpp"
 #include "dem/checkpoint.hpp"
 #include "dem/config.hpp"
@@ -159,18 +159,20 @@ int main(int argc, char** argv) {
         dem::Engine engine(scene);
         for (int k = 0; k < 20; ++k) engine.step(st);  // warm-up: lists, caches, buffers
         const long long early0 = st.early_rebuilds;
-        engine.timing() = dem::Timing{};
-        const auto t0 = std::chrono::steady_clock::now();
+        engine.timing().reset();
+        const cosim::Stopwatch watch;
         for (int k = 0; k < steps; ++k) engine.step(st);
-        const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        const double wall = watch.seconds();
         const double rate = static_cast<double>(n) * steps / wall;
         const dem::Timing& t = engine.timing();
         const double per = 1e9 / (static_cast<double>(n) * steps);  // ns per particle-step
         std::printf("%10ld %8d %9d %14.4g %12.1f %10zu %8lld   %5.1f %5.1f %5.1f %5.1f\n", n,
                     threads, interval, rate, 1e9 * threads / rate,
                     engine.particle_contacts(st).size(),
-                    static_cast<long long>(st.early_rebuilds - early0), t.broad_phase * per,
-                    t.pair_forces * per, t.mesh_contacts * per, t.integration * per);
+                    static_cast<long long>(st.early_rebuilds - early0), t.seconds(dem::section::broad_phase) * per,
+                    t.seconds(dem::section::pair_forces) * per,
+                    t.seconds(dem::section::mesh_contacts) * per,
+                    t.seconds(dem::section::integration) * per);
         std::fflush(stdout);
       }
   }

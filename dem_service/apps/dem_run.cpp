@@ -1,7 +1,6 @@
 // dem_run CONFIG.yaml [--set dotted.key=value ...] [--output FILE.h5]
 // Standalone DEM run: optional settling, prescribed tool motion, HDF5 + XDMF output, and a
 // LAMMPS-style timing table at the end.
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -9,6 +8,8 @@
 #include <string>
 #include <vector>
 
+#include "cosim/stopwatch.hpp"
+#include "cosim/timer.hpp"
 #include "cosim/yaml_config.hpp"
 #include "dem/bed.hpp"
 #include "dem/checkpoint.hpp"
@@ -18,8 +19,6 @@
 #include "dem/stability.hpp"
 
 namespace {
-
-using Clock = std::chrono::steady_clock;
 
 void usage() {
   std::cerr << "usage: dem_run CONFIG.yaml [--set dotted.key=value ...] [--output FILE.h5]\n"
@@ -33,25 +32,18 @@ void set_tool_poses(const dem::Scene& scene, dem::State& s) {
 
 void print_timing(const dem::Engine& engine, const dem::State& s, double sim_time, long long steps,
                   double wall, long long rebuilds, long long early) {
-  const dem::Timing& t = engine.timing();
-  const double other = std::max(0.0, wall - t.broad_phase - t.pair_forces - t.mesh_contacts -
-                                         t.integration - t.output);
-  std::printf("\nLoop time of %.3f s for %lld steps with %zu particles on %d thread(s)\n\n", wall,
-              steps, s.size(), engine.threads());
-  std::printf("%-22s| %10s | %7s\n", "Section", "time (s)", "%total");
-  std::printf("----------------------+------------+--------\n");
-  auto row = [&](const char* name, double v) {
-    std::printf("%-22s| %10.3f | %6.2f\n", name, v, wall > 0 ? 100 * v / wall : 0.0);
-  };
-  row("Broad phase", t.broad_phase);
-  row("Narrow phase + forces", t.pair_forces);
-  row("Mesh + wall contacts", t.mesh_contacts);
-  row("Integration", t.integration);
-  row("Output", t.output);
-  row("Other", other);
-  std::printf("\nReal-time factor (wall / simulated): %.3g\n", sim_time > 0 ? wall / sim_time : 0.0);
-  std::printf("Particle-steps/s: %.4g\n", wall > 0 ? static_cast<double>(s.size()) * steps / wall : 0.0);
-  std::printf("Broad phases: %lld (early rebuilds by the guard: %lld)\n", rebuilds, early);
+  std::vector<cosim::TimingRow> rows = engine.timing().rows();
+  rows.push_back({"other", std::max(0.0, wall - engine.timing().sum())});
+  char title[160], rtf[96], rate[96], phases[128];
+  std::snprintf(title, sizeof title, "Loop time of %.3f s for %lld steps with %zu particles on %d thread(s)",
+                wall, steps, s.size(), engine.threads());
+  std::snprintf(rtf, sizeof rtf, "Real-time factor (wall / simulated): %.3g",
+                sim_time > 0 ? wall / sim_time : 0.0);
+  std::snprintf(rate, sizeof rate, "Particle-steps/s: %.4g",
+                wall > 0 ? static_cast<double>(s.size()) * steps / wall : 0.0);
+  std::snprintf(phases, sizeof phases, "Broad phases: %lld (early rebuilds by the guard: %lld)",
+                rebuilds, early);
+  cosim::print_timing_table(std::cout, title, rows, wall, {rtf, rate, phases});
 }
 
 int run(int argc, char** argv) {
@@ -110,7 +102,7 @@ int run(int argc, char** argv) {
       dem::save_checkpoint(s, rc.settle.checkpoint);
       std::fprintf(stderr, "settle: saved %s\n", rc.settle.checkpoint.c_str());
     }
-    engine.timing() = dem::Timing{};  // the table below is for the run itself
+    engine.timing().reset();  // the table below is for the run itself
   }
 
   dem::RunOutput out(rc.output.file, scene, rc.config_text);
@@ -122,36 +114,31 @@ int run(int argc, char** argv) {
                                     : 0;
   const double t0 = s.step * scene.dt;
   const long long rebuilds0 = s.rebuilds, early0 = s.early_rebuilds;
-  const auto wall0 = Clock::now();
-  auto last_progress = wall0;
-  {
-    const auto w = Clock::now();
-    out.snapshot(s, t0);
-    engine.timing().output += std::chrono::duration<double>(Clock::now() - w).count();
-  }
+  const cosim::Stopwatch loop;
+  cosim::Stopwatch since_progress;
+  cosim::Stopwatch output;
+  out.snapshot(s, t0);
+  engine.timing().lap(dem::section::output, output);
   for (long long k = 1; k <= steps; ++k) {
     set_tool_poses(scene, s);
     const double t_force = s.step * scene.dt;
     engine.step(s);
-    const auto w = Clock::now();
+    output.restart();
     if (k % wrench_every == 0) out.sample_wrenches(s, engine, t_force);
     if (snap_every && k % snap_every == 0 && k != steps) out.snapshot(s, s.step * scene.dt);
-    engine.timing().output += std::chrono::duration<double>(Clock::now() - w).count();
-    if (std::chrono::duration<double>(w - last_progress).count() >= rc.output.progress_every) {
-      last_progress = w;
-      const double wall = std::chrono::duration<double>(w - wall0).count();
-      const double rate = k / wall;
+    engine.timing().lap(dem::section::output, output);
+    if (since_progress.seconds() >= rc.output.progress_every) {
+      since_progress.restart();
+      const double rate = k / loop.seconds();
       std::fprintf(stderr, "t = %.4f s  step %lld/%lld  %.0f steps/s  ETA %.0f s\n",
                    s.step * scene.dt, k, steps, rate, (steps - k) / rate);
     }
   }
-  {
-    const auto w = Clock::now();
-    out.snapshot(s, s.step * scene.dt);
-    if (!rc.output.checkpoint.empty()) dem::save_checkpoint(s, rc.output.checkpoint);
-    engine.timing().output += std::chrono::duration<double>(Clock::now() - w).count();
-  }
-  const double wall = std::chrono::duration<double>(Clock::now() - wall0).count();
+  output.restart();
+  out.snapshot(s, s.step * scene.dt);
+  if (!rc.output.checkpoint.empty()) dem::save_checkpoint(s, rc.output.checkpoint);
+  engine.timing().lap(dem::section::output, output);
+  const double wall = loop.seconds();
   out.write_summary(engine.timing(), s, s.step * scene.dt - t0);
   std::fprintf(stderr, "dem_run: wrote %s and %s\n", rc.output.file.c_str(),
                out.xdmf_path().c_str());

@@ -8,6 +8,7 @@
 #include <stdexcept>
 #include <sstream>
 
+#include "cosim/paths.hpp"
 #include "cosim/yaml_config.hpp"
 #include "dem/bed.hpp"
 #include "dem/checkpoint.hpp"
@@ -21,14 +22,6 @@ namespace {
 Vec3 vec3(const YAML::Node& n, const std::string& path, const std::string& key) {
   const auto v = cfg::get_vector(n, path, key, 3);
   return {v[0], v[1], v[2]};
-}
-
-// Input files are looked up next to the config first, then in the working directory.
-std::string resolve(const std::string& base, const std::string& p) {
-  if (p.empty() || std::filesystem::path(p).is_absolute() || base.empty()) return p;
-  const std::string beside = (std::filesystem::path(base) / p).string();
-  if (!std::filesystem::exists(beside) && std::filesystem::exists(p)) return p;
-  return beside;
 }
 
 RadiusDistribution parse_radius(const YAML::Node& n, const std::string& path) {
@@ -74,30 +67,6 @@ RadiusDistribution parse_radius(const YAML::Node& n, const std::string& path) {
     d.max = *std::max_element(d.values.begin(), d.values.end());
   }
   return d;
-}
-
-std::vector<Keyframe> parse_keyframes(const YAML::Node& n, const std::string& path) {
-  if (!n.IsSequence() || n.size() == 0)
-    throw ConfigError(path + ": give a list of {time, position, orientation}");
-  std::vector<Keyframe> keys;
-  for (std::size_t i = 0; i < n.size(); ++i) {
-    const std::string p = path + "[" + std::to_string(i) + "]";
-    cfg::check_keys(n[i], p, {"time", "position", "orientation"});
-    Keyframe k;
-    k.time = cfg::get_double(n[i], p, "time");
-    k.position = vec3(n[i], p, "position");
-    if (n[i]["orientation"]) {
-      const auto q = cfg::get_vector(n[i], p, "orientation", 4);
-      k.orientation = {q[0], q[1], q[2], q[3]};
-    }
-    keys.push_back(k);
-  }
-  try {
-    validate_keyframes(keys, path);
-  } catch (const std::invalid_argument& e) {
-    throw ConfigError(e.what());
-  }
-  return keys;
 }
 
 int species_index(const Scene& scene, const std::string& name, const std::string& path) {
@@ -250,19 +219,9 @@ std::vector<ToolSource> parse_tools(const YAML::Node& t) {
     if (const YAML::Node m = t[i]["motion"]) {
       const std::string mp = p + ".motion";
       cfg::check_keys(m, mp, {"interpolation", "keyframes", "csv"});
-      tool.motion.interpolation =
-          cfg::get_choice(m, mp, "interpolation", {"linear", "cubic"},
-                          tool.motion.interpolation == ToolMotion::Interpolation::cubic
-                              ? "cubic"
-                              : "linear") == "cubic"
-              ? ToolMotion::Interpolation::cubic
-              : ToolMotion::Interpolation::linear;
-      if (static_cast<bool>(m["keyframes"]) == static_cast<bool>(m["csv"]))
-        throw ConfigError(mp + ": give exactly one of keyframes or csv");
-      if (m["keyframes"])
-        tool.motion.keyframes = parse_keyframes(m["keyframes"], mp + ".keyframes");
-      else
-        tool.csv = cfg::get_string(m, mp, "csv");
+      cosim::MotionSource motion = cosim::read_motion(m, mp);
+      static_cast<cosim::Trajectory&>(tool.motion) = std::move(motion.trajectory);
+      tool.csv = std::move(motion.csv);
     } else {
       tool.motion.keyframes = {Keyframe{}};  // fixed: mesh frame = world frame
     }
@@ -370,18 +329,12 @@ Tool load_tool(const ToolSource& src, const std::string& base_dir) {
   Tool tool;
   tool.name = src.name;
   try {
-    tool.mesh = load_mesh(resolve(base_dir, src.mesh), src.scale, src.reference_point);
+    tool.mesh = load_mesh(cosim::input_path(base_dir, src.mesh), src.scale, src.reference_point);
   } catch (const std::runtime_error& e) {
     throw ConfigError(src.path + ".mesh: " + e.what());
   }
-  tool.motion = src.motion;
-  if (!src.csv.empty()) {
-    try {
-      tool.motion.keyframes = load_keyframes_csv(resolve(base_dir, src.csv));
-    } catch (const std::exception& e) {
-      throw ConfigError(src.path + ".motion.csv: " + e.what());
-    }
-  }
+  static_cast<cosim::Trajectory&>(tool.motion) =
+      cosim::load_motion({src.motion, src.csv}, src.path + ".motion", base_dir);
   return tool;
 }
 
@@ -389,7 +342,7 @@ State load_bed(const ParticleSources& src, const std::string& base_dir) {
   if (src.checkpoint.empty()) return State{};
   State s;
   try {
-    s = load_checkpoint(resolve(base_dir, src.checkpoint));
+    s = load_checkpoint(cosim::input_path(base_dir, src.checkpoint));
   } catch (const std::exception& e) {
     throw ConfigError(std::string("particles.checkpoint: ") + e.what());
   }

@@ -3,7 +3,6 @@
 #include <omp.h>
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <sstream>
 
@@ -13,11 +12,6 @@
 
 namespace dem {
 namespace {
-
-using Clock = std::chrono::steady_clock;
-double seconds_since(Clock::time_point t0) {
-  return std::chrono::duration<double>(Clock::now() - t0).count();
-}
 
 // One wall or mesh contact of a particle, before forces.
 struct BoundaryContact {
@@ -105,6 +99,10 @@ bool shares_vertex(const Scene& scene, std::uint64_t a, std::uint64_t b) {
 
 }  // namespace
 
+Timing make_timing() {
+  return Timing({"broad_phase", "pair_forces", "mesh_contacts", "integration", "output"});
+}
+
 Engine::Engine(const Scene& scene) : scene_(scene) {
   max_threads_ = threads_ = std::max(1, scene.threads);
   remote_.resize(max_threads_);
@@ -153,10 +151,10 @@ bool Engine::guard_fires(const State& s, double* moved) const {
 
 void Engine::rebuild(State& s) {
   choose_threads(s);
-  const auto t0 = Clock::now();
+  cosim::Stopwatch watch;
   update_tool_geometry(s);
   broad_.build(scene_, s, tool_vertices_, threads_);
-  timing_.broad_phase += seconds_since(t0);
+  timing_.lap(section::broad_phase, watch);
 }
 
 void Engine::choose_threads(const State& s) {
@@ -167,11 +165,10 @@ void Engine::choose_threads(const State& s) {
 
 void Engine::prepare(State& s) {
   choose_threads(s);
-  auto t0 = Clock::now();
+  cosim::Stopwatch watch;
   update_tool_geometry(s);
-  timing_.mesh_contacts += seconds_since(t0);
+  timing_.lap(section::mesh_contacts, watch);
 
-  t0 = Clock::now();
   const bool due = !s.lists_valid || s.steps_since_rebuild >= scene_.broad_phase_interval ||
                    s.pair_offset.size() != s.size() + 1;
   double moved = 0;
@@ -191,19 +188,16 @@ void Engine::prepare(State& s) {
     ++s.early_rebuilds;
     broad_.build(scene_, s, tool_vertices_, threads_);
   }
-  timing_.broad_phase += seconds_since(t0);
+  timing_.lap(section::broad_phase, watch);
 }
 
 void Engine::step(State& s) {
-  const auto t_start = Clock::now();
   prepare(s);
-  auto t0 = Clock::now();
+  cosim::Stopwatch watch;
   pair_forces(s);
-  timing_.pair_forces += seconds_since(t0);
-
-  t0 = Clock::now();
+  timing_.lap(section::pair_forces, watch);
   boundary_forces(s);
-  timing_.mesh_contacts += seconds_since(t0);
+  timing_.lap(section::mesh_contacts, watch);
 
   stats_ = ContactStats{};
   for (int t = 0; t < threads_; ++t)
@@ -214,10 +208,9 @@ void Engine::step(State& s) {
       stats_.max_overlap_ratio = std::max(stats_.max_overlap_ratio, c->max_overlap_ratio);
     }
 
-  t0 = Clock::now();
+  watch.restart();
   integrate(s);
-  timing_.integration += seconds_since(t0);
-  timing_.total += seconds_since(t_start);
+  timing_.lap(section::integration, watch);
 }
 
 void Engine::pair_forces(State& s) {

@@ -19,6 +19,7 @@ std::string snapshot_name(std::size_t k) {
 }
 
 constexpr std::size_t kToolCols = 1 + 3 + 3 + 3 + 4;
+constexpr std::size_t kChunkRows = 1024;
 
 }  // namespace
 
@@ -34,18 +35,16 @@ RunOutput::RunOutput(const std::string& path, const Scene& scene, const std::str
   h5::Handle g2(H5Gcreate2(file_, "tools", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Gclose);
   for (const Tool& t : scene.tools) {
     h5::Handle g(H5Gcreate2(g2, t.name.c_str(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Gclose);
-    h5::create_series(g, "samples", kToolCols);
+    tool_rows_.push_back(std::make_unique<h5::Table>(g, "samples", kToolCols, kChunkRows));
     h5::write_string_attribute(g, "columns",
                                "time, force xyz, torque xyz (about the reference point), "
                                "position xyz, orientation wxyz; ground frame, SI units");
   }
-  tool_rows_.resize(scene.tools.size());
   if (!scene.walls.empty()) {
-    h5::create_series(file_, "walls", 1 + 3 * scene.walls.size());
+    wall_rows_ = std::make_unique<h5::Table>(file_, "walls", 1 + 3 * scene.walls.size(), kChunkRows);
     std::string cols = "time";
     for (const Wall& w : scene.walls) cols += ", " + w.name + " force xyz";
-    h5::Handle set(H5Dopen2(file_, "walls", H5P_DEFAULT), H5Dclose);
-    h5::write_string_attribute(set, "columns", cols + " (force on the wall)");
+    wall_rows_->attribute("columns", cols + " (force on the wall)");
   }
 }
 
@@ -54,6 +53,8 @@ RunOutput::~RunOutput() {
     flush();
   } catch (...) {
   }
+  tool_rows_.clear();
+  wall_rows_.reset();
   if (file_ >= 0) H5Fclose(file_);
 }
 
@@ -87,56 +88,44 @@ void RunOutput::sample_wrenches(const State& s, const Engine& e, double time) {
   for (std::size_t m = 0; m < scene_.tools.size(); ++m) {
     const Wrench& w = e.tool_wrenches()[m];
     const ToolPose& p = s.tool_pose[m];
-    tool_rows_[m].insert(tool_rows_[m].end(),
-                         {time, w.force.x, w.force.y, w.force.z, w.torque.x, w.torque.y,
-                          w.torque.z, p.position.x, p.position.y, p.position.z, p.orientation.w,
-                          p.orientation.x, p.orientation.y, p.orientation.z});
+    const double row[kToolCols] = {time, w.force.x, w.force.y, w.force.z, w.torque.x, w.torque.y,
+                                   w.torque.z, p.position.x, p.position.y, p.position.z,
+                                   p.orientation.w, p.orientation.x, p.orientation.y,
+                                   p.orientation.z};
+    tool_rows_[m]->append(row);
   }
-  if (!scene_.walls.empty()) {
-    wall_rows_.push_back(time);
-    for (const Vec3& f : e.wall_forces()) wall_rows_.insert(wall_rows_.end(), {f.x, f.y, f.z});
+  if (wall_rows_) {
+    std::vector<double> row{time};
+    for (const Vec3& f : e.wall_forces()) row.insert(row.end(), {f.x, f.y, f.z});
+    wall_rows_->append(row.data());
   }
   ++buffered_;
 }
 
 void RunOutput::flush_if_older_than(double seconds) {
-  if (std::chrono::duration<double>(std::chrono::steady_clock::now() - last_flush_).count() >= seconds)
-    flush();
+  if (since_flush_.seconds() >= seconds) flush();
 }
 
 void RunOutput::discard_rows_after(std::size_t keep) {
   if (keep >= buffered_) return;
-  for (auto& rows : tool_rows_) rows.resize(keep * kToolCols);
-  if (!scene_.walls.empty()) wall_rows_.resize(keep * (1 + 3 * scene_.walls.size()));
+  for (auto& rows : tool_rows_) rows->discard_rows_after(keep);
+  if (wall_rows_) wall_rows_->discard_rows_after(keep);
   buffered_ = keep;
 }
 
 void RunOutput::flush() {
-  for (std::size_t m = 0; m < scene_.tools.size(); ++m) {
-    const std::string name = "tools/" + scene_.tools[m].name + "/samples";
-    h5::append_series(file_, name, tool_rows_[m].data(), tool_rows_[m].size() / kToolCols,
-                      kToolCols);
-    tool_rows_[m].clear();
-  }
-  if (!scene_.walls.empty()) {
-    const std::size_t cols = 1 + 3 * scene_.walls.size();
-    h5::append_series(file_, "walls", wall_rows_.data(), wall_rows_.size() / cols, cols);
-    wall_rows_.clear();
-  }
+  for (auto& rows : tool_rows_) rows->flush();
+  if (wall_rows_) wall_rows_->flush();
   buffered_ = 0;
-  last_flush_ = std::chrono::steady_clock::now();
+  since_flush_.restart();
   H5Fflush(file_, H5F_SCOPE_LOCAL);
   write_xdmf();
 }
 
 void RunOutput::write_summary(const Timing& t, const State& s, double sim_time) {
   h5::Handle g(H5Gcreate2(file_, "timing", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Gclose);
-  h5::write_double_attribute(g, "broad_phase", t.broad_phase);
-  h5::write_double_attribute(g, "pair_forces", t.pair_forces);
-  h5::write_double_attribute(g, "mesh_contacts", t.mesh_contacts);
-  h5::write_double_attribute(g, "integration", t.integration);
-  h5::write_double_attribute(g, "output", t.output);
-  h5::write_double_attribute(g, "total", t.total);
+  for (std::size_t i = 0; i < t.size(); ++i) h5::write_double_attribute(g, t.name(i), t.seconds(i));
+  h5::write_double_attribute(g, "total", t.sum());
   h5::write_double_attribute(g, "simulated_time", sim_time);
   h5::write_double_attribute(g, "rebuilds", static_cast<double>(s.rebuilds));
   h5::write_double_attribute(g, "early_rebuilds", static_cast<double>(s.early_rebuilds));

@@ -15,13 +15,8 @@ namespace dem {
 namespace cfg = cosim::config;
 using cosim::Duration;
 using cosim::TimePoint;
-using Clock = std::chrono::steady_clock;
 
 namespace {
-
-double seconds_since(Clock::time_point t0) {
-  return std::chrono::duration<double>(Clock::now() - t0).count();
-}
 
 // Splits the `service` section off the DEM config and reads it.
 ServiceOptions read_service(YAML::Node& root) {
@@ -45,11 +40,6 @@ ServiceOptions read_service(YAML::Node& root) {
         "with dem_run and load the result with particles.checkpoint");
   }
   return o;
-}
-
-std::string resolve(const std::string& base, const std::string& path) {
-  if (path.empty() || path[0] == '/' || base.empty()) return path;
-  return base + "/" + path;
 }
 
 // An output interval: zero for none, else at least one inner step.
@@ -119,8 +109,9 @@ void ServiceModel::configure(const YAML::Node& parameters, const cosim::RunInfo&
   snapshot_.reset();
   for (std::size_t m = 0; m < scene.tools.size(); ++m)
     rc_->state.tool_pose[m] = scene.tools[m].motion.evaluate(cosim::to_seconds(run.t_start));
-  if (!o.file.empty()) out_ = std::make_unique<RunOutput>(resolve("", o.file), scene, rc_->config_text);
-  wall0_ = last_report_ = Clock::now();
+  if (!o.file.empty()) out_ = std::make_unique<RunOutput>(o.file, scene, rc_->config_text);
+  session_wall_.restart();
+  since_report_.restart();
   std::fprintf(stderr,
                "dem_service: %zu particles, %zu walls, %zu tools, dt %.3g s (largest safe %.3g s), "
                "%d thread(s), output %s\n",
@@ -165,11 +156,11 @@ void ServiceModel::set_tool_poses(const cosim::StepInputs& in, TimePoint t) {
 }
 
 void ServiceModel::save_snapshot() {
-  const auto t0 = Clock::now();
+  const cosim::Stopwatch watch;
   if (out_) out_->flush_if_older_than(2.0);  // the previous step is accepted: its rows may go
   snapshot_ = rc_->state;  // copy-assignment reuses the snapshot's capacity
   snapshot_rows_ = out_ ? out_->buffered_rows() : 0;
-  snapshot_seconds_ += seconds_since(t0);
+  snapshot_seconds_ += watch.seconds();
 }
 
 void ServiceModel::restore_snapshot() {
@@ -182,7 +173,7 @@ cosim::StepResult ServiceModel::step(const cosim::StepInputs& in, bool want_aver
   const Scene& scene = rc_->scene;
   State& s = rc_->state;
   Engine& engine = *engine_;
-  const auto wall_step = Clock::now();
+  const cosim::Stopwatch wall_step;
   const Timing before = engine.timing();
   const std::int64_t early0 = s.early_rebuilds, rebuilds0 = s.rebuilds;
   const std::size_t ntools = scene.tools.size();
@@ -191,12 +182,12 @@ cosim::StepResult ServiceModel::step(const cosim::StepInputs& in, bool want_aver
   double max_overlap = 0, max_ratio = 0;
   // Particle snapshots only at a step's start: that state is accepted (a repeat starts from it).
   if (out_ && particles_every_ > Duration::zero() && in.t_start() >= next_particles_ && in.t_start() != last_particles_) {
-    const auto w = Clock::now();
+    const cosim::Stopwatch w;
     out_->snapshot(s, cosim::to_seconds(in.t_start()));  // flushes the accepted rows too
     snapshot_rows_ = out_->buffered_rows();
     last_particles_ = in.t_start();
     next_particles_ += particles_every_ * ((in.t_start() - next_particles_) / particles_every_ + 1);
-    engine.timing().output += seconds_since(w);
+    engine.timing().add(section::output, w.seconds());
   }
   for (std::int64_t k = 0; k < n; ++k) {
     const TimePoint t = in.t_start() + k * inner_step_;
@@ -211,9 +202,9 @@ cosim::StepResult ServiceModel::step(const cosim::StepInputs& in, bool want_aver
     max_ratio = std::max(max_ratio, c.max_overlap_ratio);
     if (out_ && wrenches_every_ > Duration::zero() &&
         (t - run_.t_start) % wrenches_every_ == Duration::zero()) {
-      const auto w = Clock::now();
+      const cosim::Stopwatch w;
       out_->sample_wrenches(s, engine, cosim::to_seconds(t));
-      engine.timing().output += seconds_since(w);
+      engine.timing().add(section::output, w.seconds());
     }
   }
   t_now_ = in.t_end();
@@ -235,12 +226,11 @@ cosim::StepResult ServiceModel::step(const cosim::StepInputs& in, bool want_aver
     r.average = std::move(avg);
   }
   if (checkpoint_every_ > Duration::zero() && t_now_ >= next_checkpoint_) {
-    const auto w = Clock::now();
-    save_checkpoint(s, resolve("", options_.checkpoint));
+    const cosim::Stopwatch w;
+    save_checkpoint(s, options_.checkpoint);
     next_checkpoint_ += checkpoint_every_ * ((t_now_ - next_checkpoint_) / checkpoint_every_ + 1);
-    engine.timing().output += seconds_since(w);
+    engine.timing().add(section::output, w.seconds());
   }
-  const Timing& after = engine.timing();
   const ContactStats& c = engine.contact_stats();
   r.diagnostics = {
       {"particle_contacts", static_cast<double>(c.particle_contacts)},
@@ -250,18 +240,15 @@ cosim::StepResult ServiceModel::step(const cosim::StepInputs& in, bool want_aver
       {"max_overlap_ratio", max_ratio},
       {"broad_phases", static_cast<double>(s.rebuilds - rebuilds0)},
       {"early_rebuilds", static_cast<double>(s.early_rebuilds - early0)},
-      {"seconds_broad_phase", after.broad_phase - before.broad_phase},
-      {"seconds_pair_forces", after.pair_forces - before.pair_forces},
-      {"seconds_mesh_contacts", after.mesh_contacts - before.mesh_contacts},
-      {"seconds_integration", after.integration - before.integration},
-      {"seconds_output", after.output - before.output},
-      {"seconds_step", seconds_since(wall_step)},
   };
-  if (seconds_since(last_report_) >= options_.report_every) {
-    last_report_ = Clock::now();
+  for (const cosim::TimingRow& row : engine.timing().rows_since(before))
+    r.diagnostics.emplace_back("seconds_" + row.section, row.seconds);
+  r.diagnostics.emplace_back("seconds_step", wall_step.seconds());
+  if (since_report_.seconds() >= options_.report_every) {
+    since_report_.restart();
     const double sim = cosim::to_seconds(t_now_ - run_.t_start);
     const double left = cosim::to_seconds(run_.t_end - t_now_);
-    const double wall = seconds_since(wall0_);
+    const double wall = session_wall_.seconds();
     std::fprintf(stderr, "dem_service: t = %.4f s, %lld macro steps, RTF %.3g, ETA %.0f s\n",
                  cosim::to_seconds(t_now_), static_cast<long long>(steps_done_),
                  sim > 0 ? wall / sim : 0.0, sim > 0 ? left * wall / sim : 0.0);
@@ -275,35 +262,26 @@ void ServiceModel::finish(std::ostream& report) {
   const State& s = rc_->state;
   const Timing& t = engine_->timing();
   const double sim = cosim::to_seconds(t_now_ - run_.t_start);
-  const double wall = seconds_since(wall0_);
+  const double wall = session_wall_.seconds();
   if (out_) {
     if (t_now_ != last_particles_) out_->snapshot(s, cosim::to_seconds(t_now_));
     out_->write_summary(t, s, sim);
     out_->flush();
   }
-  if (!rc_->output.checkpoint.empty()) save_checkpoint(s, resolve("", rc_->output.checkpoint));
-  const double other = std::max(0.0, wall - t.broad_phase - t.pair_forces - t.mesh_contacts -
-                                         t.integration - t.output - snapshot_seconds_);
-  char line[160];
-  auto row = [&](const char* name, double v) {
-    std::snprintf(line, sizeof line, "%-22s| %10.3f | %6.2f\n", name, v, wall > 0 ? 100 * v / wall : 0.0);
-    report << line;
-  };
-  std::snprintf(line, sizeof line, "\ndem_service: %lld macro steps, %.4g s simulated, %.3f s wall, %zu particles, %d thread(s)\n\n",
+  if (!rc_->output.checkpoint.empty()) save_checkpoint(s, rc_->output.checkpoint);
+  std::vector<cosim::TimingRow> rows = t.rows();
+  rows.push_back({"snapshot", snapshot_seconds_});
+  rows.push_back({"other", std::max(0.0, wall - t.sum() - snapshot_seconds_)});
+  char title[200], rtf[96], phases[128];
+  std::snprintf(title, sizeof title, "dem_service: %lld macro steps, %.4g s simulated, %.3f s wall, %zu particles, %d thread(s)",
                 static_cast<long long>(steps_done_), sim, wall, s.size(), engine_->threads());
-  report << line;
-  report << "Section               |   time (s) | %total\n----------------------+------------+--------\n";
-  row("Broad phase", t.broad_phase);
-  row("Narrow phase + forces", t.pair_forces);
-  row("Mesh + wall contacts", t.mesh_contacts);
-  row("Integration", t.integration);
-  row("Snapshots (rollback)", snapshot_seconds_);
-  row("Output", t.output);
-  row("Bus wait + other", other);
-  std::snprintf(line, sizeof line, "\nReal-time factor (wall / simulated): %.3g\nBroad phases: %lld (early rebuilds by the guard: %lld)\n",
-                sim > 0 ? wall / sim : 0.0, static_cast<long long>(s.rebuilds),
-                static_cast<long long>(s.early_rebuilds));
-  report << line;
+  std::snprintf(rtf, sizeof rtf, "Real-time factor (wall / simulated): %.3g", sim > 0 ? wall / sim : 0.0);
+  std::snprintf(phases, sizeof phases, "Broad phases: %lld (early rebuilds by the guard: %lld)",
+                static_cast<long long>(s.rebuilds), static_cast<long long>(s.early_rebuilds));
+  cosim::print_timing_table(report, title, rows, wall,
+                            {"snapshot: state copies for repeated steps; other: waiting for the "
+                             "master (bus) and the rest",
+                             rtf, phases});
   if (out_) report << "dem_service: wrote " << rc_->output.file << " and " << out_->xdmf_path() << "\n";
 }
 

@@ -24,26 +24,6 @@ Quat normalized(const Quat& q) {
   return {q.w / n, q.x / n, q.y / n, q.z / n};
 }
 
-Quat slerp(const Quat& a, Quat b, double s) {
-  double c = a.w * b.w + a.x * b.x + a.y * b.y + a.z * b.z;
-  if (c < 0) {  // q and -q are the same rotation: take the shorter arc
-    b = {-b.w, -b.x, -b.y, -b.z};
-    c = -c;
-  }
-  double wa, wb;
-  if (c > 0.9999995) {  // nearly parallel: linear blend avoids dividing by sin(0)
-    wa = 1 - s;
-    wb = s;
-  } else {
-    const double th = std::acos(std::min(c, 1.0));
-    const double sn = std::sin(th);
-    wa = std::sin((1 - s) * th) / sn;
-    wb = std::sin(s * th) / sn;
-  }
-  return normalized({wa * a.w + wb * b.w, wa * a.x + wb * b.x, wa * a.y + wb * b.y,
-                     wa * a.z + wb * b.z});
-}
-
 double angle_between(const Quat& a, const Quat& b) {
   const double c = std::abs(a.w * b.w + a.x * b.x + a.y * b.y + a.z * b.z);
   return 2 * std::acos(std::min(c, 1.0));

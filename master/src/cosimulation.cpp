@@ -1,10 +1,10 @@
 #include "cosimulation.hpp"
 
-#include <chrono>
 #include <cmath>
 
 #include <cosim/bus.hpp>
 #include <cosim/quantities.hpp>
+#include <cosim/stopwatch.hpp>
 
 namespace master {
 
@@ -13,11 +13,8 @@ using cosim::Kinematics;
 using cosim::SignalKind;
 using cosim::Value;
 using cosim::Wrench;
-using Clock = std::chrono::steady_clock;
 
 namespace {
-
-double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
 std::vector<double> deviation(SignalKind kind, const Value& predicted, const Value& received) {
   if (kind == SignalKind::Kinematics)
@@ -101,7 +98,7 @@ std::vector<cosim::step_request_t> CoSimulation::requests(const std::vector<std:
 }
 
 void CoSimulation::run_step(int64_t step, TimePoint t0, TimePoint t1) {
-  const auto start = Clock::now();
+  const cosim::Stopwatch step_wall;
   double waiting = 0;
   StepRecord rec;
   rec.step_index = step;
@@ -118,9 +115,9 @@ void CoSimulation::run_step(int64_t step, TimePoint t0, TimePoint t1) {
       for (std::size_t i = 0; i < config_.connections.size(); ++i)
         for (const auto& name : group)
           if (config_.connections[i].to.participant == name) sent[i] = predictors_[i].predict(t0, t1);
-      const auto wait_start = Clock::now();
+      const cosim::Stopwatch wait;
       const auto answers = transport_.exchange(qs);
-      waiting += since(wait_start);
+      waiting += wait.seconds();
       for (std::size_t g = 0; g < group.size(); ++g) {
         const auto& name = group[g];
         rec.outputs[name] = answers[g].outputs;
@@ -160,7 +157,7 @@ void CoSimulation::run_step(int64_t step, TimePoint t0, TimePoint t1) {
     r.residual = r.force_side - r.motion_side;
     rec.power.push_back(r);
   }
-  rec.wall_seconds = since(start);
+  rec.wall_seconds = step_wall.seconds();
   rec.master_seconds = rec.wall_seconds - waiting;
   for (auto* o : observers_) o->on_step(rec);
 }

@@ -12,6 +12,8 @@
 #include <iostream>
 #include <thread>
 
+#include "cosim/stopwatch.hpp"
+
 namespace master {
 
 namespace {
@@ -92,7 +94,7 @@ void Launcher::check() {
 }
 
 void Launcher::stop(double grace) {
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(grace);
+  const cosim::Stopwatch waited;
   for (int round = 0; round < 2; ++round) {
     for (auto& c : children_) {
       while (!c.exited) {
@@ -101,7 +103,7 @@ void Launcher::stop(double grace) {
           c.exited = true;
           break;
         }
-        if (std::chrono::steady_clock::now() > deadline) {
+        if (waited.seconds() > grace) {
           kill(c.pid, round == 0 ? SIGTERM : SIGKILL);
           if (round == 0) { std::this_thread::sleep_for(std::chrono::milliseconds(200)); }
           break;

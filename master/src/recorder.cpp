@@ -1,8 +1,8 @@
 #include "recorder.hpp"
 
-#include <hdf5.h>
+#include "cosim/h5.hpp"
+#include "cosim/timer.hpp"
 
-#include <chrono>
 #include <cmath>
 #include <iostream>
 #include <limits>
@@ -13,79 +13,14 @@ namespace master {
 namespace {
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
-// An extendible 2-D dataset [rows x width] of doubles (1-D when width is 1) with rows
-// buffered in memory and appended in blocks, so a run of many steps stays cheap.
-class Table {
- public:
-  Table(hid_t parent, const std::string& name, std::size_t width, const std::string& units = "")
-      : width_(width) {
-    const int rank = width == 1 ? 1 : 2;
-    hsize_t dims[2] = {0, width}, maxdims[2] = {H5S_UNLIMITED, width};
-    hsize_t chunk[2] = {256, width};
-    hid_t space = H5Screate_simple(rank, dims, maxdims);
-    hid_t props = H5Pcreate(H5P_DATASET_CREATE);
-    H5Pset_chunk(props, rank, chunk);
-    hid_t lcpl = H5Pcreate(H5P_LINK_CREATE);
-    H5Pset_create_intermediate_group(lcpl, 1);
-    id_ = H5Dcreate2(parent, name.c_str(), H5T_NATIVE_DOUBLE, space, lcpl, props, H5P_DEFAULT);
-    H5Pclose(lcpl);
-    H5Pclose(props);
-    H5Sclose(space);
-    if (id_ < 0) throw std::runtime_error("HDF5: cannot create dataset " + name);
-    if (!units.empty()) attribute("units", units);
-  }
-  ~Table() { if (id_ >= 0) H5Dclose(id_); }
-  Table(const Table&) = delete;
-  Table& operator=(const Table&) = delete;
+using cosim::h5::Table;
 
-  void attribute(const std::string& key, const std::string& value) {
-    hid_t type = H5Tcopy(H5T_C_S1);
-    H5Tset_size(type, std::max<std::size_t>(1, value.size()));
-    hid_t space = H5Screate(H5S_SCALAR);
-    hid_t a = H5Acreate2(id_, key.c_str(), type, space, H5P_DEFAULT, H5P_DEFAULT);
-    H5Awrite(a, type, value.c_str());
-    H5Aclose(a);
-    H5Sclose(space);
-    H5Tclose(type);
-  }
-  void append(const std::vector<double>& row) {
-    if (row.size() == width_) buffer_.insert(buffer_.end(), row.begin(), row.end());
-    else buffer_.insert(buffer_.end(), width_, kNaN);
-  }
-  void append(double v) { append(std::vector<double>{v}); }
-  void flush() {
-    const hsize_t n = buffer_.size() / width_;
-    if (n == 0) return;
-    const int rank = width_ == 1 ? 1 : 2;
-    hsize_t size[2] = {rows_ + n, width_};
-    H5Dset_extent(id_, size);
-    hid_t file_space = H5Dget_space(id_);
-    hsize_t start[2] = {rows_, 0}, count[2] = {n, width_};
-    H5Sselect_hyperslab(file_space, H5S_SELECT_SET, start, nullptr, count, nullptr);
-    hid_t mem = H5Screate_simple(rank, count, nullptr);
-    H5Dwrite(id_, H5T_NATIVE_DOUBLE, mem, file_space, H5P_DEFAULT, buffer_.data());
-    H5Sclose(mem);
-    H5Sclose(file_space);
-    rows_ += n;
-    buffer_.clear();
-  }
-
- private:
-  hid_t id_ = -1;
-  std::size_t width_;
-  hsize_t rows_ = 0;
-  std::vector<double> buffer_;
-};
-
-void write_string(hid_t parent, const std::string& name, const std::string& value) {
-  hid_t type = H5Tcopy(H5T_C_S1);
-  H5Tset_size(type, std::max<std::size_t>(1, value.size()));
-  hid_t space = H5Screate(H5S_SCALAR);
-  hid_t d = H5Dcreate2(parent, name.c_str(), type, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
-  H5Dwrite(d, type, H5S_ALL, H5S_ALL, H5P_DEFAULT, value.c_str());
-  H5Dclose(d);
-  H5Sclose(space);
-  H5Tclose(type);
+// A recorded series: a table of `width` doubles per step, with its unit.
+std::unique_ptr<Table> table(hid_t parent, const std::string& name, std::size_t width,
+                             const std::string& units = "") {
+  auto t = std::make_unique<Table>(parent, name, width);
+  if (!units.empty()) t->attribute("units", units);
+  return t;
 }
 
 std::string join(const std::vector<std::string>& v) {
@@ -109,7 +44,7 @@ struct H5Recorder::Impl {
   std::vector<Conn> conns;
   struct Pow { std::unique_ptr<Table> force_side, motion_side, residual, energy_residual; double energy = 0; double last = kNaN; };
   std::vector<Pow> pows;
-  std::chrono::steady_clock::time_point last_flush = std::chrono::steady_clock::now();
+  cosim::Stopwatch since_flush;
 
   void flush_all() {
     auto f = [](auto& m) { for (auto& [k, t] : m) t->flush(); };
@@ -142,27 +77,27 @@ void H5Recorder::on_start(const RunSetup& s) {
   auto& I = *impl_;
   I.setup = &s;
   const Config& c = *s.config;
-  write_string(I.file, "config", c.source_text);
-  write_string(I.file, "config_effective", c.effective_yaml);
-  I.time = std::make_unique<Table>(I.file, "time", 1, "s");
-  I.master_s = std::make_unique<Table>(I.file, "timing/master", 1, "s");
-  I.wall_s = std::make_unique<Table>(I.file, "timing/step_wall", 1, "s");
-  I.iterations = std::make_unique<Table>(I.file, "timing/iterations", 1);
+  cosim::h5::write_string(I.file, "config", c.source_text);
+  cosim::h5::write_string(I.file, "config_effective", c.effective_yaml);
+  I.time = table(I.file, "time", 1, "s");
+  I.master_s = table(I.file, "timing/master", 1, "s");
+  I.wall_s = table(I.file, "timing/step_wall", 1, "s");
+  I.iterations = table(I.file, "timing/iterations", 1);
   I.time->append(cosim::to_seconds(c.t_start));
   I.master_s->append(0.0);
   I.wall_s->append(0.0);
   I.iterations->append(0.0);
   for (const auto& [name, info] : s.participants) {
     for (const auto& port : info.outputs) {
-      auto t = std::make_unique<Table>(I.file, "participants/" + name + "/outputs/" + port.name,
+      auto t = table(I.file, "participants/" + name + "/outputs/" + port.name,
                                        cosim::value_size(port.kind));
       t->attribute("kind", std::string(cosim::kind_name(port.kind)));
       t->attribute("components", join(cosim::component_names(port.kind)));
       t->append(info.initial_outputs.at(port.name).value);
       I.outputs[name + "/" + port.name] = std::move(t);
     }
-    I.compute[name] = std::make_unique<Table>(I.file, "participants/" + name + "/timing/compute", 1, "s");
-    I.round_trip[name] = std::make_unique<Table>(I.file, "participants/" + name + "/timing/round_trip", 1, "s");
+    I.compute[name] = table(I.file, "participants/" + name + "/timing/compute", 1, "s");
+    I.round_trip[name] = table(I.file, "participants/" + name + "/timing/round_trip", 1, "s");
     I.compute[name]->append(0.0);
     I.round_trip[name]->append(0.0);
   }
@@ -174,11 +109,11 @@ void H5Recorder::on_start(const RunSetup& s) {
     Impl::Conn cr;
     const int tw = cosim::tangent_size(kind);
     cr.width = (k.predictor.order + 1) * tw;
-    cr.sent = std::make_unique<Table>(I.file, g + "/sent", cr.width);
+    cr.sent = table(I.file, g + "/sent", cr.width);
     cr.sent->attribute("layout", "coefficient j (multiplies s^j, s = (t - t_start)/macro_step) x tangent component, row-major; orientation as rotation vector relative to the latest sample");
-    cr.predicted = std::make_unique<Table>(I.file, g + "/predicted", cosim::value_size(kind));
-    cr.received = std::make_unique<Table>(I.file, g + "/received", cosim::value_size(kind));
-    cr.deviation = std::make_unique<Table>(I.file, g + "/deviation", tw);
+    cr.predicted = table(I.file, g + "/predicted", cosim::value_size(kind));
+    cr.received = table(I.file, g + "/received", cosim::value_size(kind));
+    cr.deviation = table(I.file, g + "/deviation", tw);
     cr.predicted->attribute("source", k.from.str());
     cr.predicted->attribute("components", join(cosim::component_names(kind)));
     cr.sent->append(kNaN);
@@ -190,10 +125,10 @@ void H5Recorder::on_start(const RunSetup& s) {
   for (const auto& p : c.power) {
     Impl::Pow pw;
     const std::string g = "power/" + p.name;
-    pw.force_side = std::make_unique<Table>(I.file, g + "/force_side", 1, "W");
-    pw.motion_side = std::make_unique<Table>(I.file, g + "/motion_side", 1, "W");
-    pw.residual = std::make_unique<Table>(I.file, g + "/residual", 1, "W");
-    pw.energy_residual = std::make_unique<Table>(I.file, g + "/energy_residual", 1, "J");
+    pw.force_side = table(I.file, g + "/force_side", 1, "W");
+    pw.motion_side = table(I.file, g + "/motion_side", 1, "W");
+    pw.residual = table(I.file, g + "/residual", 1, "W");
+    pw.energy_residual = table(I.file, g + "/energy_residual", 1, "J");
     pw.force_side->append(kNaN);
     pw.motion_side->append(kNaN);
     pw.residual->append(kNaN);
@@ -216,7 +151,7 @@ void H5Recorder::on_step(const StepRecord& r) {
     for (const auto& [key, v] : diags) {
       auto& t = I.diagnostics[name + "/" + key];
       if (!t) {
-        t = std::make_unique<Table>(I.file, "participants/" + name + "/diagnostics/" + key, 1);
+        t = table(I.file, "participants/" + name + "/diagnostics/" + key, 1);
         for (int64_t i = 0; i <= r.step_index; ++i) t->append(kNaN);  // rows before it appeared
       }
     }
@@ -245,10 +180,9 @@ void H5Recorder::on_step(const StepRecord& r) {
     p.last = r.power[i].residual;
     p.energy_residual->append(p.energy);
   }
-  const auto now = std::chrono::steady_clock::now();
-  if (now - I.last_flush > std::chrono::seconds(1)) {
+  if (I.since_flush.seconds() > 1.0) {
     I.flush_all();
-    I.last_flush = now;
+    I.since_flush.restart();
   }
 }
 
@@ -256,7 +190,7 @@ void H5Recorder::on_finish(bool ok, const std::string& message) {
   auto& I = *impl_;
   if (I.time) {
     I.flush_all();
-    write_string(I.file, "status", ok ? "finished" : "stopped: " + message);
+    cosim::h5::write_string(I.file, "status", ok ? "finished" : "stopped: " + message);
   }
   I.outputs.clear();
   I.diagnostics.clear();
@@ -318,7 +252,8 @@ void CsvWriter::on_finish(bool, const std::string&) {
 
 void Progress::on_start(const RunSetup& s) {
   setup_ = &s;
-  start_ = last_print_ = std::chrono::steady_clock::now();
+  run_wall_.restart();
+  since_print_.restart();
 }
 
 void Progress::on_step(const StepRecord& r) {
@@ -328,10 +263,9 @@ void Progress::on_step(const StepRecord& r) {
   master_ += r.master_seconds;
   for (const auto& [n, v] : r.compute_seconds) compute_[n] += v;
   for (const auto& [n, v] : r.round_trip_seconds) round_trip_[n] += v;
-  const auto now = std::chrono::steady_clock::now();
-  if (!live_ || now - last_print_ < std::chrono::seconds(1)) return;
-  last_print_ = now;
-  const double wall = std::chrono::duration<double>(now - start_).count();
+  if (!live_ || since_print_.seconds() < 1.0) return;
+  since_print_.restart();
+  const double wall = run_wall_.seconds();
   const double sim = cosim::to_seconds(t_done_ - setup_->config->t_start);
   const double total = cosim::to_seconds(setup_->config->t_end - setup_->config->t_start);
   const double eta = sim > 0 ? wall / sim * (total - sim) : 0;
@@ -344,22 +278,28 @@ void Progress::on_step(const StepRecord& r) {
 void Progress::on_finish(bool ok, const std::string& message) {
   if (!setup_) return;
   if (live_) std::fprintf(stderr, "\n");
-  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+  const double wall = run_wall_.seconds();
   const double sim = cosim::to_seconds(t_done_ - setup_->config->t_start);
-  std::fprintf(stderr, "%s after %lld of %lld macro steps, t = %.6g s, wall %.3f s, real-time factor %.3g\n",
-               ok ? "finished" : "STOPPED", static_cast<long long>(steps_done_),
-               static_cast<long long>(setup_->steps), cosim::to_seconds(t_done_), wall,
-               sim > 0 ? wall / sim : 0.0);
-  std::fprintf(stderr, "%-28s %12s %8s\n", "where the wall time went", "seconds", "share");
-  auto line = [&](const std::string& what, double s) {
-    std::fprintf(stderr, "%-28s %12.4f %7.1f%%\n", what.c_str(), s, wall > 0 ? 100 * s / wall : 0);
-  };
+  char title[256];
+  std::snprintf(title, sizeof title,
+                "%s after %lld of %lld macro steps, t = %.6g s, wall %.3f s, real-time factor %.3g",
+                ok ? "finished" : "STOPPED", static_cast<long long>(steps_done_),
+                static_cast<long long>(setup_->steps), cosim::to_seconds(t_done_), wall,
+                sim > 0 ? wall / sim : 0.0);
+  // Rows named after the recorded timing datasets (docs/output.md).
+  std::vector<cosim::TimingRow> rows;
   for (const auto& [n, v] : compute_) {
-    line("participant " + n + " compute", v);
-    line("participant " + n + " bus+wait", round_trip_[n] - v);
+    rows.push_back({n + ".compute", v});
+    rows.push_back({n + ".bus_wait", round_trip_[n] - v});
   }
-  line("master (predictors, records)", master_);
-  line("outside steps (handshake...)", wall - wall_steps_);
+  rows.push_back({"master", master_});
+  rows.push_back({"other", wall - wall_steps_});
+  cosim::print_timing_table(
+      std::cerr, title, rows, wall,
+      {"<p>.compute: inside the participant's step; <p>.bus_wait: round_trip - compute;",
+       "master: predictors and records; other: outside the steps (handshake, start-up).",
+       "Participants that step in parallel share the wall time: the shares may add to more "
+       "than 100 %."});
 }
 
 }  // namespace master

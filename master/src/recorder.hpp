@@ -2,11 +2,11 @@
 // export of the signals, and the progress line with the closing timing table.
 #pragma once
 
-#include <chrono>
 #include <cstdio>
 #include <memory>
 #include <string>
 
+#include "cosim/stopwatch.hpp"
 #include "cosimulation.hpp"
 
 namespace master {
@@ -50,7 +50,7 @@ class Progress final : public Observer {
  private:
   bool live_;
   const RunSetup* setup_ = nullptr;
-  std::chrono::steady_clock::time_point start_, last_print_;
+  cosim::Stopwatch run_wall_, since_print_;
   int64_t steps_done_ = 0;
   TimePoint t_done_{};
   double wall_steps_ = 0, master_ = 0;

@@ -1,7 +1,6 @@
 #include "prescribed_model.hpp"
 
 #include <cstdio>
-#include <filesystem>
 
 #include "cosim/yaml_config.hpp"
 
@@ -11,11 +10,6 @@ namespace cfg = cosim::config;
 using cosim::TimePoint;
 
 namespace {
-
-std::string resolve(const std::string& base, const std::string& path) {
-  if (path.empty() || path[0] == '/' || base.empty()) return path;
-  return base + "/" + path;
-}
 
 std::vector<ToolTrack> read_tools(const YAML::Node& root, const std::string& path,
                                   const std::string& base) {
@@ -32,40 +26,7 @@ std::vector<ToolTrack> read_tools(const YAML::Node& root, const std::string& pat
     cosim::require_valid_name(track.name, p + ".name");
     track.wrench_input = cfg::get_string_or(t, p, "wrench_input", track.name + "_wrench");
     cosim::require_valid_name(track.wrench_input, p + ".wrench_input");
-    track.trajectory.interpolation =
-        cfg::get_choice(t, p, "interpolation", {"linear", "cubic"}, "linear") == "cubic"
-            ? Trajectory::Interpolation::cubic
-            : Trajectory::Interpolation::linear;
-    const bool has_keys = static_cast<bool>(t["keyframes"]), has_csv = static_cast<bool>(t["csv"]);
-    if (has_keys == has_csv)
-      throw cfg::ConfigError(p + ": give exactly one of keyframes and csv");
-    try {
-      if (has_csv) {
-        track.trajectory.keyframes = load_csv(resolve(base, cfg::get_string(t, p, "csv")));
-      } else {
-        const YAML::Node k = t["keyframes"];
-        if (!k.IsSequence()) throw cfg::ConfigError(p + ".keyframes: expected a list");
-        for (std::size_t j = 0; j < k.size(); ++j) {
-          const std::string kp = p + ".keyframes." + std::to_string(j);
-          cfg::check_keys(k[j], kp, {"time", "position", "orientation"});
-          Keyframe f;
-          f.time = cfg::get_double(k[j], kp, "time");
-          const auto x = cfg::get_vector(k[j], kp, "position", 3);
-          f.position = {x[0], x[1], x[2]};
-          if (k[j]["orientation"]) {
-            const auto q = cfg::get_vector(k[j], kp, "orientation", 4);
-            f.orientation = {q[0], q[1], q[2], q[3]};
-          }
-          track.trajectory.keyframes.push_back(f);
-        }
-        validate(track.trajectory.keyframes, p + ".keyframes");
-      }
-    } catch (const std::invalid_argument& e) {
-      throw cfg::ConfigError(e.what());
-    } catch (const std::runtime_error& e) {
-      if (dynamic_cast<const cfg::ConfigError*>(&e)) throw;
-      throw cfg::ConfigError(p + ".csv: " + e.what());
-    }
+    track.trajectory = cosim::read_trajectory(t, p, base);
     for (const auto& other : out)
       if (other.name == track.name || other.wrench_input == track.wrench_input ||
           other.name == track.wrench_input || other.wrench_input == track.name)

@@ -8,9 +8,12 @@
 #include <vector>
 
 #include "cosim/participant.hpp"
-#include "trajectory.hpp"
+#include "cosim/trajectory.hpp"
 
 namespace prescribed {
+
+using cosim::Pose;
+using cosim::Trajectory;
 
 struct ToolTrack {
   std::string name;          // kinematics output

@@ -1,10 +1,10 @@
 // The same protocol without the bus: messages are encoded and decoded as on the wire and
 // handed to ParticipantCore objects directly. Used by tests and analysis tools to run a
 // schedule in one process and compare it with the multi-process run.
-#include <chrono>
 #include <vector>
 
 #include "cosim/link.hpp"
+#include "cosim/stopwatch.hpp"
 
 namespace cosim {
 namespace {
@@ -44,12 +44,11 @@ class InProcessTransport final : public Transport {
   std::vector<StepAnswer> exchange(const std::vector<step_request_t>& requests) override {
     std::vector<StepAnswer> out;
     for (const auto& q : requests) {
-      const auto start = std::chrono::steady_clock::now();
+      const Stopwatch start;
       auto reply = cores_.at(q.participant)->handle(through_wire(q));
       if (!reply) throw LinkError(q.participant, "participant ignored step " +
                                                      std::to_string(q.step_index));
-      const double rt =
-          std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      const double rt = start.seconds();
       out.push_back(accept(q, through_wire(*reply), infos_.at(q.participant), rt));
     }
     return out;

@@ -11,14 +11,12 @@
 
 #include "cosim/bus.hpp"
 #include "cosim/link.hpp"
+#include "cosim/stopwatch.hpp"
 
 namespace cosim {
 namespace {
 
-using Clock = std::chrono::steady_clock;
-double seconds_since(Clock::time_point t) {
-  return std::chrono::duration<double>(Clock::now() - t).count();
-}
+using Clock = WallClock;
 
 class LcmTransport final : public Transport {
  public:

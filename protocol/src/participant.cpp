@@ -1,12 +1,12 @@
 #include "cosim/participant.hpp"
 
-#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <exception>
 #include <filesystem>
 
 #include "cosim/bus.hpp"
+#include "cosim/stopwatch.hpp"
 #include "cosim/yaml_config.hpp"
 
 namespace cosim {
@@ -148,7 +148,7 @@ step_reply_t ParticipantCore::run_step(const step_request_t& q) {
   }
   const bool redo = q.step_index == last_step_;
   busy_step_ = q.step_index;
-  const auto started = std::chrono::steady_clock::now();
+  const Stopwatch started;
   StepResult result;
   try {
     if (redo)
@@ -173,8 +173,7 @@ step_reply_t ParticipantCore::run_step(const step_request_t& q) {
     busy_step_ = -1;
     return refuse(q, step_reply_t::FAILED, e.what());
   }
-  const double seconds =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+  const double seconds = started.seconds();
   step_reply_t r = refuse(q, step_reply_t::OK, "");
   r.outputs = to_message(result.outputs);
   r.has_average = q.want_average && result.average.has_value();

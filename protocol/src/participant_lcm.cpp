@@ -15,6 +15,7 @@
 
 #include "cosim/bus.hpp"
 #include "cosim/participant.hpp"
+#include "cosim/stopwatch.hpp"
 
 namespace cosim {
 namespace {
@@ -22,7 +23,7 @@ namespace {
 std::atomic<bool> g_stop{false};
 void on_signal(int) { g_stop = true; }
 
-using Clock = std::chrono::steady_clock;
+using Clock = WallClock;
 
 struct Server {
   lcm::LCM& lcm;
@@ -167,14 +168,14 @@ int run_participant(Model& model, const std::string& default_name, int argc, cha
     }
     const auto now = Clock::now();
     if (!core.bound() && wait > 0 &&
-        std::chrono::duration<double>(now - started).count() > wait) {
+        seconds_between(started, now) > wait) {
       std::cerr << name << ": no master configured '" << name << "' within " << wait
                 << " s on " << url << "\n";
       code = 3;
       break;
     }
     if (core.bound() &&
-        std::chrono::duration<double>(now - server.last_master).count() > idle_timeout) {
+        seconds_between(server.last_master, now) > idle_timeout) {
       std::cerr << name << ": the master has been silent for " << idle_timeout
                 << " s; leaving the session (raise --idle-timeout if that is expected)\n";
       code = 3;

@@ -102,8 +102,8 @@ std::string describe(const dem::RunConfig& rc) {
     o << static_cast<int>(t.motion.interpolation) << ' ';
     for (const dem::Keyframe& k : t.motion.keyframes) {
       o << k.time << ' ';
-      v(k.position);
-      q(k.orientation);
+      for (double x : k.position) o << x << ' ';     // cosim::Vec3: x y z
+      for (double x : k.orientation) o << x << ' ';  // cosim::Quat: w x y z
     }
     o << '\n';
   }

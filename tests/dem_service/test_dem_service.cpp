@@ -289,7 +289,7 @@ double cosim_error(int inner) {
 TEST(DemServiceOverLcm, MacroStepEqualToTheDemStepReproducesDemRun) {
   const double e = cosim_error(1);
   std::printf("macro step = dt: largest wrench difference from dem_run %.3g of the peak\n", e);
-  // Only rounding differs (pose interpolation written twice, the predictor's polynomial fit),
+  // Only rounding differs (the predictor's polynomial fit of the poses),
   // grown by the bed's chaotic dynamics: 2e-13 measured; a real mismatch (one step of lag,
   // a wrong pose) gives 1e-3 and more.
   EXPECT_LT(e, 1e-9);

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cosim/link.hpp>
+#include <cosim/stopwatch.hpp>
 #include <hdf5.h>
 #include <signal.h>
 #include <sys/wait.h>
@@ -110,8 +111,8 @@ inline Process spawn(const std::vector<std::string>& args, const std::string& lo
 
 // Waits for the process; returns its exit code (128 + signal if killed, -1 on timeout).
 inline int wait_for(Process& p, double timeout_s) {
-  const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
-  while (std::chrono::steady_clock::now() < end) {
+  const cosim::Stopwatch waited;
+  while (waited.seconds() < timeout_s) {
     int status = 0;
     if (waitpid(p.pid, &status, WNOHANG) == p.pid) {
       p.pid = -1;

@@ -1,14 +1,15 @@
-// The prescribed participant's trajectory: keyframes hit exactly, velocities are the
-// derivatives of the positions, slerp turns at a constant rate, bad keyframes are refused.
+// The keyframe trajectory that the prescribed participant and dem_run play
+// (cosim/trajectory.hpp): keyframes hit exactly, velocities are the derivatives of the
+// positions, slerp turns at a constant rate, bad keyframes are refused.
 #include <gtest/gtest.h>
 
 #include <cmath>
 
 #include "cosim/rotation.hpp"
-#include "trajectory.hpp"
+#include "cosim/trajectory.hpp"
 
-using prescribed::Keyframe;
-using prescribed::Trajectory;
+using cosim::Keyframe;
+using cosim::Trajectory;
 
 namespace {
 
@@ -19,7 +20,7 @@ Trajectory three_keys(Trajectory::Interpolation how) {
   t.keyframes = {{0.0, {0, 0, 1}, {1, 0, 0, 0}},
                  {1.0, {1, 0, 0.5}, {half, 0, half, 0}},   // 90 deg about y
                  {3.0, {2, 1, 0.5}, {half, 0, half, 0}}};
-  prescribed::validate(t.keyframes, "test");
+  cosim::validate_keyframes(t.keyframes, "test");
   return t;
 }
 
@@ -71,17 +72,17 @@ TEST(Trajectory, CubicIsC1AtInnerKeyframes) {
 
 TEST(Trajectory, BadKeyframesAreRefusedWithTheReason) {
   std::vector<Keyframe> k = {{0, {0, 0, 0}, {1, 0, 0, 0}}, {0, {1, 0, 0}, {1, 0, 0, 0}}};
-  EXPECT_THROW(prescribed::validate(k, "tools.0.keyframes"), std::invalid_argument);
+  EXPECT_THROW(cosim::validate_keyframes(k, "tools.0.keyframes"), std::invalid_argument);
   k = {{0, {0, 0, 0}, {0, 0, 0, 0}}};
   try {
-    prescribed::validate(k, "tools.0.keyframes");
+    cosim::validate_keyframes(k, "tools.0.keyframes");
     FAIL();
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("quaternion"), std::string::npos);
   }
   k = {{0, {NAN, 0, 0}, {1, 0, 0, 0}}};
-  EXPECT_THROW(prescribed::validate(k, "k"), std::invalid_argument);
+  EXPECT_THROW(cosim::validate_keyframes(k, "k"), std::invalid_argument);
   k.clear();
-  EXPECT_THROW(prescribed::validate(k, "k"), std::invalid_argument);
-  EXPECT_THROW(prescribed::load_csv("/nonexistent/motion.csv"), std::runtime_error);
+  EXPECT_THROW(cosim::validate_keyframes(k, "k"), std::invalid_argument);
+  EXPECT_THROW(cosim::load_keyframes_csv("/nonexistent/motion.csv"), std::runtime_error);
 }

@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "cosim/timer.hpp"
 #include "dem/broad_phase.hpp"
 #include "dem/scene.hpp"
 #include "dem/state.hpp"
@@ -36,15 +37,19 @@ struct ContactStats {
   double max_overlap_ratio = 0;        // overlap / smaller radius
 };
 
-// Wall-clock seconds per stage, LAMMPS style.
-struct Timing {
-  double broad_phase = 0;
-  double pair_forces = 0;    // narrow phase + contact forces between particles
-  double mesh_contacts = 0;  // walls and tool meshes
-  double integration = 0;
-  double output = 0;         // filled by the caller that writes files
-  double total = 0;          // everything inside step() plus output
+// Wall-clock seconds per stage, LAMMPS style: the rows of the timing table, the `/timing`
+// attributes of the output file and dem_service's `seconds_<section>` diagnostics.
+using Timing = cosim::Timer;
+namespace section {
+enum : std::size_t {
+  broad_phase,    // tool geometry for the lists and the broad phase
+  pair_forces,    // narrow phase + contact forces between particles
+  mesh_contacts,  // walls and tool meshes (and the tools' world geometry)
+  integration,
+  output,         // filled by the caller that writes files
 };
+}  // namespace section
+Timing make_timing();  // the sections above, named as in the output
 
 class Engine {
  public:
@@ -104,7 +109,7 @@ class Engine {
   ContactStats stats_;
   std::vector<Wrench> tool_wrench_;
   std::vector<Vec3> wall_force_;
-  Timing timing_;
+  Timing timing_ = make_timing();
 };
 
 // Kinetic energy of all particles.

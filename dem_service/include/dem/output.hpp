@@ -3,12 +3,12 @@
 // Layout in docs/dem.md.
 #pragma once
 
-#include <chrono>
-
 #include <memory>
 #include <string>
 #include <vector>
 
+#include "cosim/h5.hpp"
+#include "cosim/stopwatch.hpp"
 #include "dem/engine.hpp"
 #include "dem/scene.hpp"
 #include "dem/state.hpp"
@@ -44,10 +44,10 @@ class RunOutput {
   long long file_ = -1;
   std::vector<double> snapshot_times_;
   std::vector<std::size_t> snapshot_sizes_;
-  std::vector<std::vector<double>> tool_rows_;  // per tool: t, F, M, position, quaternion
-  std::vector<double> wall_rows_;               // t, then F of every wall
+  std::vector<std::unique_ptr<cosim::h5::Table>> tool_rows_;  // per tool: t, F, M, position, quaternion
+  std::unique_ptr<cosim::h5::Table> wall_rows_;               // t, then F of every wall
   std::size_t buffered_ = 0;
-  std::chrono::steady_clock::time_point last_flush_ = std::chrono::steady_clock::now();
+  cosim::Stopwatch since_flush_;
 };
 
 }  // namespace dem

@@ -4,13 +4,13 @@
 // and the service's own HDF5/XDMF output. The engine itself knows nothing of the bus.
 #pragma once
 
-#include <chrono>
 #include <memory>
 #include <optional>
 #include <string>
 #include <vector>
 
 #include "cosim/participant.hpp"
+#include "cosim/stopwatch.hpp"
 #include "dem/config.hpp"
 #include "dem/engine.hpp"
 #include "dem/output.hpp"
@@ -73,7 +73,7 @@ class ServiceModel final : public cosim::Model {
   double snapshot_seconds_ = 0;
   bool finished_ = false;
   bool pristine_ = true;  // rc_ is the start-up build, untouched by any session
-  std::chrono::steady_clock::time_point wall0_, last_report_;
+  cosim::Stopwatch session_wall_, since_report_;
 };
 
 // Pose of a tool from its kinematics input (validated by the protocol), the quaternion

@@ -50,8 +50,6 @@ struct Quat {
 };
 Mat3 to_matrix(const Quat& q);
 Quat normalized(const Quat& q);
-// Spherical linear interpolation along the shorter arc, s in [0, 1].
-Quat slerp(const Quat& a, Quat b, double s);
 // Rotation angle (radians, in [0, pi]) of b relative to a.
 double angle_between(const Quat& a, const Quat& b);
 

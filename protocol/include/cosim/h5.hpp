@@ -1,0 +1,95 @@
+// Thin helpers over the HDF5 C API: fixed datasets and attributes, and the extendable table the
+// master's recorder and the DEM's run output append rows to. Bus-free: the DEM engine links it.
+#pragma once
+
+#include <hdf5.h>
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace cosim::h5 {
+
+// RAII closer for one hid_t.
+class Handle {
+ public:
+  Handle(hid_t id, herr_t (*close)(hid_t)) : id_(id), close_(close) {}
+  Handle(const Handle&) = delete;
+  Handle& operator=(const Handle&) = delete;
+  ~Handle() {
+    if (id_ >= 0) close_(id_);
+  }
+  operator hid_t() const { return id_; }
+  bool ok() const { return id_ >= 0; }
+
+ private:
+  hid_t id_;
+  herr_t (*close_)(hid_t);
+};
+
+template <class T>
+hid_t type_of();
+template <>
+inline hid_t type_of<double>() { return H5T_NATIVE_DOUBLE; }
+template <>
+inline hid_t type_of<std::int32_t>() { return H5T_NATIVE_INT32; }
+template <>
+inline hid_t type_of<std::int64_t>() { return H5T_NATIVE_INT64; }
+template <>
+inline hid_t type_of<std::uint64_t>() { return H5T_NATIVE_UINT64; }
+template <>
+inline hid_t type_of<std::uint8_t>() { return H5T_NATIVE_UINT8; }
+template <>
+inline hid_t type_of<std::uint32_t>() { return H5T_NATIVE_UINT32; }
+
+// Writes rows x cols values as a 2-D dataset (1-D when cols == 0).
+void write(hid_t loc, const std::string& name, hid_t type, const void* data, std::size_t rows,
+           std::size_t cols);
+template <class T>
+void write(hid_t loc, const std::string& name, const std::vector<T>& v) {
+  write(loc, name, type_of<T>(), v.data(), v.size(), 0);
+}
+// Number of rows of a dataset; throws std::runtime_error if it does not exist.
+std::size_t rows(hid_t loc, const std::string& name);
+void read(hid_t loc, const std::string& name, hid_t type, void* data);
+template <class T>
+std::vector<T> read(hid_t loc, const std::string& name) {
+  std::vector<T> v(rows(loc, name));
+  if (!v.empty()) read(loc, name, type_of<T>(), v.data());
+  return v;
+}
+
+// Scalar strings (fixed length, the string's own length) as an attribute or a dataset.
+void write_string_attribute(hid_t loc, const std::string& name, const std::string& value);
+void write_string(hid_t loc, const std::string& name, const std::string& value);
+void write_double_attribute(hid_t loc, const std::string& name, double value);
+
+// An extendable rows x width dataset of doubles (1-D when width is 1), created empty with any
+// missing parent groups. Rows are buffered in memory and appended by flush(), so a run of many
+// steps stays cheap; buffered rows can still be dropped (a repeated co-simulation step).
+class Table {
+ public:
+  // Throws std::runtime_error naming the dataset if it cannot be created.
+  Table(hid_t parent, const std::string& name, std::size_t width, std::size_t chunk_rows = 256);
+  ~Table();  // closes the dataset; rows not flushed are dropped
+  Table(const Table&) = delete;
+  Table& operator=(const Table&) = delete;
+
+  void attribute(const std::string& key, const std::string& value);
+  void append(const double* row);               // width values
+  void append(const std::vector<double>& row);  // a row of another width is stored as NaNs
+  void append(double value) { append(std::vector<double>{value}); }  // NaNs unless width 1
+  std::size_t width() const { return width_; }
+  std::size_t buffered_rows() const { return buffer_.size() / width_; }
+  void discard_rows_after(std::size_t keep);  // drops buffered rows after the first `keep`
+  void flush();                               // throws std::runtime_error if it cannot write
+
+ private:
+  hid_t id_ = -1;
+  std::string name_;
+  std::size_t width_;
+  hsize_t rows_ = 0;
+  std::vector<double> buffer_;
+};
+
+}  // namespace cosim::h5
