@@ -77,8 +77,7 @@ void fill_region(const Scene& scene, const FillRegion& region, State& s) {
       const Vec3 centre{lo.x + (c % nx) * pitch, lo.y + (c / nx) * pitch, lo.z + iz * pitch};
       const Vec3 jitter{slack * (2 * uniform01(rng) - 1), slack * (2 * uniform01(rng) - 1),
                         slack * (2 * uniform01(rng) - 1)};
-      const double mass = sp.density * 4.0 / 3.0 * M_PI * r * r * r;
-      add_particle(s, centre + 0.999 * jitter, {}, r, mass, region.species, next_id++);
+      add_particle(s, centre + 0.999 * jitter, {}, r, sp.mass(r), region.species, next_id++);
       ++placed;
     }
   }

@@ -359,8 +359,7 @@ void place_listed(const Scene& sc, const std::vector<ListedParticle>& list, Stat
     const Species& sp = sc.species[lp.species];
     const double r = lp.radius;
     const std::int64_t id = s.id.empty() ? 0 : *std::max_element(s.id.begin(), s.id.end()) + 1;
-    add_particle(s, lp.position, lp.velocity, r, sp.density * 4.0 / 3.0 * M_PI * r * r * r,
-                 lp.species, id);
+    add_particle(s, lp.position, lp.velocity, r, sp.mass(r), lp.species, id);
   }
 }
 

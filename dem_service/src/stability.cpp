@@ -9,12 +9,6 @@
 #include "dem/contact_law.hpp"
 
 namespace dem {
-namespace {
-
-double sphere_mass(double density, double r) { return density * 4.0 / 3.0 * M_PI * r * r * r; }
-
-}  // namespace
-
 double stiffest_contact_period(const Scene& scene, std::string* which) {
   struct Probe {
     std::string name;
@@ -25,7 +19,7 @@ double stiffest_contact_period(const Scene& scene, std::string* which) {
     std::vector<double> radii{sp.radius.min, sp.radius.max};
     for (double v : sp.radius.values) radii.push_back(v);
     for (double r : radii)
-      if (r > 0) probes.push_back({sp.name, r, sphere_mass(sp.density, r)});
+      if (r > 0) probes.push_back({sp.name, r, sp.mass(r)});
   }
   double best = INFINITY;
   auto consider = [&](double t, const std::string& what) {

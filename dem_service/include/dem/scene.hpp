@@ -1,6 +1,7 @@
 // Scene: everything fixed after loading (MuJoCo's mjModel). The step never writes to it.
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -24,6 +25,9 @@ struct Species {
   std::string name;
   double density = 0;  // kg/m^3
   RadiusDistribution radius;
+
+  // Mass of one of its spheres of radius r, kg.
+  double mass(double r) const { return density * 4.0 / 3.0 * M_PI * r * r * r; }
 };
 
 // One-sided infinite plane: particles live on the side the normal points to.
