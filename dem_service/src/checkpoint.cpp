@@ -1,6 +1,8 @@
 #include "dem/checkpoint.hpp"
 
 #include <stdexcept>
+#include <string>
+#include <string_view>
 
 #include "dem/coupling.hpp"
 #include "dem/h5_util.hpp"
@@ -8,23 +10,36 @@
 namespace dem {
 namespace {
 
-// ToolPose rows in the layout of a kinematics value (cosim::Kinematics).
-std::vector<double> flatten(const std::vector<ToolPose>& poses) {
+// One array of State to and from its dataset. Tool poses are stored as rows in the layout of a
+// kinematics value (cosim::Kinematics).
+void write_array(hid_t file, const char* name, const std::vector<ToolPose>& poses) {
   std::vector<double> out;
   for (const ToolPose& p : poses) {
     const cosim::Value v = to_kinematics(p).to_value();
     out.insert(out.end(), v.begin(), v.end());
   }
-  return out;
+  h5::write(file, name, out);
 }
-std::vector<ToolPose> unflatten(const std::vector<double>& v) {
+template <class T>
+void write_array(hid_t file, const char* name, const std::vector<T>& v) {
+  h5::write(file, name, v);
+}
+
+void read_array(hid_t file, const char* name, std::vector<ToolPose>& out) {
+  const std::vector<double> v = h5::read<double>(file, name);
   constexpr std::size_t n = cosim::Kinematics::kSize;
-  std::vector<ToolPose> out(v.size() / n);
+  out.assign(v.size() / n, ToolPose{});
   for (std::size_t k = 0; k < out.size(); ++k) {
     const cosim::Value row(v.begin() + n * k, v.begin() + n * (k + 1));
     out[k] = to_tool_pose(cosim::Kinematics::from_value(row));
   }
-  return out;
+}
+void read_array(hid_t file, const char* name, std::vector<Vec3>& out) {
+  out = h5::read_vec3(file, name);
+}
+template <class T>
+void read_array(hid_t file, const char* name, std::vector<T>& out) {
+  out = h5::read<T>(file, name);
 }
 
 }  // namespace
@@ -39,26 +54,9 @@ void save_checkpoint(const State& s, const std::string& path) {
                                            s.rebuilds, s.early_rebuilds};
   h5::write(file, "counters", counters);
   h5::write(file, "max_displacement", std::vector<double>{s.max_displacement});
-  h5::write(file, "x", s.x);
-  h5::write(file, "v", s.v);
-  h5::write(file, "u", s.u);
-  h5::write(file, "radius", s.radius);
-  h5::write(file, "mass", s.mass);
-  h5::write(file, "species", s.species);
-  h5::write(file, "id", s.id);
-  h5::write(file, "tool_pose", flatten(s.tool_pose));
-  h5::write(file, "tool_pose_at_rebuild", flatten(s.tool_pose_at_rebuild));
-  h5::write(file, "x_at_rebuild", s.x_at_rebuild);
-  h5::write(file, "pair_offset", s.pair_offset);
-  h5::write(file, "pair_j", s.pair_j);
-  h5::write(file, "pair_spring", s.pair_spring);
-  h5::write(file, "tri_offset", s.tri_offset);
-  h5::write(file, "tri_tool", s.tri_tool);
-  h5::write(file, "tri_index", s.tri_index);
-  h5::write(file, "wall_mask", s.wall_mask);
-  h5::write(file, "slot_key", s.slot_key);
-  h5::write(file, "slot_spring", s.slot_spring);
-  h5::write(file, "slot_count", s.slot_count);
+  for_each_array(s, [&](const char* name, const auto& array, bool) {
+    write_array(file, name, array);
+  });
 }
 
 State load_checkpoint(const std::string& path) {
@@ -79,38 +77,25 @@ State load_checkpoint(const std::string& path) {
     s.rebuilds = counters[3];
     s.early_rebuilds = counters[4];
     s.max_displacement = h5::read<double>(file, "max_displacement").at(0);
-    s.x = h5::read_vec3(file, "x");
-    s.v = h5::read_vec3(file, "v");
-    s.u = h5::read_vec3(file, "u");
-    s.radius = h5::read<double>(file, "radius");
-    s.mass = h5::read<double>(file, "mass");
-    s.species = h5::read<std::int32_t>(file, "species");
-    s.id = h5::read<std::int64_t>(file, "id");
-    s.tool_pose = unflatten(h5::read<double>(file, "tool_pose"));
-    s.tool_pose_at_rebuild = unflatten(h5::read<double>(file, "tool_pose_at_rebuild"));
-    s.x_at_rebuild = h5::read_vec3(file, "x_at_rebuild");
-    s.pair_offset = h5::read<std::int32_t>(file, "pair_offset");
-    s.pair_j = h5::read<std::int32_t>(file, "pair_j");
-    s.pair_spring = h5::read_vec3(file, "pair_spring");
-    s.tri_offset = h5::read<std::int32_t>(file, "tri_offset");
-    s.tri_tool = h5::read<std::int32_t>(file, "tri_tool");
-    s.tri_index = h5::read<std::int32_t>(file, "tri_index");
-    // Older checkpoints lack wall masks: the first step then rebuilds the lists.
-    if (H5Lexists(file, "wall_mask", H5P_DEFAULT) > 0)
-      s.wall_mask = h5::read<std::uint32_t>(file, "wall_mask");
-    else
-      s.lists_valid = false;
-    s.slot_key = h5::read<std::uint64_t>(file, "slot_key");
-    s.slot_spring = h5::read_vec3(file, "slot_spring");
-    s.slot_count = h5::read<std::uint8_t>(file, "slot_count");
+    for_each_array(s, [&](const char* name, auto& array, bool) {
+      // Older checkpoints lack wall masks: the first step then rebuilds the lists.
+      if (std::string_view(name) == "wall_mask" && H5Lexists(file, name, H5P_DEFAULT) <= 0) {
+        s.lists_valid = false;
+        return;
+      }
+      read_array(file, name, array);
+    });
   } catch (const std::exception& e) {
     throw std::runtime_error("checkpoint '" + path + "' is incomplete (" + e.what() +
                              "): it was not written by this dem_run version; settle the bed again");
   }
   const std::size_t n = s.x.size();
-  if (s.v.size() != n || s.u.size() != n || s.radius.size() != n || s.mass.size() != n ||
-      s.species.size() != n || s.id.size() != n)
-    throw std::runtime_error("checkpoint '" + path + "': per-particle arrays differ in length");
+  for_each_array(s, [&](const char* name, const auto& array, bool per_particle) {
+    if (per_particle && array.size() != n)
+      throw std::runtime_error("checkpoint '" + path + "': per-particle array '" + name +
+                               "' has " + std::to_string(array.size()) + " entries for " +
+                               std::to_string(n) + " particles; settle the bed again");
+  });
   return s;
 }
 

@@ -63,6 +63,33 @@ struct State {
   std::size_t size() const { return x.size(); }
 };
 
+// Every array of State, listed once, in checkpoint order: f(name, array, per_particle) for each,
+// where per_particle says the array has one entry per particle. The checkpoint writes and reads
+// State through this list, so a new array added here is saved and restored with the rest.
+template <class S, class F>
+void for_each_array(S& s, F&& f) {
+  f("x", s.x, true);
+  f("v", s.v, true);
+  f("u", s.u, true);
+  f("radius", s.radius, true);
+  f("mass", s.mass, true);
+  f("species", s.species, true);
+  f("id", s.id, true);
+  f("tool_pose", s.tool_pose, false);
+  f("tool_pose_at_rebuild", s.tool_pose_at_rebuild, false);
+  f("x_at_rebuild", s.x_at_rebuild, false);
+  f("pair_offset", s.pair_offset, false);
+  f("pair_j", s.pair_j, false);
+  f("pair_spring", s.pair_spring, false);
+  f("tri_offset", s.tri_offset, false);
+  f("tri_tool", s.tri_tool, false);
+  f("tri_index", s.tri_index, false);
+  f("wall_mask", s.wall_mask, false);
+  f("slot_key", s.slot_key, false);
+  f("slot_spring", s.slot_spring, false);
+  f("slot_count", s.slot_count, false);
+}
+
 // Appends one particle; radius and mass must already be validated.
 void add_particle(State& s, Vec3 x, Vec3 v, double radius, double mass, int species,
                   std::int64_t id);
