@@ -4,6 +4,7 @@
 // the key out (the parser falls back to the struct initialisers, the one place a default is
 // declared).
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <filesystem>
 #include <fstream>
@@ -41,8 +42,10 @@ particles:
 settle: {}
 )";
 
+// One folder per test process: ctest runs the tests of this file side by side.
 std::string dir() {
-  const fs::path d = fs::temp_directory_path() / "dem_config_defaults";
+  const fs::path d =
+      fs::temp_directory_path() / ("dem_config_defaults_" + std::to_string(::getpid()));
   fs::create_directories(d);
   return d.string();
 }
