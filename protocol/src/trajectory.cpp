@@ -142,15 +142,17 @@ std::vector<Keyframe> load_keyframes_csv(const std::string& path) {
     if (line.find_first_not_of(" \t\r") == std::string::npos || line[0] == '#') continue;
     std::replace(line.begin(), line.end(), ',', ' ');
     std::istringstream ss(line);
-    double v[8];
-    int n = 0;
-    while (n < 8 && ss >> v[n]) ++n;
-    if (n != 8) {
+    // A row is time, position and orientation (w, x, y, z), read straight into a Keyframe.
+    Keyframe k;
+    bool complete = static_cast<bool>(ss >> k.time);
+    for (double& c : k.position) complete = complete && static_cast<bool>(ss >> c);
+    for (double& c : k.orientation) complete = complete && static_cast<bool>(ss >> c);
+    if (!complete) {
       if (keys.empty() && line_no == 1) continue;  // header line
       throw std::runtime_error(path + ":" + std::to_string(line_no) +
                                ": expected 8 numbers 'time,x,y,z,qw,qx,qy,qz'");
     }
-    keys.push_back({v[0], {v[1], v[2], v[3]}, {v[4], v[5], v[6], v[7]}});
+    keys.push_back(k);
   }
   if (keys.empty())
     throw std::runtime_error("motion file '" + path + "' has no rows; give rows 'time,x,y,z,qw,qx,qy,qz'");
