@@ -18,17 +18,25 @@ using cosim::TimePoint;
 
 namespace {
 
-// Splits the `service` section off the DEM config and reads it.
-ServiceOptions read_service(YAML::Node& root) {
+// An output interval: zero for none, else at least one inner step.
+Duration every(double seconds, const std::string& key, Duration inner) {
+  if (seconds <= 0) return Duration::zero();
+  const Duration t = cosim::seconds_to_duration(seconds, key);
+  return std::max(t, inner);
+}
+
+}  // namespace
+
+ServiceOptions read_service_options(YAML::Node& root) {
   ServiceOptions o;
   const YAML::Node n = root["service"];
   if (n) {
     cfg::check_keys(n, "service", {"snapshot", "checkpoint_every", "checkpoint", "report_every"});
     o.snapshot = cfg::get_bool_or(n, "service", "snapshot", o.snapshot);
-    o.checkpoint_every = cfg::get_double_or(n, "service", "checkpoint_every", 0);
+    o.checkpoint_every = cfg::get_double_or(n, "service", "checkpoint_every", o.checkpoint_every);
     if (!(o.checkpoint_every >= 0))
       throw cfg::ConfigError("service.checkpoint_every: must be >= 0 s (0 = no checkpoints)");
-    o.checkpoint = cfg::get_string_or(n, "service", "checkpoint", "");
+    o.checkpoint = cfg::get_string_or(n, "service", "checkpoint", o.checkpoint);
     if (o.checkpoint_every > 0 && o.checkpoint.empty())
       throw cfg::ConfigError("service.checkpoint: missing; checkpoint_every needs a file to write");
     o.report_every = cfg::get_positive_or(n, "service", "report_every", o.report_every);
@@ -41,15 +49,6 @@ ServiceOptions read_service(YAML::Node& root) {
   }
   return o;
 }
-
-// An output interval: zero for none, else at least one inner step.
-Duration every(double seconds, const std::string& key, Duration inner) {
-  if (seconds <= 0) return Duration::zero();
-  const Duration t = cosim::seconds_to_duration(seconds, key);
-  return std::max(t, inner);
-}
-
-}  // namespace
 
 ToolPose tool_pose_from(const cosim::Kinematics& k) {
   ToolPose p = to_tool_pose(k);
@@ -65,7 +64,7 @@ ServiceModel::ServiceModel(YAML::Node root, std::string base_dir)
 ServiceModel::~ServiceModel() = default;
 
 void ServiceModel::build(YAML::Node root, const std::string& what) {
-  options_ = read_service(root);
+  options_ = read_service_options(root);
   auto rc = std::make_unique<RunConfig>(load_config(root, base_dir_));
   if (rc->scene.tools.empty())
     throw cfg::ConfigError(what + ": tools: the scene has no tool, so nothing couples to the "

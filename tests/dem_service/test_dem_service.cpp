@@ -7,6 +7,9 @@
 #include <cosim/yaml_config.hpp>
 #include <gtest/gtest.h>
 
+#include <fstream>
+#include <regex>
+#include <sstream>
 #include <cmath>
 #include <cstdio>
 
@@ -307,4 +310,44 @@ TEST(DemServiceOverLcm, WrenchConvergesToDemRunAsTheMacroStepShrinks) {
   // Linear kinematic prediction: the pose error per step goes as H^2; over a decade of H the
   // measured error falls by more than a decade.
   EXPECT_GT(errors.back() / errors.front(), 10.0);
+}
+
+// The defaults of the `service` section in docs/dem_service.md are the code's: setting a key to
+// its documented default gives the same options as leaving the key out ("none" = leave it out).
+namespace {
+
+std::string describe(const dem::ServiceOptions& o) {
+  std::ostringstream out;
+  out.precision(17);
+  out << o.snapshot << ' ' << o.checkpoint_every << " '" << o.checkpoint << "' " << o.report_every;
+  return out.str();
+}
+
+std::string read_with(const std::string& set) {
+  YAML::Node root = YAML::Load("service: {}");
+  if (!set.empty()) cosim::config::apply_override(root, set);
+  return describe(dem::read_service_options(root));
+}
+
+}  // namespace
+
+TEST(DemService, DocumentedServiceDefaultsAreTheCodes) {
+  std::ifstream in(harness::source("docs/dem_service.md"));
+  ASSERT_TRUE(in) << "cannot read docs/dem_service.md";
+  const std::regex row(R"(^\| `(service\.[a-z_]+)` \|.*\| (`([^`]*)`|none) \|$)");
+  const std::string base = read_with("");
+  int rows = 0;
+  for (std::string line; std::getline(in, line);) {
+    std::smatch m;
+    if (!std::regex_match(line, m, row)) continue;
+    ++rows;
+    if (m[2] == "none") continue;  // no value to set: the key is optional without a default
+    EXPECT_EQ(read_with(m[1].str() + "=" + m[3].str()), base)
+        << "docs/dem_service.md documents `" << m[1] << "` = `" << m[3]
+        << "`, but the code's default differs";
+  }
+  EXPECT_EQ(rows, 4) << "the table of the `service` section in docs/dem_service.md changed";
+  // The comparison can fail: a value other than the default changes the options.
+  EXPECT_NE(read_with("service.report_every=11"), base);
+  EXPECT_NE(read_with("service.snapshot=false"), base);
 }

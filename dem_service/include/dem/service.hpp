@@ -25,6 +25,11 @@ struct ServiceOptions {
   double report_every = 10;     // wall-clock seconds between progress lines on stderr
 };
 
+// Reads and removes the `service` section of a DEM config (absent keys keep the initialisers
+// above, the one place the defaults are written; docs/dem_service.md lists them and a test
+// compares); refuses a `settle` section. Raises config::ConfigError.
+ServiceOptions read_service_options(YAML::Node& root);
+
 class ServiceModel final : public cosim::Model {
  public:
   // root: the DEM config (the dem_run schema plus `service`), after --set; base_dir resolves its
