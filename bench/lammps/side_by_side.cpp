@@ -1,0 +1,377 @@
+// Our side of the LAMMPS side-by-side benchmark (bench/lammps/side_by_side.sh drives it; not a
+// test). Three subcommands, all on the scenes of docs/performance.md:
+//
+//   dem_side_by_side prepare --kind bed|gas --n N --dir DIR
+//       Builds the scene once and writes it for both codes: DIR/<kind>_<n>.h5 (our checkpoint:
+//       positions, velocities, radii, masses, no contact history), DIR/<kind>_<n>.data (the
+//       same particles as a LAMMPS `read_data` file, atom_style sphere) and DIR/<kind>_<n>.box
+//       (the walls, read by the driver to write the LAMMPS input). Existing files are kept.
+//   dem_side_by_side run --kind K --n N --dir DIR --threads T --interval I --steps S
+//       Loads the scene, steps 20 times (lists, caches), then times S steps and prints
+//       "rate <particle-steps/s> seconds <wall> rebuilds <broad phases in the timed steps>".
+//       --interval 0 rebuilds only when needed (the skin guard), like LAMMPS `check yes`.
+//   dem_side_by_side trace --kind K --n N --dir DIR --threads T --interval I
+//                          --duration D --every E
+//       Prints "t kinetic_energy contacts_per_particle" at t = 0, E, 2E, ... D (contacts: touching
+//       particle pairs, counted twice, over N, like LAMMPS compute contact/atom).
+//
+// Contact law on both sides: linear spring-dashpot with the dashpot given as a coefficient
+// (LAMMPS gran/hooke/history: m* gamma_n), attractive part not clipped, k_T = 2/7 k_N,
+// eta_T = eta_N / 2, mu = 0.5; no rotation (LAMMPS fix nve).
+#include <chrono>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "dem/bed.hpp"
+#include "dem/checkpoint.hpp"
+#include "dem/engine.hpp"
+#include "dem/scene.hpp"
+
+namespace {
+
+constexpr double kR = 0.005;          // m
+constexpr double kDensity = 2500;     // kg/m^3
+constexpr double kStiffness = 2e5;    // N/m
+constexpr double kRestitution = 0.3;  // between two spheres
+constexpr double kFriction = 0.5;
+constexpr double kDt = 1e-5;        // s
+constexpr double kSkin = 0.5;       // of r
+constexpr long kTile = 10000;       // beds above 10k are tiles of the settled 10k bed
+constexpr double kGasFraction = 0.1;  // solid volume fraction of the gas
+constexpr double kGasSpeed = 1.0;     // m/s, standard deviation of each velocity component
+
+double sphere_mass() { return kDensity * 4.0 / 3.0 * M_PI * kR * kR * kR; }
+
+// gamma_n [1/s] of LAMMPS gran/hooke/history for restitution e between two equal spheres:
+// eta_N = m* gamma_n with m* = m/2 and eta_N = 2 zeta sqrt(m* k).
+double gamma_n() {
+  const double le = std::log(kRestitution);
+  const double zeta = -le / std::sqrt(M_PI * M_PI + le * le);
+  return 2 * zeta * std::sqrt(kStiffness / (sphere_mass() / 2));
+}
+
+// The walls of a scene: planes at the faces of [0,sx] x [0,sy] x [0,sz]; the bed has no lid
+// (sz = 0 means none). gravity: -z or off.
+struct Box {
+  std::string kind;
+  long n = 0;
+  double sx = 0, sy = 0, sz = 0;
+  double ztop = 0;  // LAMMPS box top (above every particle)
+  bool gravity = true;
+};
+
+void write_box(const Box& b, const std::string& file) {
+  std::ofstream f(file);
+  f.precision(17);
+  f << "kind " << b.kind << "\nn " << b.n << "\nsx " << b.sx << "\nsy " << b.sy << "\nsz "
+    << b.sz << "\nztop " << b.ztop << "\ngravity " << (b.gravity ? 1 : 0) << "\nradius " << kR
+    << "\ndensity " << kDensity << "\nstiffness " << kStiffness << "\ngamma_n " << gamma_n()
+    << "\nfriction " << kFriction << "\ndt " << kDt << "\nskin " << kSkin * kR << "\n";
+  if (!f) throw std::runtime_error("cannot write " + file);
+}
+
+Box read_box(const std::string& file) {
+  std::ifstream f(file);
+  if (!f) throw std::runtime_error(file + " missing: run `dem_side_by_side prepare` first");
+  std::map<std::string, std::string> kv;
+  std::string k, v;
+  while (f >> k >> v) kv[k] = v;
+  Box b;
+  b.kind = kv.at("kind");
+  b.n = std::stol(kv.at("n"));
+  b.sx = std::stod(kv.at("sx"));
+  b.sy = std::stod(kv.at("sy"));
+  b.sz = std::stod(kv.at("sz"));
+  b.ztop = std::stod(kv.at("ztop"));
+  b.gravity = kv.at("gravity") == "1";
+  return b;
+}
+
+// interval 0: rebuild only when the skin guard fires.
+dem::Scene make_scene(const Box& b, int threads, int interval, bool friction = true) {
+  dem::Scene s;
+  dem::Species sp;
+  sp.name = "grain";
+  sp.density = kDensity;
+  sp.radius.min = sp.radius.max = kR;
+  s.species.push_back(sp);
+  dem::ContactLaw law;
+  law.stiffness_per_length = false;
+  law.normal_stiffness = kStiffness;
+  law.damping_from_restitution = false;
+  law.clip_attractive = false;
+  law.tangential_stiffness_ratio = 2.0 / 7.0;
+  law.tangential_damping_ratio = 0.5;
+  law.friction = friction ? kFriction : 0.0;
+  dem::ContactLaw pp = law, pw = law;
+  pp.normal_damping = sphere_mass() / 2 * gamma_n();  // LAMMPS: same gamma_n, m* = m/2 ...
+  pw.normal_damping = sphere_mass() * gamma_n();      // ... and m* = m against a wall
+  dem::finalize(pp, "side_by_side.particle_particle");
+  dem::finalize(pw, "side_by_side.particle_wall");
+  s.particle_particle = pp;
+  s.particle_wall = pw;
+  s.dt = kDt;
+  s.skin = kSkin;
+  s.threads = threads;
+  s.broad_phase_interval = interval > 0 ? interval : 1 << 30;
+  s.guard = dem::GuardMode::rebuild;
+  s.stability.min_steps_per_contact = 15;  // t_c / dt is about 19 for the pair
+  s.gravity = b.gravity ? dem::Vec3{0, 0, -9.81} : dem::Vec3{0, 0, 0};
+  s.walls = {{"floor", {0, 0, 0}, {0, 0, 1}},
+             {"x0", {0, 0, 0}, {1, 0, 0}},
+             {"x1", {b.sx, 0, 0}, {-1, 0, 0}},
+             {"y0", {0, 0, 0}, {0, 1, 0}},
+             {"y1", {0, b.sy, 0}, {0, -1, 0}}};
+  if (b.sz > 0) s.walls.push_back({"lid", {0, 0, b.sz}, {0, 0, -1}});
+  return s;
+}
+
+// Footprint of one 10k tile (about 40 layers high once settled) and the tiling of n particles.
+double tile_side() { return std::sqrt(kTile / 40.0) * 2 * kR * 1.15 + 2 * kR; }
+std::pair<long, long> tiling(long n) {
+  const long k = n / kTile;
+  long nx = static_cast<long>(std::sqrt(static_cast<double>(k)));
+  while (k % nx) --nx;
+  return {nx, k / nx};
+}
+
+// A copy with particles only (no lists, no contact history), in id order.
+dem::State fresh(const dem::State& st) {
+  std::vector<std::size_t> order(st.size());
+  for (std::size_t i = 0; i < st.size(); ++i) order[static_cast<std::size_t>(st.id[i])] = i;
+  dem::State out;
+  for (std::size_t k = 0; k < order.size(); ++k) {
+    const std::size_t i = order[k];
+    dem::add_particle(out, st.x[i], st.v[i], st.radius[i], st.mass[i], 0,
+                      static_cast<std::int64_t>(k));
+  }
+  return out;
+}
+
+std::string base(const std::string& dir, const std::string& kind, long n) {
+  return dir + "/" + kind + "_" + std::to_string(n);
+}
+
+void settle(const Box& b, dem::State& st, double max_time) {
+  // Frictionless: with friction and no rotation, landing spheres stay stacked in columns.
+  const dem::Scene scene = make_scene(b, 2, 5, false);
+  dem::Engine engine(scene);
+  std::fprintf(stderr, "settling %ld particles for up to %.2f s ...\n", b.n, max_time);
+  const auto res = dem::settle(engine, st, 1e-7, max_time, [&](const dem::SettleResult& p) {
+    if (st.step % 5000 == 0)
+      std::fprintf(stderr, "  t = %.3f s  KE/particle %.3g J\n", p.time, p.ke_per_particle);
+  });
+  std::fprintf(stderr, "  settled: %.3f s, KE/particle %.3g J\n", res.time, res.ke_per_particle);
+}
+
+dem::State load(const std::string& dir, const std::string& kind, long n) {
+  return dem::load_checkpoint(base(dir, kind, n) + ".h5");
+}
+
+void write_lammps_data(const Box& b, const dem::State& st, const std::string& file) {
+  std::FILE* f = std::fopen(file.c_str(), "w");
+  if (!f) throw std::runtime_error("cannot write " + file);
+  std::fprintf(f, "soilcosim side-by-side scene %s %ld (bench/lammps)\n\n", b.kind.c_str(), b.n);
+  std::fprintf(f, "%zu atoms\n1 atom types\n\n", st.size());
+  std::fprintf(f, "0 %.17g xlo xhi\n0 %.17g ylo yhi\n0 %.17g zlo zhi\n\n", b.sx, b.sy, b.ztop);
+  std::fprintf(f, "Atoms # sphere\n\n");
+  for (std::size_t i = 0; i < st.size(); ++i) {
+    const double r = st.radius[i];
+    const double rho = st.mass[i] / (4.0 / 3.0 * M_PI * r * r * r);
+    std::fprintf(f, "%lld 1 %.17g %.17g %.17g %.17g %.17g\n",
+                 static_cast<long long>(st.id[i]) + 1, 2 * r, rho, st.x[i].x, st.x[i].y,
+                 st.x[i].z);
+  }
+  std::fprintf(f, "\nVelocities\n\n");
+  for (std::size_t i = 0; i < st.size(); ++i)
+    std::fprintf(f, "%lld %.17g %.17g %.17g 0 0 0\n", static_cast<long long>(st.id[i]) + 1,
+                 st.v[i].x, st.v[i].y, st.v[i].z);
+  std::fclose(f);
+}
+
+std::uint64_t splitmix(std::uint64_t& s) {
+  std::uint64_t z = (s += 0x9e3779b97f4a7c15ULL);
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+  return z ^ (z >> 31);
+}
+double uniform(std::uint64_t& s) { return (splitmix(s) >> 11) * 0x1.0p-53; }
+double gaussian(std::uint64_t& s) {
+  const double u1 = 1 - uniform(s), u2 = uniform(s);
+  return std::sqrt(-2 * std::log(u1)) * std::cos(2 * M_PI * u2);
+}
+
+// A dilute gas in a closed cube without gravity: particles on random sites of a cubic lattice,
+// jittered, Gaussian velocities with zero mean.
+dem::State make_gas(Box& b) {
+  const double volume = b.n * 4.0 / 3.0 * M_PI * kR * kR * kR / kGasFraction;
+  const double side = std::cbrt(volume);
+  b.sx = b.sy = b.sz = b.ztop = side;
+  b.gravity = false;
+  long m = static_cast<long>(std::ceil(std::cbrt(static_cast<double>(b.n))));
+  const double pitch = side / m;
+  const double jitter = 0.5 * (pitch - 2 * kR * 1.02);
+  if (jitter < 0) throw std::runtime_error("gas too dense for its lattice");
+  std::uint64_t rng = 20261129;
+  std::vector<long> sites(m * m * m);
+  for (long i = 0; i < static_cast<long>(sites.size()); ++i) sites[i] = i;
+  for (long i = static_cast<long>(sites.size()) - 1; i > 0; --i)
+    std::swap(sites[i], sites[splitmix(rng) % static_cast<std::uint64_t>(i + 1)]);
+  dem::State st;
+  std::vector<dem::Vec3> v(b.n);
+  dem::Vec3 mean{};
+  for (long k = 0; k < b.n; ++k) {
+    v[k] = {kGasSpeed * gaussian(rng), kGasSpeed * gaussian(rng), kGasSpeed * gaussian(rng)};
+    mean = mean + v[k];
+  }
+  mean = (1.0 / b.n) * mean;
+  for (long k = 0; k < b.n; ++k) {
+    const long s = sites[k];
+    const long i = s % m, j = (s / m) % m, l = s / (m * m);
+    const dem::Vec3 c{(i + 0.5) * pitch, (j + 0.5) * pitch, (l + 0.5) * pitch};
+    const dem::Vec3 d{jitter * (2 * uniform(rng) - 1), jitter * (2 * uniform(rng) - 1),
+                      jitter * (2 * uniform(rng) - 1)};
+    dem::add_particle(st, c + d, v[k] - mean, kR, sphere_mass(), 0, k);
+  }
+  return st;
+}
+
+void prepare(const std::string& kind, long n, const std::string& dir) {
+  const std::string stem = base(dir, kind, n);
+  if (std::filesystem::exists(stem + ".h5") && std::filesystem::exists(stem + ".data") &&
+      std::filesystem::exists(stem + ".box"))
+    return;
+  std::filesystem::create_directories(dir);
+  Box b;
+  b.kind = kind;
+  b.n = n;
+  dem::State st;
+  if (kind == "gas") {
+    st = make_gas(b);
+  } else if (kind == "bed") {
+    if (n % kTile) throw std::runtime_error("bed sizes are multiples of 10000");
+    const auto [tx, ty] = tiling(n);
+    b.sx = tx * tile_side();
+    b.sy = ty * tile_side();
+    b.sz = 0;
+    if (n == kTile) {
+      b.ztop = 10.0;
+      const dem::Scene scene = make_scene(b, 1, 5);
+      dem::FillRegion r;
+      r.min = {0, 0, 0};
+      r.max = {b.sx, b.sy, 10.0};
+      r.count = n;
+      r.seed = 42;
+      dem::fill_region(scene, r, st);
+      settle(b, st, 0.4);
+    } else {
+      // Settling 150k from scratch takes most of an hour on 2 cores: copies of the settled 10k
+      // bed side by side (their walls coincide, so nothing overlaps), seams relaxed briefly.
+      prepare(kind, kTile, dir);
+      const dem::State tile = load(dir, kind, kTile);
+      std::int64_t id = 0;
+      for (long a = 0; a < tx; ++a)
+        for (long c = 0; c < ty; ++c)
+          for (std::size_t i = 0; i < tile.size(); ++i)
+            dem::add_particle(st, tile.x[i] + dem::Vec3{a * tile_side(), c * tile_side(), 0}, {},
+                              tile.radius[i], tile.mass[i], 0, id++);
+      settle(b, st, 0.01);
+    }
+    double zmax = 0;
+    for (const auto& x : st.x) zmax = std::max(zmax, x.z);
+    b.ztop = zmax + 20 * kR;
+  } else {
+    throw std::runtime_error("--kind is bed or gas, not '" + kind + "'");
+  }
+  st = fresh(st);
+  dem::save_checkpoint(st, stem + ".h5");
+  write_lammps_data(b, st, stem + ".data");
+  write_box(b, stem + ".box");  // last: its presence marks a complete scene
+}
+
+int run(const std::string& kind, long n, const std::string& dir, int threads, int interval,
+        int steps) {
+  const Box b = read_box(base(dir, kind, n) + ".box");
+  const dem::Scene scene = make_scene(b, threads, interval);
+  dem::State st = load(dir, kind, n);
+  dem::Engine engine(scene);
+  for (int k = 0; k < 20; ++k) engine.step(st);  // warm-up, like LAMMPS `run 20` before
+  const auto rebuilds0 = st.rebuilds;
+  const auto t0 = std::chrono::steady_clock::now();
+  for (int k = 0; k < steps; ++k) engine.step(st);
+  const double wall =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  std::printf("rate %.6g seconds %.6g rebuilds %lld threads %d\n",
+              static_cast<double>(st.size()) * steps / wall, wall,
+              static_cast<long long>(st.rebuilds - rebuilds0), engine.threads());
+  return 0;
+}
+
+int trace(const std::string& kind, long n, const std::string& dir, int threads, int interval,
+          double duration, double every) {
+  const Box b = read_box(base(dir, kind, n) + ".box");
+  const dem::Scene scene = make_scene(b, threads, interval);
+  dem::State st = load(dir, kind, n);
+  dem::Engine engine(scene);
+  const long per = std::lround(every / kDt), total = std::lround(duration / kDt);
+  for (long k = 0;; ++k) {
+    if (k % per == 0) {
+      engine.prepare(st);
+      const double contacts = 2.0 * engine.particle_contacts(st).size() / st.size();
+      std::printf("%.6f %.10g %.6g\n", k * kDt, dem::kinetic_energy(st), contacts);
+      std::fflush(stdout);
+    }
+    if (k == total) break;
+    engine.step(st);
+  }
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc < 2) {
+    std::fprintf(stderr, "usage: dem_side_by_side prepare|run|trace --kind bed|gas --n N "
+                         "--dir DIR [--threads T --interval I --steps S --duration D --every E]"
+                         "\n(see the header of bench/lammps/side_by_side.cpp)\n");
+    return 2;
+  }
+  const std::string cmd = argv[1];
+  std::map<std::string, std::string> opt{{"--kind", "bed"}, {"--n", "10000"},
+                                         {"--dir", "results/bench_lammps"},
+                                         {"--threads", "1"}, {"--interval", "5"},
+                                         {"--steps", "200"}, {"--duration", "0.1"},
+                                         {"--every", "0.002"}};
+  for (int a = 2; a + 1 < argc; a += 2) {
+    if (!opt.count(argv[a])) {
+      std::fprintf(stderr, "dem_side_by_side: unknown option %s\n", argv[a]);
+      return 2;
+    }
+    opt[argv[a]] = argv[a + 1];
+  }
+  try {
+    const std::string kind = opt["--kind"], dir = opt["--dir"];
+    const long n = std::stol(opt["--n"]);
+    if (cmd == "prepare") {
+      prepare(kind, n, dir);
+      return 0;
+    }
+    const int threads = std::stoi(opt["--threads"]), interval = std::stoi(opt["--interval"]);
+    if (cmd == "run") return run(kind, n, dir, threads, interval, std::stoi(opt["--steps"]));
+    if (cmd == "trace")
+      return trace(kind, n, dir, threads, interval, std::stod(opt["--duration"]),
+                   std::stod(opt["--every"]));
+    std::fprintf(stderr, "dem_side_by_side: unknown command %s\n", cmd.c_str());
+    return 2;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "dem_side_by_side: %s\n", e.what());
+    return 1;
+  }
+}
