@@ -161,7 +161,7 @@ std::string base(const std::string& dir, const std::string& kind, long n) {
 
 void settle(const Box& b, dem::State& st, double max_time) {
   // Frictionless: with friction and no rotation, landing spheres stay stacked in columns.
-  const dem::Scene scene = make_scene(b, 2, 5, false);
+  const dem::Scene scene = make_scene(b, 1, 5, false);  // 1 thread: fine on a busy machine
   dem::Engine engine(scene);
   std::fprintf(stderr, "settling %ld particles for up to %.2f s ...\n", b.n, max_time);
   const auto res = dem::settle(engine, st, 1e-7, max_time, [&](const dem::SettleResult& p) {
