@@ -8,7 +8,8 @@
 //       (the walls, read by the driver to write the LAMMPS input). Existing files are kept.
 //   dem_side_by_side run --kind K --n N --dir DIR --threads T --interval I --steps S
 //       Loads the scene, steps 20 times (lists, caches), then times S steps and prints
-//       "rate <particle-steps/s> seconds <wall> rebuilds <broad phases in the timed steps>".
+//       "rate <particle-steps/s> seconds <wall> rebuilds <broad phases in the timed steps>
+//       threads <used> cpu_share <process CPU time / (wall * threads)>".
 //       --interval 0 rebuilds only when needed (the skin guard), like LAMMPS `check yes`.
 //   dem_side_by_side trace --kind K --n N --dir DIR --threads T --interval I
 //                          --duration D --every E
@@ -22,6 +23,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <ctime>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -296,6 +298,12 @@ void prepare(const std::string& kind, long n, const std::string& dir) {
   write_box(b, stem + ".box");  // last: its presence marks a complete scene
 }
 
+double cpu_seconds() {
+  timespec t{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+  return t.tv_sec + 1e-9 * t.tv_nsec;
+}
+
 int run(const std::string& kind, long n, const std::string& dir, int threads, int interval,
         int steps) {
   const Box b = read_box(base(dir, kind, n) + ".box");
@@ -304,13 +312,17 @@ int run(const std::string& kind, long n, const std::string& dir, int threads, in
   dem::Engine engine(scene);
   for (int k = 0; k < 20; ++k) engine.step(st);  // warm-up, like LAMMPS `run 20` before
   const auto rebuilds0 = st.rebuilds;
+  const double cpu0 = cpu_seconds();
   const auto t0 = std::chrono::steady_clock::now();
   for (int k = 0; k < steps; ++k) engine.step(st);
   const double wall =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  std::printf("rate %.6g seconds %.6g rebuilds %lld threads %d\n",
+  // Share of its cores the run got (LAMMPS prints the same as "% CPU use"): below 1 the
+  // machine was busy with something else.
+  const double share = (cpu_seconds() - cpu0) / (wall * engine.threads());
+  std::printf("rate %.6g seconds %.6g rebuilds %lld threads %d cpu_share %.3f\n",
               static_cast<double>(st.size()) * steps / wall, wall,
-              static_cast<long long>(st.rebuilds - rebuilds0), engine.threads());
+              static_cast<long long>(st.rebuilds - rebuilds0), engine.threads(), share);
   return 0;
 }
 

@@ -205,7 +205,8 @@ def time_ours(args, kind, n, threads, policy, steps):
     out = ours(args, "run", "--kind", kind, "--n", str(n), "--dir", args.dir, "--threads",
                str(threads), "--interval", str(policy), "--steps", str(steps))
     f = out.split()
-    return float(f[f.index("rate") + 1]), int(f[f.index("rebuilds") + 1])
+    return (float(f[f.index("rate") + 1]), int(f[f.index("rebuilds") + 1]),
+            float(f[f.index("cpu_share") + 1]))
 
 
 def time_lammps(args, stem, box, n, ranks, policy, steps):
@@ -215,7 +216,9 @@ def time_lammps(args, stem, box, n, ranks, policy, steps):
     seconds, procs, nsteps = loops[-1]
     assert int(procs) == ranks and int(nsteps) == steps
     builds = re.findall(r"Neighbor list builds = (\d+)", log)
-    return n * steps / float(seconds), int(builds[-1]) if builds else -1
+    share = re.findall(r"([0-9.]+)% CPU use with", log)
+    return (n * steps / float(seconds), int(builds[-1]) if builds else -1,
+            float(share[-1]) / 100 if share else float("nan"))
 
 
 def timing(args, scenes):
@@ -225,26 +228,33 @@ def timing(args, scenes):
         steps = steps_for(args, n)
         for policy in (0, 5):
             for threads in args.threads:
-                r_ours, r_lmp, ratios, reb_o, reb_l = [], [], [], 0, 0
+                r_ours, r_lmp, ratios, reb_o, reb_l, sh_o, sh_l = [], [], [], 0, 0, [], []
                 for _ in range(args.repeats):
-                    a, reb_o = time_ours(args, kind, n, threads, policy, steps)
-                    b, reb_l = time_lammps(args, stem, box, n, threads, policy, steps)
+                    a, reb_o, s_o = time_ours(args, kind, n, threads, policy, steps)
+                    b, reb_l, s_l = time_lammps(args, stem, box, n, threads, policy, steps)
                     r_ours.append(a)
                     r_lmp.append(b)
                     ratios.append(a / b)
+                    sh_o.append(s_o)
+                    sh_l.append(s_l)
                 row = {"scene": f"{label(n)} {'gas' if kind == 'gas' else 'settled bed'}",
                        "n": n, "policy": "when needed" if policy == 0 else "every 5",
                        "threads": threads, "steps": steps,
                        "ours": statistics.median(r_ours), "lammps": statistics.median(r_lmp),
                        "ratio": statistics.median(ratios), "ours_all": r_ours,
-                       "lammps_all": r_lmp, "rebuilds_ours": reb_o, "rebuilds_lammps": reb_l}
+                       "lammps_all": r_lmp, "rebuilds_ours": reb_o, "rebuilds_lammps": reb_l,
+                       "cpu_share_ours": statistics.median(sh_o),
+                       "cpu_share_lammps": statistics.median(sh_l),
+                       "cpu_share_ours_all": sh_o, "cpu_share_lammps_all": sh_l}
                 row["ns_ours"] = 1e9 * threads / row["ours"]
                 row["ns_lammps"] = 1e9 * threads / row["lammps"]
                 rows.append(row)
                 print(f"  {row['scene']:>16}  {row['policy']:>11}  {threads}/{threads}: ours "
                       f"{row['ours']:.3g}, LAMMPS {row['lammps']:.3g} particle-steps/s, "
                       f"ratio {row['ratio']:.2f}  (ratios {', '.join(f'{r:.2f}' for r in ratios)};"
-                      f" broad phases {reb_o} vs neighbour builds {reb_l} in {steps} steps)",
+                      f" broad phases {reb_o} vs neighbour builds {reb_l} in {steps} steps;"
+                      f" CPU share {', '.join(f'{x:.2f}' for x in sh_o)} vs"
+                      f" {', '.join(f'{x:.2f}' for x in sh_l)})",
                       flush=True)
     return rows
 
@@ -252,13 +262,14 @@ def timing(args, scenes):
 def table(rows):
     out = ["| scene | rebuild | threads vs ranks | ours [particle-steps/s] | LAMMPS "
            "[particle-steps/s] | ours/LAMMPS | ours [core-ns per particle-step] | LAMMPS "
-           "[core-ns] | rebuilds in the timed steps (ours / LAMMPS) |",
-           "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"]
+           "[core-ns] | rebuilds in the timed steps (ours / LAMMPS) | CPU share (ours / LAMMPS) |",
+           "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"]
     for r in rows:
         out.append(f"| {r['scene']} | {r['policy']} | {r['threads']} vs {r['threads']} | "
                    f"{r['ours']:.3g} | {r['lammps']:.3g} | **{r['ratio']:.2f}** | "
                    f"{r['ns_ours']:.0f} | {r['ns_lammps']:.0f} | "
-                   f"{r['rebuilds_ours']} / {r['rebuilds_lammps']} of {r['steps']} steps |")
+                   f"{r['rebuilds_ours']} / {r['rebuilds_lammps']} of {r['steps']} steps | "
+                   f"{r['cpu_share_ours']:.2f} / {r['cpu_share_lammps']:.2f} |")
     return "\n".join(out)
 
 
