@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "cosim/stopwatch.hpp"
+#include "../common/tiled_bed.hpp"
 #include "dem/bed.hpp"
 #include "dem/checkpoint.hpp"
 #include "dem/config.hpp"
@@ -28,16 +29,8 @@ namespace {
 
 constexpr double kR = 0.005;
 
-constexpr long kTile = 10000;  // larger beds are tiles of the settled 10k bed
-
-// Footprint of one 10k tile (about 40 layers high once filled) and the tiling of n particles.
-double tile_side() { return std::sqrt(static_cast<double>(kTile) / 40.0) * 2 * kR * 1.15 + 2 * kR; }
-std::pair<long, long> tiling(long n) {
-  const long k = std::max(1L, n / kTile);
-  long nx = static_cast<long>(std::sqrt(static_cast<double>(k)));
-  while (k % nx) --nx;
-  return {nx, k / nx};
-}
+using bench::kTile;  // larger beds are tiles of the settled 10k bed (bench/common/tiled_bed.hpp)
+double tile_side() { return bench::tile_side(kR); }
 
 dem::Scene bench_scene(long n, int threads, int interval) {
   dem::Scene s;
@@ -60,7 +53,7 @@ dem::Scene bench_scene(long n, int threads, int interval) {
   s.threads = threads;
   s.broad_phase_interval = interval;
   s.stability.min_steps_per_contact = 15;
-  const auto [tx, ty] = tiling(n);
+  const auto [tx, ty] = bench::tiling(n);
   const double sx = tx * tile_side(), sy = ty * tile_side();
   s.walls = {{"floor", {0, 0, 0}, {0, 0, 1}},
              {"x0", {0, 0, 0}, {1, 0, 0}},
@@ -80,16 +73,8 @@ dem::State settled_bed(long n, const std::string& cache) {
   dem::State st;
   double max_time = 0.4;
   if (n > kTile && n % kTile == 0) {
-    // Settling 150k from scratch takes most of an hour on 2 cores: place copies of the settled
-    // 10k bed side by side (their walls coincide, so nothing overlaps) and let the seams relax.
-    const dem::State tile = settled_bed(kTile, cache);
-    const auto [tx, ty] = tiling(n);
-    std::int64_t id = 0;
-    for (long a = 0; a < tx; ++a)
-      for (long b = 0; b < ty; ++b)
-        for (std::size_t i = 0; i < tile.size(); ++i)
-          dem::add_particle(st, tile.x[i] + dem::Vec3{a * tile_side(), b * tile_side(), 0}, {},
-                            tile.radius[i], tile.mass[i], 0, id++);
+    // Copies of the settled 10k bed side by side; the seams relax below.
+    st = bench::tiled_bed(settled_bed(kTile, cache), n, kR);
     max_time = 0.05;
   } else {
     dem::FillRegion r;

@@ -31,6 +31,7 @@
 #include <string>
 #include <vector>
 
+#include "../common/tiled_bed.hpp"
 #include "dem/bed.hpp"
 #include "dem/checkpoint.hpp"
 #include "dem/engine.hpp"
@@ -45,7 +46,7 @@ constexpr double kRestitution = 0.3;  // between two spheres
 constexpr double kFriction = 0.5;
 constexpr double kDt = 1e-5;        // s
 constexpr double kSkin = 0.5;       // of r
-constexpr long kTile = 10000;       // beds above 10k are tiles of the settled 10k bed
+using bench::kTile;  // beds above 10k are tiles of the settled 10k bed (bench/common/tiled_bed.hpp)
 constexpr double kGasFraction = 0.1;  // solid volume fraction of the gas
 constexpr double kGasSpeed = 1.0;     // m/s, standard deviation of each velocity component
 
@@ -135,14 +136,7 @@ dem::Scene make_scene(const Box& b, int threads, int interval, bool friction = t
   return s;
 }
 
-// Footprint of one 10k tile (about 40 layers high once settled) and the tiling of n particles.
-double tile_side() { return std::sqrt(kTile / 40.0) * 2 * kR * 1.15 + 2 * kR; }
-std::pair<long, long> tiling(long n) {
-  const long k = n / kTile;
-  long nx = static_cast<long>(std::sqrt(static_cast<double>(k)));
-  while (k % nx) --nx;
-  return {nx, k / nx};
-}
+double tile_side() { return bench::tile_side(kR); }
 
 // A copy with particles only (no lists, no contact history), in id order.
 dem::State fresh(const dem::State& st) {
@@ -259,7 +253,7 @@ void prepare(const std::string& kind, long n, const std::string& dir) {
     st = make_gas(b);
   } else if (kind == "bed") {
     if (n % kTile) throw std::runtime_error("bed sizes are multiples of 10000");
-    const auto [tx, ty] = tiling(n);
+    const auto [tx, ty] = bench::tiling(n);
     b.sx = tx * tile_side();
     b.sy = ty * tile_side();
     b.sz = 0;
@@ -274,16 +268,9 @@ void prepare(const std::string& kind, long n, const std::string& dir) {
       dem::fill_region(scene, r, st);
       settle(b, st, 0.4);
     } else {
-      // Settling 150k from scratch takes most of an hour on 2 cores: copies of the settled 10k
-      // bed side by side (their walls coincide, so nothing overlaps), seams relaxed briefly.
+      // Copies of the settled 10k bed side by side; the seams relax briefly.
       prepare(kind, kTile, dir);
-      const dem::State tile = load(dir, kind, kTile);
-      std::int64_t id = 0;
-      for (long a = 0; a < tx; ++a)
-        for (long c = 0; c < ty; ++c)
-          for (std::size_t i = 0; i < tile.size(); ++i)
-            dem::add_particle(st, tile.x[i] + dem::Vec3{a * tile_side(), c * tile_side(), 0}, {},
-                              tile.radius[i], tile.mass[i], 0, id++);
+      st = bench::tiled_bed(load(dir, kind, kTile), n, kR);
       settle(b, st, 0.01);
     }
     double zmax = 0;
