@@ -299,6 +299,8 @@ int run(const std::string& kind, long n, const std::string& dir, int threads, in
   dem::Engine engine(scene);
   for (int k = 0; k < 20; ++k) engine.step(st);  // warm-up, like LAMMPS `run 20` before
   const auto rebuilds0 = st.rebuilds;
+  engine.timing().reset();
+  engine.broad_phase_stages().reset();
   const double cpu0 = cpu_seconds();
   const auto t0 = std::chrono::steady_clock::now();
   for (int k = 0; k < steps; ++k) engine.step(st);
@@ -310,6 +312,16 @@ int run(const std::string& kind, long n, const std::string& dir, int threads, in
   std::printf("rate %.6g seconds %.6g rebuilds %lld threads %d cpu_share %.3f\n",
               static_cast<double>(st.size()) * steps / wall, wall,
               static_cast<long long>(st.rebuilds - rebuilds0), engine.threads(), share);
+  // Where the time went (stderr: the driver reads only the line above), ns per particle-step.
+  const double per = 1e9 / (static_cast<double>(st.size()) * steps);
+  std::fprintf(stderr, "  candidates %.2f, touching %.2f particle pairs and %.3f boundary contacts per particle\n",
+               static_cast<double>(st.pair_j.size()) / st.size(),
+               static_cast<double>(engine.contact_stats().particle_contacts) / st.size(),
+               static_cast<double>(engine.contact_stats().boundary_contacts) / st.size());
+  for (const auto* t : {&engine.timing(), &engine.broad_phase_stages()})
+    for (std::size_t k = 0; k < t->size(); ++k)
+      std::fprintf(stderr, "  %-16s %8.1f ns per particle-step\n", t->name(k).c_str(),
+                   t->seconds(k) * per);
   return 0;
 }
 

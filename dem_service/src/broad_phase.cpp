@@ -4,39 +4,55 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
-
+#include <type_traits>
 
 #include "dem/mesh_contact.hpp"
 
 namespace dem {
 
 template <class T>
-void BroadPhase::permute(std::vector<T>& a, std::vector<T>& scratch, std::size_t width) {
-  const std::size_t n = order_.size();
-  scratch.resize(a.size());
-#pragma omp parallel for schedule(static) num_threads(threads_)
-  for (std::size_t p = 0; p < n; ++p) {
-    const std::size_t o = static_cast<std::size_t>(order_[p]);
-    for (std::size_t k = 0; k < width; ++k) scratch[p * width + k] = a[o * width + k];
+void BroadPhase::permute(std::vector<T>& a, std::size_t p0, std::size_t p1) {
+  static_assert(std::is_trivially_copyable_v<T>, "State arrays are flat arrays of plain values");
+  const std::size_t w = p1 - p0;
+  // One byte buffer for every type: it grows to the largest window once, then stays.
+  if (scratch_.size() < w * sizeof(T)) scratch_.resize(w * sizeof(T));
+  T* const out = reinterpret_cast<T*>(scratch_.data());  // operator new's alignment suffices
+  T* const arr = a.data();
+  const std::int32_t* const order = order_.data();
+#pragma omp parallel num_threads(threads_)
+  {
+#pragma omp for schedule(static)
+    for (std::size_t p = p0; p < p1; ++p) out[p - p0] = arr[order[p]];
+#pragma omp for schedule(static)
+    for (std::size_t p = p0; p < p1; ++p) arr[p] = out[p - p0];
   }
-  a.swap(scratch);
 }
 
 void BroadPhase::build(const Scene& scene, State& s,
                        const std::vector<std::vector<Vec3>>& tool_vertices, int threads) {
   const std::size_t n = s.size();
-  threads_ = std::max(1, threads);
+  const int T = std::max(1, threads);
+  threads_ = T;
   const double skin = scene.skin_distance();
   const double rmax = scene.r_max();
+  cosim::Stopwatch watch;
 
-  // Grid over the particles' bounding box; cells at least one candidate distance wide, so
-  // the 27 surrounding cells hold every candidate.
-  Vec3 lo{1e300, 1e300, 1e300}, hi{-1e300, -1e300, -1e300};
-  for (const Vec3& p : s.x) {
-    lo = {std::min(lo.x, p.x), std::min(lo.y, p.y), std::min(lo.z, p.z)};
-    hi = {std::max(hi.x, p.x), std::max(hi.y, p.y), std::max(hi.z, p.z)};
+  // --- grid: bounding box of the particles (min and max are exact, so any thread count
+  // gives the same box); cells at least one candidate distance wide, so the 27 surrounding
+  // cells hold every candidate.
+  double lx = 1e300, ly = 1e300, lz = 1e300, hx = -1e300, hy = -1e300, hz = -1e300;
+  {
+    const Vec3* const X = s.x.data();
+#pragma omp parallel for schedule(static) num_threads(T) \
+    reduction(min : lx, ly, lz) reduction(max : hx, hy, hz)
+    for (std::size_t i = 0; i < n; ++i) {
+      lx = std::min(lx, X[i].x), ly = std::min(ly, X[i].y), lz = std::min(lz, X[i].z);
+      hx = std::max(hx, X[i].x), hy = std::max(hy, X[i].y), hz = std::max(hz, X[i].z);
+    }
   }
+  Vec3 lo{lx, ly, lz}, hi{hx, hy, hz};
   if (n == 0) lo = hi = Vec3{};
   double h = 2 * rmax + skin;
   long nx, ny, nz;
@@ -55,123 +71,137 @@ void BroadPhase::build(const Scene& scene, State& s,
     long c = static_cast<long>((v - l) * inv_h);
     return std::clamp(c, 0L, nmax - 1);
   };
+  stages_.lap(stage::grid, watch);
 
-  // Stable counting sort of particles by cell.
+  // --- sort: stable counting sort of particles by cell (cells numbered x fastest).
   cell_of_.resize(n);
-  cell_start_.assign(static_cast<std::size_t>(ncells) + 1, 0);
+#pragma omp parallel for schedule(static) num_threads(T)
   for (std::size_t i = 0; i < n; ++i) {
     const Vec3 p = s.x[i];
-    const long c = (cell_coord(p.z, lo.z, nz) * ny + cell_coord(p.y, lo.y, ny)) * nx +
-                   cell_coord(p.x, lo.x, nx);
-    cell_of_[i] = static_cast<std::int32_t>(c);
-    ++cell_start_[c + 1];
+    cell_of_[i] = static_cast<std::int32_t>(
+        (cell_coord(p.z, lo.z, nz) * ny + cell_coord(p.y, lo.y, ny)) * nx +
+        cell_coord(p.x, lo.x, nx));
   }
+  cell_start_.assign(static_cast<std::size_t>(ncells) + 1, 0);
+  for (std::size_t i = 0; i < n; ++i) ++cell_start_[cell_of_[i] + 1];
   for (long c = 0; c < ncells; ++c) cell_start_[c + 1] += cell_start_[c];
   order_.resize(n);
-  {
-    std::vector<std::int32_t>& fill = scratch_i32_;
-    fill.assign(cell_start_.begin(), cell_start_.end() - 1);
-    for (std::size_t i = 0; i < n; ++i) order_[fill[cell_of_[i]]++] = static_cast<std::int32_t>(i);
-  }
+  fill_.assign(cell_start_.begin(), cell_start_.end() - 1);
+  for (std::size_t i = 0; i < n; ++i) order_[fill_[cell_of_[i]]++] = static_cast<std::int32_t>(i);
+  // The window of positions whose particle changed: in a bed at rest between two broad
+  // phases few particles cross a cell face, and often none does.
+  std::size_t p0 = 0, p1 = n;
+  while (p0 < n && order_[p0] == static_cast<std::int32_t>(p0)) ++p0;
+  while (p1 > p0 && order_[p1 - 1] == static_cast<std::int32_t>(p1 - 1)) --p1;
+  stages_.lap(stage::sort, watch);
 
-  // Keep the old list (old particle indices) to carry tangential history over.
+  // --- permute: every per-particle array (State's field list) into the new order, only in
+  // the window. The old pair list keeps its old indices, to carry the history over.
   const bool had_list = s.lists_valid && s.pair_offset.size() == n + 1;
   old_offset_.swap(s.pair_offset);
   old_j_.swap(s.pair_j);
   old_spring_.swap(s.pair_spring);
-
-  permute(s.x, scratch_vec_, 1);
-  permute(s.v, scratch_vec_, 1);
-  permute(s.u, scratch_vec_, 1);
-  permute(s.radius, scratch_d_, 1);
-  permute(s.mass, scratch_d_, 1);
-  permute(s.species, scratch_i32_, 1);
-  permute(s.id, scratch_i64_, 1);
   s.slot_count.resize(n, 0);
-  s.slot_key.resize(n * kBoundarySlots, 0);
-  s.slot_spring.resize(n * kBoundarySlots);
-  permute(s.slot_count, scratch_u8_, 1);
-  permute(s.slot_key, scratch_key_, kBoundarySlots);
-  permute(s.slot_spring, scratch_vec_, kBoundarySlots);
-  // cell_of_ in the new order, for the neighbour stencil.
-  for (std::size_t p = 0; p < n; ++p) scratch_i32_[p] = cell_of_[order_[p]];
-  scratch_i32_.resize(n);
-  cell_of_.swap(scratch_i32_);
+  s.slot_block.resize(n, -1);
+  last_permuted_ = p1 - p0;
+  if (p1 > p0) {
+    for_each_array(s, [&](const char*, auto& a, Field field) {
+      if (field != Field::derived) permute(a, p0, p1);
+    });
+    permute(cell_of_, p0, p1);  // cell_of_ in the new order, for the stencil
+  }
+  stages_.lap(stage::permute, watch);
 
-  // Half list (j > i), built per thread over contiguous ranges and joined in thread order.
-  const int T = std::max(1, threads);
+  // --- pair list: half list (j > i), built per thread over contiguous ranges; each thread
+  // writes its rows into the shared list at its offset, so the list is the same for any
+  // thread count.
   thread_j_.resize(T);
   thread_used_.assign(T, 0);
-  s.pair_offset.assign(n + 1, 0);
+  thread_base_.assign(T + 1, 0);
+  s.pair_offset.resize(n + 1);
+  s.pair_offset[0] = 0;
 #pragma omp parallel num_threads(T)
   {
     const int t = omp_get_thread_num();
     const std::size_t a0 = n * t / T, a1 = n * (t + 1) / T;
-    // Work on local vectors: the vector headers of neighbouring threads share a cache line,
-    // and push_back on them directly would bounce it between cores.
+    // Work on a local vector: the vector headers of neighbouring threads share a cache line.
     // J is used as a raw buffer: its first `used` entries are this thread's list.
     std::vector<std::int32_t> J;
     J.swap(thread_j_[t]);
     std::size_t used = 0;
     const Vec3* const X = s.x.data();
     const double* const R = s.radius.data();
+    const std::int32_t* const start = cell_start_.data();
+    std::int32_t* const offset = s.pair_offset.data();
+    // The cells after a particle's own in the numbering, within one cell: its own row (from
+    // the particle itself on) and four more rows of three cells (x-1..x+1 are one contiguous
+    // index range). The earlier rows list their pairs with this one themselves.
+    long cell = -1;
+    std::int32_t row_begin[5], row_end[5];
+    int rows = 0;
     for (std::size_t a = a0; a < a1; ++a) {
-      const long c = cell_of_[a];
-      const long cx = c % nx, cy = (c / nx) % ny, cz = c / (nx * ny);
-      const Vec3 xa = s.x[a];
-      const double ra = s.radius[a];
-      std::int32_t count = 0;
-      // Cells are numbered x fastest, so the three cells x-1..x+1 of a row are one
-      // contiguous index range: 9 ranges instead of 27 cells.
-      const long x0 = std::max(cx - 1, 0L), x1 = std::min(cx + 1, nx - 1);
-      for (long dz = -1; dz <= 1; ++dz) {
-        const long z = cz + dz;
-        if (z < 0 || z >= nz) continue;
-        for (long dy = -1; dy <= 1; ++dy) {
-          const long y = cy + dy;
-          if (y < 0 || y >= ny) continue;
+      if (cell_of_[a] != cell) {  // the rows are the same for every particle of a cell
+        cell = cell_of_[a];
+        const long cx = cell % nx, cy = (cell / nx) % ny, cz = cell / (nx * ny);
+        const long x0 = std::max(cx - 1, 0L), x1 = std::min(cx + 1, nx - 1);
+        rows = 0;
+        const long dzdy[5][2] = {{0, 0}, {0, 1}, {1, -1}, {1, 0}, {1, 1}};
+        for (const auto& d : dzdy) {
+          const long z = cz + d[0], y = cy + d[1];
+          if (z >= nz || y < 0 || y >= ny) continue;
           const long row = (z * ny + y) * nx;
-          const std::int32_t b0 = std::max<std::int32_t>(cell_start_[row + x0], a + 1);
-          const std::int32_t b1 = cell_start_[row + x1 + 1];
-          if (b1 <= b0) continue;
-          // Branch-free append: write every candidate, advance only on a hit (a hit is
-          // rare enough that a branch would mispredict often).
-          const std::size_t need = used + static_cast<std::size_t>(b1 - b0);
-          if (need > J.size()) J.resize(std::max(need, 2 * J.size()));  // rare: grows once
-          std::int32_t* out = J.data() + used;
-          std::int32_t hits = 0;
-          for (std::int32_t b = b0; b < b1; ++b) {
-            const double cut = ra + R[b] + skin;
-            const Vec3 d = xa - X[b];
-            out[hits] = b;
-            hits += norm2(d) < cut * cut;
-          }
-          used += static_cast<std::size_t>(hits);
-          count += hits;
+          row_begin[rows] = start[row + x0];
+          row_end[rows] = start[row + x1 + 1];
+          if (row_end[rows] > row_begin[rows]) ++rows;
         }
       }
-      s.pair_offset[a + 1] = count;
+      const Vec3 xa = X[a];
+      const double ra = R[a];
+      std::int32_t count = 0;
+      for (int r = 0; r < rows; ++r) {
+        const std::int32_t b0 = std::max<std::int32_t>(row_begin[r], static_cast<std::int32_t>(a) + 1);
+        const std::int32_t b1 = row_end[r];
+        if (b1 <= b0) continue;
+        // Branch-free append: write every candidate, advance only on a hit (a hit is rare
+        // enough that a branch would mispredict often).
+        const std::size_t need = used + static_cast<std::size_t>(b1 - b0);
+        if (need > J.size()) J.resize(std::max(need, 2 * J.size()));  // rare: grows once
+        std::int32_t* out = J.data() + used;
+        std::int32_t hits = 0;
+        for (std::int32_t b = b0; b < b1; ++b) {
+          const double cut = ra + R[b] + skin;
+          const Vec3 d = xa - X[b];
+          out[hits] = b;
+          hits += norm2(d) < cut * cut;
+        }
+        used += static_cast<std::size_t>(hits);
+        count += hits;
+      }
+      offset[a + 1] = count;
     }
     thread_used_[t] = used;
+#pragma omp barrier
+#pragma omp single
+    {
+      for (int k = 0; k < T; ++k) thread_base_[k + 1] = thread_base_[k] + thread_used_[k];
+      s.pair_j.resize(thread_base_[T]);
+      s.pair_spring.resize(thread_base_[T]);
+    }
+    std::int32_t run = static_cast<std::int32_t>(thread_base_[t]);
+    for (std::size_t a = a0; a < a1; ++a) offset[a + 1] = run += offset[a + 1];
+    std::copy(J.begin(), J.begin() + used, s.pair_j.begin() + thread_base_[t]);
+    std::fill(s.pair_spring.begin() + thread_base_[t],
+              s.pair_spring.begin() + thread_base_[t] + used, Vec3{});
     J.swap(thread_j_[t]);
   }
-  for (std::size_t a = 0; a < n; ++a) s.pair_offset[a + 1] += s.pair_offset[a];
-  s.pair_j.resize(s.pair_offset[n]);
-  s.pair_spring.assign(s.pair_offset[n], Vec3{});  // filled from the old list below
-  {
-    std::size_t pos = 0;
-    for (int t = 0; t < T; ++t) {
-      std::copy(thread_j_[t].begin(), thread_j_[t].begin() + thread_used_[t],
-                s.pair_j.begin() + pos);
-      pos += thread_used_[t];
-    }
-  }
+  stages_.lap(stage::pair_list, watch);
 
-  // Carry the tangential springs of pairs in contact over to the new list. Only non-zero
-  // springs are looked up: most candidates are not touching. Each old pair maps to at most
-  // one new entry, so the parallel writes never collide.
+  // --- history: carry the tangential springs of pairs in contact over to the new list. Only
+  // non-zero springs are looked up: most candidates are not touching. Each old pair maps to
+  // at most one new entry, so the parallel writes never collide.
   if (had_list) {
     new_index_.resize(n);
+#pragma omp parallel for schedule(static) num_threads(T)
     for (std::size_t p = 0; p < n; ++p) new_index_[order_[p]] = static_cast<std::int32_t>(p);
 #pragma omp parallel for schedule(static) num_threads(T)
     for (std::size_t oa = 0; oa < n; ++oa) {
@@ -189,10 +219,11 @@ void BroadPhase::build(const Scene& scene, State& s,
       }
     }
   }
+  stages_.lap(stage::history, watch);
 
-  // Particle-triangle candidates: each triangle visits the cells its box (grown by the
-  // largest radius and the skin) overlaps. Threads take contiguous triangle ranges and their
-  // lists are joined in thread order: the same list as one thread makes.
+  // --- mesh candidates: each triangle visits the cells its box (grown by the largest radius
+  // and the skin) overlaps. Threads take contiguous triangle ranges and their lists are joined
+  // in thread order: the same list as one thread makes.
   tri_candidates_.clear();
   const double margin = rmax + skin;
   thread_tri_.resize(T);
@@ -222,15 +253,14 @@ void BroadPhase::build(const Scene& scene, State& s,
         const long y0 = cell_coord(bmin.y, lo.y, ny), y1 = cell_coord(bmax.y, lo.y, ny);
         const long z0 = cell_coord(bmin.z, lo.z, nz), z1 = cell_coord(bmax.z, lo.z, nz);
         for (long z = z0; z <= z1; ++z)
-          for (long y = y0; y <= y1; ++y)
-            for (long x = x0; x <= x1; ++x) {
-              const long cc = (z * ny + y) * nx + x;
-              for (std::int32_t p = cell_start_[cc]; p < cell_start_[cc + 1]; ++p) {
-                const double cut = s.radius[p] + skin;
-                if (closest_on_triangle(mesh, wv, t, s.x[p]).dist2 < cut * cut)
-                  out.push_back({p, static_cast<std::int32_t>(m), t});
-              }
+          for (long y = y0; y <= y1; ++y) {
+            const long row = (z * ny + y) * nx;
+            for (std::int32_t p = cell_start_[row + x0]; p < cell_start_[row + x1 + 1]; ++p) {
+              const double cut = s.radius[p] + skin;
+              if (closest_on_triangle(mesh, wv, t, s.x[p]).dist2 < cut * cut)
+                out.push_back({p, static_cast<std::int32_t>(m), t});
             }
+          }
       }
     }
     for (int th = 0; th < TT; ++th)
@@ -247,30 +277,79 @@ void BroadPhase::build(const Scene& scene, State& s,
     s.tri_tool[k] = c.tool;
     s.tri_index[k] = c.tri;
   }
+  stages_.lap(stage::mesh_candidates, watch);
 
-  // Wall candidates: most particles are far from every wall and skip the wall loop.
-  s.wall_mask.resize(n);
-  const std::size_t nw = scene.walls.size();
-#pragma omp parallel for schedule(static) num_threads(threads_)
-  for (std::size_t i = 0; i < n; ++i) {
-    std::uint32_t mask = 0;
-    if (nw > 32) {
-      mask = ~0u;
-    } else {
-      for (std::size_t w = 0; w < nw; ++w)
-        if (dot(s.x[i] - scene.walls[w].point, scene.walls[w].normal) < s.radius[i] + skin)
-          mask |= 1u << w;
-    }
-    s.wall_mask[i] = mask;
-  }
-  s.x_at_rebuild.resize(n);
-#pragma omp parallel for schedule(static) num_threads(threads_)
-  for (std::size_t i = 0; i < n; ++i) s.x_at_rebuild[i] = s.x[i];
+  // --- wall masks, reference positions for the guard, boundary history slots.
+  boundary_slots(scene, s, skin);
   s.tool_pose_at_rebuild = s.tool_pose;
+  stages_.lap(stage::wall_masks, watch);
   s.max_displacement = 0;
   s.steps_since_rebuild = 0;
   s.lists_valid = true;
   ++s.rebuilds;
+}
+
+// Walls within r + skin of each particle (one bit per wall; all bits if > 32 walls), the
+// positions the guard measures displacements from, and the boundary slot pool: a block for
+// every particle that has a wall or triangle candidate or still remembers a contact, in
+// particle order (the same pool for any thread count), copied from its old block or zeroed.
+void BroadPhase::boundary_slots(const Scene& scene, State& s, double skin) {
+  const std::size_t n = s.size();
+  const int T = threads_;
+  const std::size_t nw = scene.walls.size();
+  s.wall_mask.resize(n);
+  s.x_at_rebuild.resize(n);
+  thread_used_.assign(T, 0);
+  thread_base_.assign(T + 1, 0);
+  constexpr std::size_t B = kBoundarySlots;
+#pragma omp parallel num_threads(T)
+  {
+    const int t = omp_get_thread_num();
+    const std::size_t a0 = n * t / T, a1 = n * (t + 1) / T;
+    std::size_t blocks = 0;
+    for (std::size_t i = a0; i < a1; ++i) {
+      std::uint32_t mask = 0;
+      if (nw > 32) {
+        mask = ~0u;
+      } else {
+        for (std::size_t w = 0; w < nw; ++w)
+          if (dot(s.x[i] - scene.walls[w].point, scene.walls[w].normal) < s.radius[i] + skin)
+            mask |= 1u << w;
+      }
+      s.wall_mask[i] = mask;
+      s.x_at_rebuild[i] = s.x[i];
+      blocks += mask != 0 || s.tri_offset[i + 1] > s.tri_offset[i] || s.slot_count[i] > 0;
+    }
+    thread_used_[t] = blocks;
+#pragma omp barrier
+#pragma omp single
+    {
+      for (int k = 0; k < T; ++k) thread_base_[k + 1] = thread_base_[k] + thread_used_[k];
+      pool_key_.resize(thread_base_[T] * B);
+      pool_spring_.resize(thread_base_[T] * B);
+    }
+    std::size_t next = thread_base_[t];
+    for (std::size_t i = a0; i < a1; ++i) {
+      const bool need =
+          s.wall_mask[i] != 0 || s.tri_offset[i + 1] > s.tri_offset[i] || s.slot_count[i] > 0;
+      const std::int32_t old = s.slot_block[i];
+      if (!need) {
+        s.slot_block[i] = -1;
+        continue;
+      }
+      const std::size_t k = next++;
+      s.slot_block[i] = static_cast<std::int32_t>(k);
+      if (old >= 0) {
+        std::copy_n(s.slot_key.begin() + old * B, B, pool_key_.begin() + k * B);
+        std::copy_n(s.slot_spring.begin() + old * B, B, pool_spring_.begin() + k * B);
+      } else {
+        std::fill_n(pool_key_.begin() + k * B, B, 0);
+        std::fill_n(pool_spring_.begin() + k * B, B, Vec3{});
+      }
+    }
+  }
+  s.slot_key.swap(pool_key_);
+  s.slot_spring.swap(pool_spring_);
 }
 
 }  // namespace dem

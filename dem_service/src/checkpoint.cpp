@@ -54,7 +54,7 @@ void save_checkpoint(const State& s, const std::string& path) {
                                            s.rebuilds, s.early_rebuilds};
   h5::write(file, "counters", counters);
   h5::write(file, "max_displacement", std::vector<double>{s.max_displacement});
-  for_each_array(s, [&](const char* name, const auto& array, bool) {
+  for_each_array(s, [&](const char* name, const auto& array, Field) {
     write_array(file, name, array);
   });
 }
@@ -77,9 +77,11 @@ State load_checkpoint(const std::string& path) {
     s.rebuilds = counters[3];
     s.early_rebuilds = counters[4];
     s.max_displacement = h5::read<double>(file, "max_displacement").at(0);
-    for_each_array(s, [&](const char* name, auto& array, bool) {
-      // Older checkpoints lack wall masks: the first step then rebuilds the lists.
-      if (std::string_view(name) == "wall_mask" && H5Lexists(file, name, H5P_DEFAULT) <= 0) {
+    for_each_array(s, [&](const char* name, auto& array, Field) {
+      // Older checkpoints lack wall masks or slot blocks (they had a block per particle):
+      // the first step then rebuilds the lists.
+      const std::string_view key(name);
+      if ((key == "wall_mask" || key == "slot_block") && H5Lexists(file, name, H5P_DEFAULT) <= 0) {
         s.lists_valid = false;
         return;
       }
@@ -90,8 +92,15 @@ State load_checkpoint(const std::string& path) {
                              "): it was not written by this dem_run version; settle the bed again");
   }
   const std::size_t n = s.x.size();
-  for_each_array(s, [&](const char* name, const auto& array, bool per_particle) {
-    if (per_particle && array.size() != n)
+  // A checkpoint of the older layout (a slot block per particle, no slot_block): block i was
+  // particle i's, so the boundary history survives the rebuild that follows.
+  if (s.slot_block.empty() && s.slot_key.size() == n * kBoundarySlots && s.slot_count.size() == n) {
+    s.slot_block.resize(n);
+    for (std::size_t i = 0; i < n; ++i) s.slot_block[i] = static_cast<std::int32_t>(i);
+  }
+  for_each_array(s, [&](const char* name, const auto& array, Field field) {
+    const bool sized = field == Field::particle || (field == Field::sorted && !array.empty());
+    if (sized && array.size() != n)
       throw std::runtime_error("checkpoint '" + path + "': per-particle array '" + name +
                                "' has " + std::to_string(array.size()) + " entries for " +
                                std::to_string(n) + " particles; settle the bed again");

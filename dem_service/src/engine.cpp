@@ -170,7 +170,7 @@ void Engine::prepare(State& s) {
   timing_.lap(section::mesh_contacts, watch);
 
   const bool due = !s.lists_valid || s.steps_since_rebuild >= scene_.broad_phase_interval ||
-                   s.pair_offset.size() != s.size() + 1;
+                   s.pair_offset.size() != s.size() + 1 || s.slot_block.size() != s.size();
   double moved = 0;
   if (due) {
     broad_.build(scene_, s, tool_vertices_, threads_);
@@ -329,12 +329,15 @@ void Engine::boundary_forces(State& s) {
       }
       const int nold = s.slot_count[i];
       if (nc == 0 && nold == 0) continue;
+      // The broad phase gave every particle with a wall or triangle candidate or a remembered
+      // contact a block (State::slot_block): one without cannot get here.
+      const std::size_t base = static_cast<std::size_t>(s.slot_block[i]) * kBoundarySlots;
       std::uint64_t old_key[kBoundarySlots];
       Vec3 old_spring[kBoundarySlots], spring[kBoundarySlots];
       bool used[kBoundarySlots] = {}, matched[kBoundarySlots] = {};
       for (int o = 0; o < nold; ++o) {
-        old_key[o] = s.slot_key[i * kBoundarySlots + o];
-        old_spring[o] = s.slot_spring[i * kBoundarySlots + o];
+        old_key[o] = s.slot_key[base + o];
+        old_spring[o] = s.slot_spring[base + o];
       }
       for (int c = 0; c < nc; ++c)
         for (int o = 0; o < nold; ++o)
@@ -375,8 +378,8 @@ void Engine::boundary_forces(State& s) {
           tw[body].force -= f;
           tw[body].torque -= cross(cs[c].point - s.tool_pose[body].position, f);
         }
-        s.slot_key[i * kBoundarySlots + active] = cs[c].key;
-        s.slot_spring[i * kBoundarySlots + active] = spring[c];
+        s.slot_key[base + active] = cs[c].key;
+        s.slot_spring[base + active] = spring[c];
         ++active;
       }
       s.slot_count[i] = static_cast<std::uint8_t>(active);

@@ -1,15 +1,30 @@
 // Broad phase on a uniform cell grid: sorts particles by cell (cache locality), lists
 // particle pairs and particle-triangle pairs within the skin, and carries the tangential
-// history of pairs that persist from the previous list to the new one.
+// history of pairs that persist from the previous list to the new one. Its named stages are
+// timed (stages()); docs/performance.md says what each costs.
 #pragma once
 
 #include <cstdint>
 #include <vector>
 
+#include "cosim/timer.hpp"
 #include "dem/scene.hpp"
 #include "dem/state.hpp"
 
 namespace dem {
+
+// The stages of BroadPhase::build, in order: the rows of stages().
+namespace stage {
+enum : std::size_t {
+  grid,             // bounding box and cell size
+  sort,             // cell of every particle, stable counting sort
+  permute,          // particle arrays into cell order (only the part whose order changed)
+  pair_list,        // half list of particle pairs within the skin
+  history,          // tangential springs of persisting pairs carried to the new list
+  mesh_candidates,  // particle-triangle pairs, per triangle over the cells its box covers
+  wall_masks,       // walls near each particle, reference positions, boundary history slots
+};
+}  // namespace stage
 
 class BroadPhase {
  public:
@@ -17,19 +32,27 @@ class BroadPhase {
   void build(const Scene& scene, State& s, const std::vector<std::vector<Vec3>>& tool_vertices,
              int threads);
 
+  // Wall-clock seconds per stage of build(), summed over all builds.
+  const cosim::Timer& stages() const { return stages_; }
+  cosim::Timer& stages() { return stages_; }
+
+  // Particles moved by the last build's permutation (0 when the cell order had not changed).
+  std::size_t last_permuted() const { return last_permuted_; }
+
  private:
+  cosim::Timer stages_{{"grid", "sort", "permute", "pair_list", "history", "mesh_candidates",
+                        "wall_masks"}};
+  std::size_t last_permuted_ = 0;
+
   // Workspace kept between builds so the steady state allocates nothing new.
-  std::vector<std::int32_t> cell_of_, cell_start_, order_, new_index_;
-  std::vector<Vec3> scratch_vec_;
-  std::vector<double> scratch_d_;
-  std::vector<std::int32_t> scratch_i32_;
-  std::vector<std::int64_t> scratch_i64_;
-  std::vector<std::uint64_t> scratch_key_;
-  std::vector<std::uint8_t> scratch_u8_;
+  std::vector<std::int32_t> cell_of_, cell_start_, fill_, order_, new_index_;
+  std::vector<unsigned char> scratch_;  // permutation buffer, for arrays of any type
   std::vector<std::vector<std::int32_t>> thread_j_;
-  std::vector<std::size_t> thread_used_;
+  std::vector<std::size_t> thread_used_, thread_base_;
   std::vector<std::int32_t> old_offset_, old_j_;
   std::vector<Vec3> old_spring_;
+  std::vector<std::uint64_t> pool_key_;  // the next boundary slot pool, swapped in
+  std::vector<Vec3> pool_spring_;
   struct TriCandidate {
     std::int32_t particle, tool, tri;
   };
@@ -38,8 +61,10 @@ class BroadPhase {
   std::vector<std::int32_t> tri_count_;
   int threads_ = 1;
 
+  // a[p0..p1) = a[order_[p]] for p in [p0, p1): the window of the order that changed.
   template <class T>
-  void permute(std::vector<T>& a, std::vector<T>& scratch, std::size_t width);
+  void permute(std::vector<T>& a, std::size_t p0, std::size_t p1);
+  void boundary_slots(const Scene& scene, State& s, double skin);
 };
 
 }  // namespace dem

@@ -70,6 +70,9 @@ class Engine {
   Timing& timing() { return timing_; }
   const Timing& timing() const { return timing_; }
   int threads() const { return threads_; }  // threads of the last step
+  // The broad phase's own stages (grid, sort, permute, ...): where section broad_phase goes.
+  const cosim::Timer& broad_phase_stages() const { return broad_.stages(); }
+  cosim::Timer& broad_phase_stages() { return broad_.stages(); }
 
   // For tests and diagnostics: contacts with positive overlap found through the candidate
   // lists at the current positions (particle ids, i < j) and mesh contacts after feature

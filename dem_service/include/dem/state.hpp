@@ -55,39 +55,52 @@ struct State {
   std::vector<std::int32_t> tri_offset, tri_tool, tri_index;
   // Walls within r + skin at the last broad phase, one bit per wall (all bits if > 32 walls).
   std::vector<std::uint32_t> wall_mask;
-  // Boundary contact history: kBoundarySlots per particle.
-  std::vector<std::uint64_t> slot_key;
+  // Boundary contact history. Only particles near a wall or a tool at the last broad phase (or
+  // still touching one) have a block of kBoundarySlots slots, about a tenth of a bed: slot_block
+  // is the block's index in the pool slot_key/slot_spring, or -1. The broad phase hands out
+  // the blocks, so between broad phases a particle without one cannot gain a boundary contact.
+  std::vector<std::uint8_t> slot_count;  // per particle: boundary contacts in its block
+  std::vector<std::int32_t> slot_block;  // per particle
+  std::vector<std::uint64_t> slot_key;   // pool: kBoundarySlots per block
   std::vector<Vec3> slot_spring;
-  std::vector<std::uint8_t> slot_count;
 
   std::size_t size() const { return x.size(); }
 };
 
-// Every array of State, listed once, in checkpoint order: f(name, array, per_particle) for each,
-// where per_particle says the array has one entry per particle. The checkpoint writes and reads
-// State through this list, so a new array added here is saved and restored with the rest.
+// What an array of State holds, for the code that walks them all (for_each_array).
+enum class Field {
+  particle,  // one entry per particle, always: validated on load, moved by the broad phase sort
+  sorted,    // one entry per particle once a broad phase ran (empty before): moved by the sort
+  derived,   // anything else: lists, pools, tool poses; rebuilt or indexed, never permuted
+};
+
+// Every array of State, listed once, in checkpoint order: f(name, array, field) for each. The
+// checkpoint writes, reads and validates State through this list and the broad phase permutes
+// through it, so a new array added here is saved, restored and kept in particle order with the
+// rest.
 template <class S, class F>
 void for_each_array(S& s, F&& f) {
-  f("x", s.x, true);
-  f("v", s.v, true);
-  f("u", s.u, true);
-  f("radius", s.radius, true);
-  f("mass", s.mass, true);
-  f("species", s.species, true);
-  f("id", s.id, true);
-  f("tool_pose", s.tool_pose, false);
-  f("tool_pose_at_rebuild", s.tool_pose_at_rebuild, false);
-  f("x_at_rebuild", s.x_at_rebuild, false);
-  f("pair_offset", s.pair_offset, false);
-  f("pair_j", s.pair_j, false);
-  f("pair_spring", s.pair_spring, false);
-  f("tri_offset", s.tri_offset, false);
-  f("tri_tool", s.tri_tool, false);
-  f("tri_index", s.tri_index, false);
-  f("wall_mask", s.wall_mask, false);
-  f("slot_key", s.slot_key, false);
-  f("slot_spring", s.slot_spring, false);
-  f("slot_count", s.slot_count, false);
+  f("x", s.x, Field::particle);
+  f("v", s.v, Field::particle);
+  f("u", s.u, Field::particle);
+  f("radius", s.radius, Field::particle);
+  f("mass", s.mass, Field::particle);
+  f("species", s.species, Field::particle);
+  f("id", s.id, Field::particle);
+  f("tool_pose", s.tool_pose, Field::derived);
+  f("tool_pose_at_rebuild", s.tool_pose_at_rebuild, Field::derived);
+  f("x_at_rebuild", s.x_at_rebuild, Field::derived);  // rewritten by every broad phase
+  f("pair_offset", s.pair_offset, Field::derived);
+  f("pair_j", s.pair_j, Field::derived);
+  f("pair_spring", s.pair_spring, Field::derived);
+  f("tri_offset", s.tri_offset, Field::derived);
+  f("tri_tool", s.tri_tool, Field::derived);
+  f("tri_index", s.tri_index, Field::derived);
+  f("wall_mask", s.wall_mask, Field::derived);  // rewritten by every broad phase
+  f("slot_key", s.slot_key, Field::derived);
+  f("slot_spring", s.slot_spring, Field::derived);
+  f("slot_count", s.slot_count, Field::sorted);
+  f("slot_block", s.slot_block, Field::sorted);
 }
 
 // Appends one particle; radius and mass must already be validated.
