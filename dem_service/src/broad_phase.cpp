@@ -327,6 +327,7 @@ void BroadPhase::boundary_slots(const Scene& scene, State& s, double skin) {
       for (int k = 0; k < T; ++k) thread_base_[k + 1] = thread_base_[k] + thread_used_[k];
       pool_key_.resize(thread_base_[T] * B);
       pool_spring_.resize(thread_base_[T] * B);
+      s.slot_particle.resize(thread_base_[T]);
     }
     std::size_t next = thread_base_[t];
     for (std::size_t i = a0; i < a1; ++i) {
@@ -339,6 +340,7 @@ void BroadPhase::boundary_slots(const Scene& scene, State& s, double skin) {
       }
       const std::size_t k = next++;
       s.slot_block[i] = static_cast<std::int32_t>(k);
+      s.slot_particle[k] = static_cast<std::int32_t>(i);
       if (old >= 0) {
         std::copy_n(s.slot_key.begin() + old * B, B, pool_key_.begin() + k * B);
         std::copy_n(s.slot_spring.begin() + old * B, B, pool_spring_.begin() + k * B);

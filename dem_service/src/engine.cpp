@@ -170,7 +170,8 @@ void Engine::prepare(State& s) {
   timing_.lap(section::mesh_contacts, watch);
 
   const bool due = !s.lists_valid || s.steps_since_rebuild >= scene_.broad_phase_interval ||
-                   s.pair_offset.size() != s.size() + 1 || s.slot_block.size() != s.size();
+                   s.pair_offset.size() != s.size() + 1 || s.slot_block.size() != s.size() ||
+                   s.slot_particle.size() * kBoundarySlots != s.slot_key.size();
   double moved = 0;
   if (due) {
     broad_.build(scene_, s, tool_vertices_, threads_);
@@ -220,10 +221,31 @@ void Engine::pair_forces(State& s) {
   const ContactLaw law = scene_.particle_particle;  // a local copy: no reloads after stores
   const double dt = scene_.dt;
   const Vec3 g = scene_.gravity;
+  // Threads take contiguous particle ranges of equal work (candidate pairs plus one per
+  // particle), not of equal length: the bottom of a bed has more contacts than its surface.
+  bounds_.resize(T + 1);
+  {
+    const std::int32_t* const off = s.pair_offset.data();
+    const double total = static_cast<double>(off[n]) + static_cast<double>(n);
+    bounds_[0] = 0;
+    bounds_[T] = n;
+    for (int t = 1; t < T; ++t) {
+      const double target = total * t / T;
+      std::size_t lo = bounds_[t - 1], hi = n;  // first i with off[i] + i >= target
+      while (lo < hi) {
+        const std::size_t mid = (lo + hi) / 2;
+        if (static_cast<double>(off[mid]) + static_cast<double>(mid) < target)
+          lo = mid + 1;
+        else
+          hi = mid;
+      }
+      bounds_[t] = lo;
+    }
+  }
 #pragma omp parallel num_threads(T)
   {
     const int t = omp_get_thread_num();
-    const std::size_t a0 = n * t / T, a1 = n * (t + 1) / T;
+    const std::size_t a0 = bounds_[t], a1 = bounds_[t + 1];
     std::int64_t contacts = 0;
     double max_overlap = 0, max_overlap_ratio = 0;
     std::vector<Remote> remote;  // local for the loop (no false sharing), capacity kept
@@ -317,9 +339,13 @@ void Engine::boundary_forces(State& s) {
     TriangleHit hits[kMaxHits];
     std::int64_t my_overflow = -1;
     ContactStats my_stats;
-    const std::size_t a0 = n * t / T, a1 = n * (t + 1) / T;
-    for (std::size_t i = a0; i < a1; ++i) {
-      // Nothing near and nothing remembered: the common case in a bed's interior.
+    // Only particles with a slot block can touch a wall or a tool (the broad phase handed the
+    // blocks out): threads share those equally, wherever they are in the bed.
+    const std::size_t nb = s.slot_particle.size();
+    const std::size_t k0 = nb * t / T, k1 = nb * (t + 1) / T;
+    for (std::size_t k = k0; k < k1; ++k) {
+      const std::size_t i = static_cast<std::size_t>(s.slot_particle[k]);
+      // Nothing near and nothing remembered.
       if (s.wall_mask[i] == 0 && s.tri_offset[i] == s.tri_offset[i + 1] && s.slot_count[i] == 0)
         continue;
       const int nc = gather_boundary(scene_, s, i, tool_vertices_, cs, hits, dt);
@@ -329,9 +355,7 @@ void Engine::boundary_forces(State& s) {
       }
       const int nold = s.slot_count[i];
       if (nc == 0 && nold == 0) continue;
-      // The broad phase gave every particle with a wall or triangle candidate or a remembered
-      // contact a block (State::slot_block): one without cannot get here.
-      const std::size_t base = static_cast<std::size_t>(s.slot_block[i]) * kBoundarySlots;
+      const std::size_t base = k * kBoundarySlots;  // this particle's block
       std::uint64_t old_key[kBoundarySlots];
       Vec3 old_spring[kBoundarySlots], spring[kBoundarySlots];
       bool used[kBoundarySlots] = {}, matched[kBoundarySlots] = {};

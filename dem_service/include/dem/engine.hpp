@@ -106,6 +106,7 @@ class Engine {
     Vec3 f;
   };
   std::vector<std::vector<Remote>> remote_;              // per thread
+  std::vector<std::size_t> bounds_;  // particle ranges of the threads in pair_forces
   std::vector<std::vector<Wrench>> thread_tool_wrench_;  // per thread
   std::vector<std::vector<Vec3>> thread_wall_force_;     // per thread
   std::vector<ContactStats> thread_stats_, boundary_stats_;  // per thread

@@ -63,6 +63,7 @@ struct State {
   std::vector<std::int32_t> slot_block;  // per particle
   std::vector<std::uint64_t> slot_key;   // pool: kBoundarySlots per block
   std::vector<Vec3> slot_spring;
+  std::vector<std::int32_t> slot_particle;  // pool: the particle of each block, ascending
 
   std::size_t size() const { return x.size(); }
 };
@@ -101,6 +102,7 @@ void for_each_array(S& s, F&& f) {
   f("slot_spring", s.slot_spring, Field::derived);
   f("slot_count", s.slot_count, Field::sorted);
   f("slot_block", s.slot_block, Field::sorted);
+  f("slot_particle", s.slot_particle, Field::derived);
 }
 
 // Appends one particle; radius and mass must already be validated.
