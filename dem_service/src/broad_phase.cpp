@@ -120,6 +120,9 @@ void BroadPhase::build(const Scene& scene, State& s,
   thread_base_.assign(T + 1, 0);
   s.pair_offset.resize(n + 1);
   s.pair_offset[0] = 0;
+  s.pair_work.resize(n + 1);
+  s.pair_work[0] = 0;
+  work_base_.assign(T + 1, 0);
 #pragma omp parallel num_threads(T)
   {
     const int t = omp_get_thread_num();
@@ -133,6 +136,7 @@ void BroadPhase::build(const Scene& scene, State& s,
     const double* const R = s.radius.data();
     const std::int32_t* const start = cell_start_.data();
     std::int32_t* const offset = s.pair_offset.data();
+    std::int64_t* const work = s.pair_work.data();
     // The cells after a particle's own in the numbering, within one cell: its own row (from
     // the particle itself on) and four more rows of three cells (x-1..x+1 are one contiguous
     // index range). The earlier rows list their pairs with this one themselves.
@@ -157,7 +161,7 @@ void BroadPhase::build(const Scene& scene, State& s,
       }
       const Vec3 xa = X[a];
       const double ra = R[a];
-      std::int32_t count = 0;
+      std::int32_t count = 0, touching = 0;
       for (int r = 0; r < rows; ++r) {
         const std::int32_t b0 = std::max<std::int32_t>(row_begin[r], static_cast<std::int32_t>(a) + 1);
         const std::int32_t b1 = row_end[r];
@@ -169,26 +173,35 @@ void BroadPhase::build(const Scene& scene, State& s,
         std::int32_t* out = J.data() + used;
         std::int32_t hits = 0;
         for (std::int32_t b = b0; b < b1; ++b) {
-          const double cut = ra + R[b] + skin;
-          const Vec3 d = xa - X[b];
+          const double rsum = ra + R[b], cut = rsum + skin;
+          const double d2 = norm2(xa - X[b]);
           out[hits] = b;
-          hits += norm2(d) < cut * cut;
+          hits += d2 < cut * cut;
+          touching += d2 < rsum * rsum;
         }
         used += static_cast<std::size_t>(hits);
         count += hits;
       }
       offset[a + 1] = count;
+      // Work of the row for the threads of the pair forces: a touching pair costs about four
+      // times a candidate that is not (docs/performance.md).
+      work[a + 1] = 1 + count + 4 * touching;
     }
     thread_used_[t] = used;
+    std::int64_t wsum = 0;
+    for (std::size_t a = a0; a < a1; ++a) work[a + 1] = wsum += work[a + 1];
+    work_base_[t + 1] = wsum;
 #pragma omp barrier
 #pragma omp single
     {
       for (int k = 0; k < T; ++k) thread_base_[k + 1] = thread_base_[k] + thread_used_[k];
+      for (int k = 0; k < T; ++k) work_base_[k + 1] += work_base_[k];
       s.pair_j.resize(thread_base_[T]);
       s.pair_spring.resize(thread_base_[T]);
     }
     std::int32_t run = static_cast<std::int32_t>(thread_base_[t]);
     for (std::size_t a = a0; a < a1; ++a) offset[a + 1] = run += offset[a + 1];
+    for (std::size_t a = a0; a < a1; ++a) work[a + 1] += work_base_[t];
     std::copy(J.begin(), J.begin() + used, s.pair_j.begin() + thread_base_[t]);
     std::fill(s.pair_spring.begin() + thread_base_[t],
               s.pair_spring.begin() + thread_base_[t] + used, Vec3{});

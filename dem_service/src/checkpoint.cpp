@@ -81,7 +81,8 @@ State load_checkpoint(const std::string& path) {
       // Older checkpoints lack wall masks or slot blocks (they had a block per particle):
       // the first step then rebuilds the lists.
       const std::string_view key(name);
-      if ((key == "wall_mask" || key == "slot_block" || key == "slot_particle") &&
+      if ((key == "wall_mask" || key == "slot_block" || key == "slot_particle" ||
+           key == "pair_work") &&
           H5Lexists(file, name, H5P_DEFAULT) <= 0) {
         s.lists_valid = false;
         return;

@@ -171,7 +171,8 @@ void Engine::prepare(State& s) {
 
   const bool due = !s.lists_valid || s.steps_since_rebuild >= scene_.broad_phase_interval ||
                    s.pair_offset.size() != s.size() + 1 || s.slot_block.size() != s.size() ||
-                   s.slot_particle.size() * kBoundarySlots != s.slot_key.size();
+                   s.slot_particle.size() * kBoundarySlots != s.slot_key.size() ||
+                   s.pair_work.size() != s.size() + 1;
   double moved = 0;
   if (due) {
     broad_.build(scene_, s, tool_vertices_, threads_);
@@ -221,25 +222,17 @@ void Engine::pair_forces(State& s) {
   const ContactLaw law = scene_.particle_particle;  // a local copy: no reloads after stores
   const double dt = scene_.dt;
   const Vec3 g = scene_.gravity;
-  // Threads take contiguous particle ranges of equal work (candidate pairs plus one per
-  // particle), not of equal length: the bottom of a bed has more contacts than its surface.
+  // Threads take contiguous particle ranges of equal work (State::pair_work), not of equal
+  // length: the bottom of a bed has about twice the contacts of its top half.
   bounds_.resize(T + 1);
   {
-    const std::int32_t* const off = s.pair_offset.data();
-    const double total = static_cast<double>(off[n]) + static_cast<double>(n);
+    const std::int64_t* const work = s.pair_work.data();
     bounds_[0] = 0;
     bounds_[T] = n;
     for (int t = 1; t < T; ++t) {
-      const double target = total * t / T;
-      std::size_t lo = bounds_[t - 1], hi = n;  // first i with off[i] + i >= target
-      while (lo < hi) {
-        const std::size_t mid = (lo + hi) / 2;
-        if (static_cast<double>(off[mid]) + static_cast<double>(mid) < target)
-          lo = mid + 1;
-        else
-          hi = mid;
-      }
-      bounds_[t] = lo;
+      const std::int64_t target = work[n] * t / T;
+      bounds_[t] = static_cast<std::size_t>(
+          std::lower_bound(work + bounds_[t - 1], work + n, target) - work);
     }
   }
 #pragma omp parallel num_threads(T)
@@ -314,6 +307,7 @@ void Engine::pair_forces(State& s) {
     }
     remote.swap(remote_[t]);
     thread_stats_[t] = ContactStats{contacts, 0, max_overlap, max_overlap_ratio};
+
   }
   for (int t = 0; t < T; ++t)
     for (const Remote& r : remote_[t]) force_[r.j] -= r.f;

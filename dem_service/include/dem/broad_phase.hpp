@@ -49,6 +49,7 @@ class BroadPhase {
   std::vector<unsigned char> scratch_;  // permutation buffer, for arrays of any type
   std::vector<std::vector<std::int32_t>> thread_j_;
   std::vector<std::size_t> thread_used_, thread_base_;
+  std::vector<std::int64_t> work_base_;
   std::vector<std::int32_t> old_offset_, old_j_;
   std::vector<Vec3> old_spring_;
   std::vector<std::uint64_t> pool_key_;  // the next boundary slot pool, swapped in

@@ -51,6 +51,9 @@ struct State {
   // (the spring acts on i; j feels the opposite).
   std::vector<std::int32_t> pair_offset, pair_j;
   std::vector<Vec3> pair_spring;
+  // Work of the pair rows before each particle (candidates, plus 4 per pair touching at the
+  // broad phase, plus 1 per particle), n + 1 entries: threads split the pair forces by it.
+  std::vector<std::int64_t> pair_work;
   // Particle-triangle candidates in CSR form: tool index and triangle index.
   std::vector<std::int32_t> tri_offset, tri_tool, tri_index;
   // Walls within r + skin at the last broad phase, one bit per wall (all bits if > 32 walls).
@@ -94,6 +97,7 @@ void for_each_array(S& s, F&& f) {
   f("pair_offset", s.pair_offset, Field::derived);
   f("pair_j", s.pair_j, Field::derived);
   f("pair_spring", s.pair_spring, Field::derived);
+  f("pair_work", s.pair_work, Field::derived);
   f("tri_offset", s.tri_offset, Field::derived);
   f("tri_tool", s.tri_tool, Field::derived);
   f("tri_index", s.tri_index, Field::derived);
