@@ -32,6 +32,7 @@
 #include <vector>
 
 #include "../common/tiled_bed.hpp"
+#include "cosim/resources.hpp"
 #include "dem/bed.hpp"
 #include "dem/checkpoint.hpp"
 #include "dem/engine.hpp"
@@ -312,6 +313,10 @@ int run(const std::string& kind, long n, const std::string& dir, int threads, in
   std::printf("rate %.6g seconds %.6g rebuilds %lld threads %d cpu_share %.3f\n",
               static_cast<double>(st.size()) * steps / wall, wall,
               static_cast<long long>(st.rebuilds - rebuilds0), engine.threads(), share);
+  std::fprintf(stderr, "  memory: %.0f B per particle in State, %.0f B in workspace, peak resident %.0f MB\n",
+               static_cast<double>(dem::bytes(st)) / st.size(),
+               static_cast<double>(engine.workspace_bytes()) / st.size(),
+               static_cast<double>(cosim::peak_resident_bytes()) / 1e6);
   // Where the time went (stderr: the driver reads only the line above), ns per particle-step.
   const double per = 1e9 / (static_cast<double>(st.size()) * steps);
   std::fprintf(stderr, "  candidates %.2f, touching %.2f particle pairs and %.3f boundary contacts per particle\n",

@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "cosim/resources.hpp"
 #include "cosim/stopwatch.hpp"
 #include "cosim/timer.hpp"
 #include "cosim/yaml_config.hpp"
@@ -43,7 +44,18 @@ void print_timing(const dem::Engine& engine, const dem::State& s, double sim_tim
                 wall > 0 ? static_cast<double>(s.size()) * steps / wall : 0.0);
   std::snprintf(phases, sizeof phases, "Broad phases: %lld (early rebuilds by the guard: %lld)",
                 rebuilds, early);
-  cosim::print_timing_table(std::cout, title, rows, wall, {rtf, rate, phases});
+  char memory[160];
+  const double n = std::max<double>(1.0, static_cast<double>(s.size()));
+  std::snprintf(memory, sizeof memory,
+                "Memory: %.0f B per particle in State, %.0f B in workspace; peak resident %.0f MB",
+                static_cast<double>(dem::bytes(s)) / n,
+                static_cast<double>(engine.workspace_bytes()) / n,
+                static_cast<double>(cosim::peak_resident_bytes()) / 1e6);
+  cosim::print_timing_table(std::cout, title, rows, wall, {rtf, rate, phases, memory});
+  // Where broad_phase went, stage by stage (docs/performance.md).
+  std::cout << "\n";
+  cosim::print_timing_table(std::cout, "Broad phase by stage", engine.broad_phase_stages().rows(),
+                            wall);
 }
 
 int run(int argc, char** argv) {
@@ -102,7 +114,8 @@ int run(int argc, char** argv) {
       dem::save_checkpoint(s, rc.settle.checkpoint);
       std::fprintf(stderr, "settle: saved %s\n", rc.settle.checkpoint.c_str());
     }
-    engine.timing().reset();  // the table below is for the run itself
+    engine.timing().reset();  // the tables below are for the run itself
+    engine.broad_phase_stages().reset();
   }
 
   dem::RunOutput out(rc.output.file, scene, rc.config_text);

@@ -30,6 +30,23 @@ void BroadPhase::permute(std::vector<T>& a, std::size_t p0, std::size_t p1) {
   }
 }
 
+namespace {
+template <class T>
+std::size_t held(const std::vector<T>& v) {
+  return v.capacity() * sizeof(T);
+}
+}  // namespace
+
+std::size_t BroadPhase::workspace_bytes() const {
+  std::size_t b = held(cell_of_) + held(cell_start_) + held(fill_) + held(order_) +
+                  held(new_index_) + held(scratch_) + held(old_offset_) + held(old_j_) +
+                  held(old_spring_) + held(pool_key_) + held(pool_spring_) +
+                  held(tri_candidates_) + held(tri_count_);
+  for (const auto& v : thread_j_) b += held(v);
+  for (const auto& v : thread_tri_) b += held(v);
+  return b;
+}
+
 void BroadPhase::build(const Scene& scene, State& s,
                        const std::vector<std::vector<Vec3>>& tool_vertices, int threads) {
   const std::size_t n = s.size();

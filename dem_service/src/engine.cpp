@@ -508,6 +508,13 @@ std::vector<Engine::MeshContact> Engine::mesh_contacts(const State& s) {
   return out;
 }
 
+std::size_t Engine::workspace_bytes() const {
+  std::size_t b = broad_.workspace_bytes() + force_.capacity() * sizeof(Vec3);
+  for (const auto& v : tool_vertices_) b += v.capacity() * sizeof(Vec3);
+  for (const auto& v : remote_) b += v.capacity() * sizeof(Remote);
+  return b;
+}
+
 double kinetic_energy(const State& s) {
   double e = 0;
   for (std::size_t i = 0; i < s.size(); ++i) e += 0.5 * s.mass[i] * norm2(s.v[i]);

@@ -36,6 +36,9 @@ class BroadPhase {
   const cosim::Timer& stages() const { return stages_; }
   cosim::Timer& stages() { return stages_; }
 
+  // Bytes of workspace kept between builds (old list, scratch, cell grid).
+  std::size_t workspace_bytes() const;
+
   // Particles moved by the last build's permutation (0 when the cell order had not changed).
   std::size_t last_permuted() const { return last_permuted_; }
 

@@ -70,6 +70,8 @@ class Engine {
   Timing& timing() { return timing_; }
   const Timing& timing() const { return timing_; }
   int threads() const { return threads_; }  // threads of the last step
+  // Bytes of workspace the engine and its broad phase keep between steps (not State).
+  std::size_t workspace_bytes() const;
   // The broad phase's own stages (grid, sort, permute, ...): where section broad_phase goes.
   const cosim::Timer& broad_phase_stages() const { return broad_.stages(); }
   cosim::Timer& broad_phase_stages() { return broad_.stages(); }

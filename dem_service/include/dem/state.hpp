@@ -4,7 +4,9 @@
 // bit for bit.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
+#include <type_traits>
 #include <vector>
 
 #include "dem/vec3.hpp"
@@ -107,6 +109,15 @@ void for_each_array(S& s, F&& f) {
   f("slot_count", s.slot_count, Field::sorted);
   f("slot_block", s.slot_block, Field::sorted);
   f("slot_particle", s.slot_particle, Field::derived);
+}
+
+// Bytes the arrays of State hold (capacity, not size): the memory of a scene.
+inline std::size_t bytes(const State& s) {
+  std::size_t b = 0;
+  for_each_array(s, [&](const char*, const auto& a, Field) {
+    b += a.capacity() * sizeof(typename std::decay_t<decltype(a)>::value_type);
+  });
+  return b;
 }
 
 // Appends one particle; radius and mass must already be validated.
