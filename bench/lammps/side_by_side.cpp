@@ -11,6 +11,9 @@
 //       "rate <particle-steps/s> seconds <wall> rebuilds <broad phases in the timed steps>
 //       threads <used> cpu_share <process CPU time / (wall * threads)>".
 //       --interval 0 rebuilds only when needed (the skin guard), like LAMMPS `check yes`.
+//   run and trace take --thread-wait passive|brief|spin (default: scene.thread_wait's default),
+//   applied as dem_run applies scene.thread_wait (docs/dem.md); OMP_WAIT_POLICY or
+//   GOMP_SPINCOUNT in the environment win over it.
 //   dem_side_by_side trace --kind K --n N --dir DIR --threads T --interval I
 //                          --duration D --every E
 //       Prints "t kinetic_energy contacts_per_particle" at t = 0, E, 2E, ... D (contacts: touching
@@ -35,6 +38,7 @@
 #include "cosim/resources.hpp"
 #include "dem/bed.hpp"
 #include "dem/checkpoint.hpp"
+#include "dem/config.hpp"
 #include "dem/engine.hpp"
 #include "dem/scene.hpp"
 
@@ -356,6 +360,7 @@ int main(int argc, char** argv) {
   if (argc < 2) {
     std::fprintf(stderr, "usage: dem_side_by_side prepare|run|trace --kind bed|gas --n N "
                          "--dir DIR [--threads T --interval I --steps S --duration D --every E]"
+                         " [--thread-wait passive|brief|spin]"
                          "\n(see the header of bench/lammps/side_by_side.cpp)\n");
     return 2;
   }
@@ -364,7 +369,9 @@ int main(int argc, char** argv) {
                                          {"--dir", "results/bench_lammps"},
                                          {"--threads", "1"}, {"--interval", "5"},
                                          {"--steps", "200"}, {"--duration", "0.1"},
-                                         {"--every", "0.002"}};
+                                         {"--every", "0.002"},
+                                         {"--thread-wait",
+                                          dem::thread_wait_name(dem::Scene{}.thread_wait)}};
   for (int a = 2; a + 1 < argc; a += 2) {
     if (!opt.count(argv[a])) {
       std::fprintf(stderr, "dem_side_by_side: unknown option %s\n", argv[a]);
@@ -379,6 +386,13 @@ int main(int argc, char** argv) {
       prepare(kind, n, dir);
       return 0;
     }
+    // How idle OpenMP threads wait, as dem_run and dem_service do (scene.thread_wait; may
+    // execute this program again, once, with the OpenMP wait variables set).
+    YAML::Node scene_node;
+    scene_node["scene"]["thread_wait"] = opt["--thread-wait"];
+    const std::string wait =
+        dem::apply_thread_wait(dem::read_thread_wait(scene_node), argv);
+    std::fprintf(stderr, "dem_side_by_side: idle threads wait %s\n", wait.c_str());
     const int threads = std::stoi(opt["--threads"]), interval = std::stoi(opt["--interval"]);
     if (cmd == "run") return run(kind, n, dir, threads, interval, std::stoi(opt["--steps"]));
     if (cmd == "trace")

@@ -87,6 +87,9 @@ int run(int argc, char** argv) {
   }
   YAML::Node root = cosim::config::load_file(config_path);
   for (const auto& s : sets) cosim::config::apply_override(root, s);
+  // May execute dem_run again (once) with the OpenMP wait variables set: before any output.
+  const std::string wait = dem::apply_thread_wait(dem::read_thread_wait(root), argv);
+  std::fprintf(stderr, "dem_run: idle threads wait %s\n", wait.c_str());
   const std::string base = std::filesystem::path(config_path).parent_path().string();
   dem::RunConfig rc = dem::load_config(root, base);
   if (!output_override.empty()) rc.output.file = output_override;

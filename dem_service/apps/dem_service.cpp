@@ -7,6 +7,7 @@
 #include <string>
 
 #include "cosim/yaml_config.hpp"
+#include "dem/config.hpp"
 #include "dem/engine.hpp"
 #include "dem/service.hpp"
 
@@ -25,6 +26,9 @@ int run(int argc, char** argv) {
       return 0;
     }
   auto args = cosim::parse_participant_args(argc, argv, true);
+  // May execute dem_service again (once) with the OpenMP wait variables set: before the bus.
+  const std::string wait = dem::apply_thread_wait(dem::read_thread_wait(args.config), argv);
+  std::cerr << "dem_service: idle threads wait " << wait << "\n";
   dem::ServiceModel model(args.config, args.config_dir);
   const int code =
       cosim::run_participant(model, "dem", static_cast<int>(args.rest.size()), args.rest.data());

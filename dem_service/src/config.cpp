@@ -99,10 +99,18 @@ void parse_stability(const YAML::Node& st, StabilityOptions& o) {
     throw ConfigError("scene.stability.overlap_tolerance: must be >= 0");
 }
 
+ThreadWait parse_thread_wait(const YAML::Node& s, ThreadWait fallback) {
+  const std::string v = cfg::get_choice(s, "scene", "thread_wait", {"passive", "brief", "spin"},
+                                        thread_wait_name(fallback));
+  for (ThreadWait w : {ThreadWait::passive, ThreadWait::brief, ThreadWait::spin})
+    if (v == thread_wait_name(w)) return w;
+  return fallback;  // not reached: get_choice refused anything else
+}
+
 void parse_scene_options(const YAML::Node& s, Scene& sc) {
   if (!s) throw ConfigError("scene: missing (expected a map with dt, gravity, ...)");
   cfg::check_keys(s, "scene", {"dt", "gravity", "broad_phase_interval", "skin", "guard", "threads",
-                               "min_particles_per_thread", "stability"});
+                               "min_particles_per_thread", "thread_wait", "stability"});
   sc.dt = cfg::get_positive(s, "scene", "dt");
   if (s["gravity"]) sc.gravity = vec3(s, "scene", "gravity");
   sc.broad_phase_interval =
@@ -122,6 +130,7 @@ void parse_scene_options(const YAML::Node& s, Scene& sc) {
       cfg::get_int_or(s, "scene", "min_particles_per_thread", sc.min_particles_per_thread));
   if (sc.min_particles_per_thread < 1)
     throw ConfigError("scene.min_particles_per_thread: must be >= 1 (1 = always use scene.threads)");
+  sc.thread_wait = parse_thread_wait(s, sc.thread_wait);
   if (const YAML::Node st = s["stability"]) parse_stability(st, sc.stability);
 }
 
@@ -372,6 +381,12 @@ void pose_tools(const Scene& sc, State& s) {
 }
 
 }  // namespace
+
+ThreadWait read_thread_wait(const YAML::Node& root) {
+  const YAML::Node s = root["scene"];
+  if (!s || !s.IsMap()) return Scene{}.thread_wait;  // load_config names the problem
+  return parse_thread_wait(s, Scene{}.thread_wait);
+}
 
 RunConfig load_config(const YAML::Node& root, const std::string& base_dir) {
   cfg::check_keys(root, "", {"scene", "materials", "species", "contact", "walls", "tools",

@@ -88,6 +88,14 @@ void ServiceModel::configure(const YAML::Node& parameters, const cosim::RunInfo&
     YAML::Node root = YAML::Clone(root_);
     cfg::apply_overrides(root, parameters, "participants." + run.participant + ".parameters");
     build(root, "participants." + run.participant + ".parameters");
+    const ThreadWaitInForce w = thread_wait_in_force();
+    if (w.known && !w.from_user_environment && w.policy != rc_->scene.thread_wait)
+      std::fprintf(stderr,
+                   "dem_service: warning: participants.%s.parameters: scene.thread_wait '%s' "
+                   "cannot take effect, the threads' wait is fixed when dem_service starts "
+                   "('%s'); set it in the config file or with --set in the launch command\n",
+                   run.participant.c_str(), thread_wait_name(rc_->scene.thread_wait),
+                   thread_wait_name(w.policy));
   }
   pristine_ = false;
   run_ = run;

@@ -44,4 +44,8 @@ struct RunConfig {
 // base_dir resolves relative mesh, CSV and checkpoint paths (the config file's folder).
 RunConfig load_config(const YAML::Node& root, const std::string& base_dir);
 
+// Only scene.thread_wait (validated, or its default): the programs apply it before they load
+// the rest (dem/thread_wait.hpp), since applying it may execute the program again.
+ThreadWait read_thread_wait(const YAML::Node& root);
+
 }  // namespace dem

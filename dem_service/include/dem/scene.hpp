@@ -8,6 +8,7 @@
 
 #include "dem/contact_law.hpp"
 #include "dem/mesh.hpp"
+#include "dem/thread_wait.hpp"
 #include "dem/tool_motion.hpp"
 #include "dem/vec3.hpp"
 
@@ -64,6 +65,9 @@ struct Scene {
   // Fewer particles per thread than this and the step uses fewer threads: for small scenes
   // the barriers cost more than the work (and a lot more on a loaded machine).
   int min_particles_per_thread = 2000;
+  // How idle OpenMP threads wait (dem/thread_wait.hpp). Fixed when the program starts:
+  // dem_run, dem_service and dem_side_by_side apply it with apply_thread_wait.
+  ThreadWait thread_wait = ThreadWait::passive;
   StabilityOptions stability;
   std::vector<Species> species;
   ContactLaw particle_particle;
