@@ -4,17 +4,19 @@
 # phase when needed (0) and every 5 steps, policies interleaved within each repeat. Prints
 # particle-steps/s per run and the median per policy, and each policy's rate over spin's.
 #   bash bench/dem/thread_wait.sh [--repeats 3] [--sizes 10000,150000] [--dir results/bench_lammps]
+#                                 [--policies passive,brief,spin] [--work 1e7 particle-steps per run]
 # The beds come from `dem_side_by_side prepare --kind bed --n N --dir DIR` (bench/lammps).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
-repeats=3 sizes=10000,150000 dir=results/bench_lammps policies=passive,brief,spin
+repeats=3 sizes=10000,150000 dir=results/bench_lammps policies=passive,brief,spin work=10000000
 while [ $# -gt 0 ]; do
   case "$1" in
     --repeats) repeats=$2; shift 2 ;;
     --sizes) sizes=$2; shift 2 ;;
     --dir) dir=$2; shift 2 ;;
     --policies) policies=$2; shift 2 ;;
-    *) echo "usage: $0 [--repeats N] [--sizes 10000,150000] [--dir DIR] [--policies ...]" >&2; exit 2 ;;
+    --work) work=$2; shift 2 ;;
+    *) echo "usage: $0 [--repeats N] [--sizes 10000,150000] [--dir DIR] [--policies ...] [--work N]" >&2; exit 2 ;;
   esac
 done
 bin=build/bin/dem_side_by_side
@@ -30,7 +32,7 @@ echo "thread_wait: 2 threads, $repeats repeat(s), load average at start $(cut -d
 printf "%-7s %-8s %-8s %-6s %12s %9s %6s\n" n interval policy repeat rate cpu_share load1
 for ((r = 1; r <= repeats; r++)); do
   for n in "${ns[@]}"; do
-    steps=$((10000000 / n / 5 * 5))
+    steps=$((work / n / 5 * 5))
     for iv in 0 5; do
       for p in "${pols[@]}"; do
         line=$(env -u OMP_WAIT_POLICY -u GOMP_SPINCOUNT $bin run --kind bed --n "$n" --dir "$dir" \
