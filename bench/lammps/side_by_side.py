@@ -203,7 +203,8 @@ def steps_for(args, n):
 
 def time_ours(args, kind, n, threads, policy, steps):
     out = ours(args, "run", "--kind", kind, "--n", str(n), "--dir", args.dir, "--threads",
-               str(threads), "--interval", str(policy), "--steps", str(steps))
+               str(threads), "--interval", str(policy), "--steps", str(steps),
+               "--thread-wait", args.thread_wait)
     f = out.split()
     return (float(f[f.index("rate") + 1]), int(f[f.index("rebuilds") + 1]),
             float(f[f.index("cpu_share") + 1]))
@@ -284,6 +285,8 @@ def main():
     p.add_argument("--gas-timing", action="store_true", help="time the 10k gas too")
     p.add_argument("--skip-check", action="store_true", help="skip the physics check")
     p.add_argument("--dir", default="results/bench_lammps")
+    p.add_argument("--thread-wait", default="passive", choices=["passive", "brief", "spin"],
+                   help="how our idle threads wait (scene.thread_wait; default: the product's)")
     p.add_argument("--dem", required=True, help="path of dem_side_by_side")
     args = p.parse_args()
     args.threads = [int(t) for t in args.threads.split(",")]
