@@ -53,7 +53,6 @@ void print_timing(const dem::Engine& engine, const dem::State& s, double sim_tim
                 static_cast<double>(cosim::peak_resident_bytes()) / 1e6);
   cosim::print_timing_table(std::cout, title, rows, wall, {rtf, rate, phases, memory});
   // Where broad_phase went, stage by stage (docs/performance.md).
-  std::cout << "\n";
   cosim::print_timing_table(std::cout, "Broad phase by stage", engine.broad_phase_stages().rows(),
                             wall);
 }
