@@ -1,6 +1,7 @@
 // dem_run CONFIG.yaml [--set dotted.key=value ...] [--output FILE.h5]
 // Standalone DEM run: optional settling, prescribed tool motion, HDF5 + XDMF output, and a
 // LAMMPS-style timing table at the end.
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -29,6 +30,20 @@ void usage() {
 void set_tool_poses(const dem::Scene& scene, dem::State& s) {
   for (std::size_t m = 0; m < scene.tools.size(); ++m)
     s.tool_pose[m] = scene.tools[m].motion.evaluate(s.step * scene.dt);
+}
+
+// Where the particles are: the box around the centres (the front of a pile is its smallest x).
+std::string extent(const dem::State& s) {
+  if (s.x.empty()) return "no particles";
+  dem::Vec3 lo = s.x[0], hi = s.x[0];
+  for (const dem::Vec3& x : s.x) {
+    lo = {std::min(lo.x, x.x), std::min(lo.y, x.y), std::min(lo.z, x.z)};
+    hi = {std::max(hi.x, x.x), std::max(hi.y, x.y), std::max(hi.z, x.z)};
+  }
+  char buf[160];
+  std::snprintf(buf, sizeof buf, "centres x [%.3f, %.3f] y [%.3f, %.3f] z [%.3f, %.3f] m", lo.x,
+                hi.x, lo.y, hi.y, lo.z, hi.z);
+  return buf;
 }
 
 void print_timing(const dem::Engine& engine, const dem::State& s, double sim_time, long long steps,
@@ -103,15 +118,18 @@ int run(int argc, char** argv) {
   dem::Engine engine(scene);
   if (rc.settle.enabled) {
     set_tool_poses(scene, s);
+    const cosim::Stopwatch settle_wall;
+    // Progress every 0.5 s simulated (at least every 100 steps, the settle check's stride).
+    const long long every = std::max(100LL, 100 * std::llround(0.5 / scene.dt / 100));
     const auto r = dem::settle(engine, s, rc.settle.ke_per_particle, rc.settle.max_time,
                                [&](const dem::SettleResult& p) {
-                                 if (s.step % 20000 == 0)
-                                   std::fprintf(stderr, "settle: t = %.3f s, KE/particle %.3g J\n",
-                                                p.time, p.ke_per_particle);
+                                 if (s.step % every == 0)
+                                   std::fprintf(stderr, "settle: t = %.3f s, KE/particle %.3g J, %s\n",
+                                                p.time, p.ke_per_particle, extent(s).c_str());
                                });
-    std::fprintf(stderr, "settle: %s after %.3f s, KE/particle %.3g J\n",
+    std::fprintf(stderr, "settle: %s after %.3f s (%.0f s wall), KE/particle %.3g J, %s\n",
                  r.converged ? "at rest" : "NOT at rest (settle.max_time reached)", r.time,
-                 r.ke_per_particle);
+                 settle_wall.seconds(), r.ke_per_particle, extent(s).c_str());
     if (!rc.settle.checkpoint.empty()) {
       dem::save_checkpoint(s, rc.settle.checkpoint);
       std::fprintf(stderr, "settle: saved %s\n", rc.settle.checkpoint.c_str());

@@ -1,0 +1,155 @@
+"""The paper's scene as a DEM benchmark: the settled 150k pile, the 40,662-triangle bucket on a
+prescribed maneuver in three phases, two rebuild policies, 2 threads (docs/performance.md,
+"The paper's scene"). Run through bench/paper/paper_scene.sh; not a test."""
+import argparse
+import math
+import os
+import re
+import subprocess
+import sys
+import time
+
+import h5py
+import numpy as np
+
+CONFIG = "bench/paper/paper_scene.yaml"
+PILE = "results/pile_paper.h5"
+OUT = "results/paper_bench"
+
+# The maneuver, from the wheel loader's documented co-simulation run (docs/wheel_loader.md):
+# (name, forward speed of the A-pin [m/s], vertical speed [m/s], pitch rate [deg/s], curled back
+# positive). Penetration: the machine's approach speed with the bucket flat. Tilt: the tilt pulses
+# (about 6 deg per 0.6 s pulse) while the slowed machine still pushes. Lift: the boom raises the
+# A-pin (1.2 m over 8 s) while the Z-bar keeps curling, the machine nearly stalled.
+PHASES = [
+    ("penetration", 1.2, 0.0, 0.0),
+    ("tilt", 0.3, 0.0, 10.0),
+    ("lift", 0.1, 0.15, 4.0),
+]
+POLICIES = {"every5": {"scene.broad_phase_interval": "5"},
+            "needed": {"scene.broad_phase_interval": "1000000", "scene.guard": "rebuild"}}
+EDGE_X = 1.65      # cutting edge in the bucket frame (configs/wheel_loader/machine.yaml)
+A_PIN_Z = 0.55     # bucket bottom (mesh z min -0.51) 4 cm above the ground
+LEAD = 0.10        # the edge starts this far in front of the pile's face
+
+
+def pile_face(path):
+    """x of the pile's face at its foot (2nd percentile of x of the grains below 0.5 m)."""
+    with h5py.File(path, "r") as f:
+        x = f["x"][:]
+    low = x[x[:, 2] < 0.5]
+    return float(np.percentile(low[:, 0], 2)), len(x)
+
+
+def write_motion(path, x_face, window):
+    x = x_face - LEAD - EDGE_X
+    z = A_PIN_Z
+    pitch = 0.0
+    rows = [(0.0, x, z, pitch)]
+    for k, (_, vx, vz, rate) in enumerate(PHASES):
+        x += vx * window
+        z += vz * window
+        pitch += rate * window
+        rows.append(((k + 1) * window, x, z, pitch))
+    with open(path, "w") as f:
+        f.write("time,x,y,z,qw,qx,qy,qz\n")
+        for t, x, z, p in rows:
+            h = math.radians(p) / 2   # curled back = the bucket's x axis up = about -y
+            f.write(f"{t:.6f},{x:.6f},0,{z:.6f},{math.cos(h):.9f},0,{-math.sin(h):.9f},0\n")
+    return rows
+
+
+def parse_table(text):
+    out = {}
+    m = re.search(r"Loop time of ([\d.]+) s for (\d+) steps with (\d+) particles on (\d+) thread", text)
+    if not m:
+        return None
+    out["wall"], out["steps"], out["n"], out["threads"] = float(m[1]), int(m[2]), int(m[3]), int(m[4])
+    for name in ("broad_phase", "pair_forces", "mesh_contacts", "integration", "output", "other"):
+        m = re.search(rf"^{name}\s*\|\s*([\d.]+)\s*\|\s*([\d.]+)", text, re.M)
+        out[name] = float(m[1]) if m else 0.0
+    m = re.search(r"Broad phases: (\d+) \(early rebuilds by the guard: (\d+)\)", text)
+    out["rebuilds"], out["early"] = (int(m[1]), int(m[2])) if m else (0, 0)
+    m = re.search(r"Maximum resident set size \(kbytes\): (\d+)", text)
+    out["rss_kb"] = int(m[1]) if m else 0
+    return out
+
+
+def run_phase(dem_run, policy, k, window, ckpt_in, log):
+    name = PHASES[k][0]
+    ckpt_out = f"{OUT}/{policy}_{k + 1}_{name}.h5"
+    cmd = ["/usr/bin/time", "-v", dem_run, CONFIG,
+           "--set", f"run.duration={window}",
+           "--set", f"particles.checkpoint={os.path.abspath(ckpt_in)}",
+           "--set", f"particles.keep_time={'true' if k > 0 else 'false'}",
+           "--set", f"output.checkpoint={ckpt_out}",
+           "--set", f"scene.threads={args.threads}",
+           "--output", f"{OUT}/{policy}_{k + 1}_{name}_out.h5"]
+    for key, value in POLICIES[policy].items():
+        cmd += ["--set", f"{key}={value}"]
+    if k > 0:   # a continuation of the same run: the bucket presses grains into each other
+        cmd += ["--set", "scene.stability.overlap_tolerance=0.5"]
+    with open(log, "w") as f:
+        f.write(" ".join(cmd) + "\n")
+        f.flush()
+        rc = subprocess.run(cmd, stdout=f, stderr=subprocess.STDOUT).returncode
+    text = open(log).read()
+    if rc != 0:
+        sys.exit(f"paper_scene: dem_run failed (exit {rc}) in {policy} / {name}; see {log}:\n"
+                 + "\n".join(text.splitlines()[-8:]))
+    row = parse_table(text)
+    row["policy"], row["phase"], row["sim"] = policy, name, window
+    return row, ckpt_out
+
+
+def load():
+    return " ".join(open("/proc/loadavg").read().split()[:3])
+
+
+parser = argparse.ArgumentParser(description=__doc__)
+parser.add_argument("--dem-run", default="build/bin/dem_run")
+parser.add_argument("--window", type=float, default=0.3,
+                    help="simulated seconds per phase (default 0.3)")
+parser.add_argument("--policies", default="every5,needed")
+parser.add_argument("--threads", type=int, default=2)
+parser.add_argument("--config", default=CONFIG, help=argparse.SUPPRESS)   # for testing the script
+parser.add_argument("--pile", default=PILE, help=argparse.SUPPRESS)
+args = parser.parse_args()
+CONFIG, PILE = args.config, args.pile
+
+os.makedirs(OUT, exist_ok=True)
+x_face, n = pile_face(PILE)
+rows = write_motion(f"{OUT}/bucket_motion.csv", x_face, args.window)
+print(f"paper_scene: {n} particles from {PILE}, face at x = {x_face:.2f} m; bucket_r4 (40,662 "
+      f"triangles); dt 1e-4 s; {args.threads} threads; window {args.window} s per phase")
+print("maneuver (A-pin x, z [m], pitch [deg] at the phase ends): "
+      + "; ".join(f"t {t:.2f}: {x:.2f}, {z:.2f}, {p:.1f}" for t, x, z, p in rows))
+print(f"load average at start: {load()}")
+sys.stdout.flush()
+results = []
+for policy in args.policies.split(","):
+    ckpt = PILE
+    for k in range(len(PHASES)):
+        t0 = time.time()
+        row, ckpt = run_phase(args.dem_run, policy, k, args.window, ckpt,
+                              f"{OUT}/{policy}_{k + 1}_{PHASES[k][0]}.log")
+        results.append(row)
+        print(f"  {policy:7s} {row['phase']:12s} RTF {row['wall'] / row['sim']:7.1f}  "
+              f"({time.time() - t0:.0f} s wall with loading)")
+        sys.stdout.flush()
+
+print(f"\nload average at end: {load()}")
+print("\n| policy | phase | simulated (s) | wall (s) | real-time factor | broad phase % | "
+      "mesh contacts % | rebuilds (early) | peak RSS (MB) | bytes/particle |")
+print("| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |")
+for r in results:
+    rss = r["rss_kb"] * 1024
+    print(f"| {'every 5 steps' if r['policy'] == 'every5' else 'when needed'} | {r['phase']} | "
+          f"{r['sim']:.2f} | {r['wall']:.1f} | {r['wall'] / r['sim']:.0f} | "
+          f"{100 * r['broad_phase'] / r['wall']:.0f} | {100 * r['mesh_contacts'] / r['wall']:.0f} | "
+          f"{r['rebuilds']} ({r['early']}) | {rss / 2**20:.0f} | {rss / r['n']:.0f} |")
+for policy in args.policies.split(","):
+    rs = [r for r in results if r["policy"] == policy]
+    wall, sim = sum(r["wall"] for r in rs), sum(r["sim"] for r in rs)
+    print(f"{policy}: whole maneuver {sim:.2f} s simulated in {wall:.0f} s wall, real-time factor "
+          f"{wall / sim:.0f}")
