@@ -72,6 +72,8 @@ def parse_table(text):
     out["rebuilds"], out["early"] = (int(m[1]), int(m[2])) if m else (0, 0)
     m = re.search(r"Maximum resident set size \(kbytes\): (\d+)", text)
     out["rss_kb"] = int(m[1]) if m else 0
+    m = re.search(r"Percent of CPU this job got: (\d+)%", text)
+    out["cpu"] = int(m[1]) / 100 if m else 0.0   # of the whole process, loading included
     return out
 
 
@@ -84,6 +86,7 @@ def run_phase(dem_run, policy, k, window, ckpt_in, log):
            "--set", f"particles.keep_time={'true' if k > 0 else 'false'}",
            "--set", f"output.checkpoint={ckpt_out}",
            "--set", f"scene.threads={args.threads}",
+           "--set", f"tools.0.motion.csv={os.path.abspath(OUT)}/bucket_motion.csv",
            "--output", f"{OUT}/{policy}_{k + 1}_{name}_out.h5"]
     for key, value in POLICIES[policy].items():
         cmd += ["--set", f"{key}={value}"]
@@ -112,10 +115,12 @@ parser.add_argument("--window", type=float, default=0.3,
                     help="simulated seconds per phase (default 0.3)")
 parser.add_argument("--policies", default="every5,needed")
 parser.add_argument("--threads", type=int, default=2)
+parser.add_argument("--out", default=OUT, help="folder for logs, checkpoints, the motion CSV")
 parser.add_argument("--config", default=CONFIG, help=argparse.SUPPRESS)   # for testing the script
-parser.add_argument("--pile", default=PILE, help=argparse.SUPPRESS)
+parser.add_argument("--pile", default=PILE,
+                    help="settled pile checkpoint (default results/pile_paper.h5)")
 args = parser.parse_args()
-CONFIG, PILE = args.config, args.pile
+CONFIG, PILE, OUT = args.config, args.pile, args.out
 
 os.makedirs(OUT, exist_ok=True)
 x_face, n = pile_face(PILE)
@@ -140,14 +145,14 @@ for policy in args.policies.split(","):
 
 print(f"\nload average at end: {load()}")
 print("\n| policy | phase | simulated (s) | wall (s) | real-time factor | broad phase % | "
-      "mesh contacts % | rebuilds (early) | peak RSS (MB) | bytes/particle |")
-print("| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |")
+      "mesh contacts % | rebuilds (early) | CPU share (cores) | peak RSS (MB) | bytes/particle |")
+print("| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |")
 for r in results:
     rss = r["rss_kb"] * 1024
     print(f"| {'every 5 steps' if r['policy'] == 'every5' else 'when needed'} | {r['phase']} | "
           f"{r['sim']:.2f} | {r['wall']:.1f} | {r['wall'] / r['sim']:.0f} | "
           f"{100 * r['broad_phase'] / r['wall']:.0f} | {100 * r['mesh_contacts'] / r['wall']:.0f} | "
-          f"{r['rebuilds']} ({r['early']}) | {rss / 2**20:.0f} | {rss / r['n']:.0f} |")
+          f"{r['rebuilds']} ({r['early']}) | {r['cpu']:.2f} | {rss / 2**20:.0f} | {rss / r['n']:.0f} |")
 for policy in args.policies.split(","):
     rs = [r for r in results if r["policy"] == policy]
     wall, sim = sum(r["wall"] for r in rs), sum(r["sim"] for r in rs)
