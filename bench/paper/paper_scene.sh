@@ -9,8 +9,8 @@
 # along a prescribed maneuver in three phases (penetration, tilt, lift; --window simulated seconds
 # each), once with the broad phase every 5 steps and once rebuilt only when needed, and prints per
 # phase the simulated and wall time, real-time factor, broad-phase share, rebuilds and peak memory.
-# Without the pile it stops and says how to prepare it; --prepare prepares it first (about 15-30
-# minutes on 2 cores, bench/paper/prepare_pile.sh). Outputs go to results/paper_bench/.
+# Without the pile it stops and says how to prepare it; --prepare prepares it first (stage 1
+# took 26 minutes on shared cores; bench/paper/prepare_pile.sh). Outputs go to results/paper_bench/.
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
 cd "$root"
@@ -29,7 +29,7 @@ if [ ! -f results/pile_paper.h5 ]; then
     bash bench/paper/prepare_pile.sh
   else
     echo "paper_scene: results/pile_paper.h5 (the settled paper-sized pile) is missing." >&2
-    echo "  Prepare it once (about 15-30 minutes on 2 cores):" >&2
+    echo "  Prepare it once (two stages; stage 1 alone took 26 minutes on the shared 2 cores):" >&2
     echo "    nice -n 19 bash bench/paper/prepare_pile.sh" >&2
     echo "  or rerun this command with --prepare." >&2
     exit 2
