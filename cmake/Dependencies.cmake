@@ -37,8 +37,11 @@ function(soil_add_gtest name)
   if(NOT T_TIMEOUT)
     set(T_TIMEOUT 300)
   endif()
+  # Idle OpenMP threads sleep (scene.thread_wait's default, which only the DEM programs apply
+  # themselves): ctest -j runs two multi-threaded tests at once on two cores, and libgomp's
+  # spinning made them take each other's cores (tests slowed 10-500x, timeouts).
   gtest_discover_tests(${name} DISCOVERY_TIMEOUT 60
-    PROPERTIES TIMEOUT ${T_TIMEOUT} LABELS "${T_LABELS}")
+    PROPERTIES TIMEOUT ${T_TIMEOUT} LABELS "${T_LABELS}" ENVIRONMENT "OMP_WAIT_POLICY=PASSIVE")
 endfunction()
 
 # Simbody 3.7 (Debian libsimbody-dev) for the machine models. Debian builds it without
