@@ -13,7 +13,8 @@
 //   dem_tool_side_by_side run --dir DIR --threads T --interval I --steps S --warmup W --block B
 //       Loads the scene, steps W times (lists, caches; the bucket already moves), then times S
 //       steps and prints one line "rate <particle-steps/s> seconds <wall> simulated <s>
-//       rebuilds <n> threads <t> cpu_share <share> n <particles>", then one line per block of
+//       rebuilds <n> threads <t> cpu_share <share> n <particles>", one line "phases <section>
+//       <seconds> ..." (the engine's timer over the timed steps), then one line per block of
 //       B timed steps "F <t_end> <mean Fx> <mean Fy> <mean Fz>" (force on the bucket, N,
 //       averaged over every step of the block; the sums cost nothing measurable).
 //       --interval 0 rebuilds only when needed (the skin guard).
@@ -285,6 +286,7 @@ int run(const std::string& dir, int threads, int interval, int steps, int warmup
   };
   for (int k = 0; k < warmup; ++k) advance();
   const auto rebuilds0 = st.rebuilds;
+  engine.timing().reset();
   std::vector<dem::Vec3> sums((steps + block - 1) / block);
   const double cpu0 = cpu_seconds();
   const auto t0 = std::chrono::steady_clock::now();
@@ -300,6 +302,10 @@ int run(const std::string& dir, int threads, int interval, int steps, int warmup
               static_cast<double>(st.size()) * steps / wall, wall, steps * kDt,
               static_cast<long long>(st.rebuilds - rebuilds0), engine.threads(), share,
               st.size());
+  std::printf("phases");  // seconds per section of the engine's timer, timed steps only
+  for (const auto& row : engine.timing().rows())
+    std::printf(" %s %.4g", row.section.c_str(), row.seconds);
+  std::printf("\n");
   for (std::size_t b = 0; b < sums.size(); ++b) {
     const int n = std::min(block, steps - static_cast<int>(b) * block);
     if (n != block) break;  // whole blocks only (LIGGGHTS fix ave/time writes those)

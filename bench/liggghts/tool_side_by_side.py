@@ -137,6 +137,8 @@ def run_liggghts(args, box, ranks):
     if int(procs) != ranks or int(nsteps) != args.steps:
         sys.exit(f"tool_side_by_side: unexpected LIGGGHTS loop line {loops[-1]}")
     builds = re.findall(r"Neighbor list builds = (\d+)", log)
+    phases = {k.lower(): float(v) for k, v in
+              re.findall(r"(Pair|Neigh|Comm|Outpt|Other) +time \(%\) = ([0-9.eE+-]+)", log)[-5:]}
     forces = []
     with open(os.path.join(args.dir, "liggghts_force.txt")) as f:
         for line in f:
@@ -146,7 +148,7 @@ def run_liggghts(args, box, ranks):
     return {"seconds": float(seconds), "atoms": int(atoms),
             "rebuilds": int(builds[-1]) if builds else -1,
             # whole process (setup included; no per-run figure in this LIGGGHTS's log)
-            "cpu_share": whole_cpu / (whole_wall * ranks), "forces": forces}
+            "cpu_share": whole_cpu / (whole_wall * ranks), "forces": forces, "phases": phases}
 
 
 def run_ours(args, threads):
@@ -160,9 +162,11 @@ def run_ours(args, threads):
     lines = res.stdout.splitlines()
     f = lines[0].split()
     forces = [tuple(map(float, l.split()[1:])) for l in lines[1:] if l.startswith("F ")]
+    ph = next(l.split()[1:] for l in lines if l.startswith("phases"))
+    phases = {ph[i]: float(ph[i + 1]) for i in range(0, len(ph), 2) if ph[i] != "output"}
     return {"seconds": float(f[f.index("seconds") + 1]), "atoms": int(f[f.index("n") + 1]),
             "rebuilds": int(f[f.index("rebuilds") + 1]),
-            "cpu_share": float(f[f.index("cpu_share") + 1]), "forces": forces}
+            "cpu_share": float(f[f.index("cpu_share") + 1]), "forces": forces, "phases": phases}
 
 
 def force_stats(forces):
@@ -204,8 +208,9 @@ def main():
     p.add_argument("--dem", required=True, help="path of dem_tool_side_by_side")
     p.add_argument("--bed-tool", required=True, help="path of dem_side_by_side")
     args = p.parse_args()
-    if args.steps % args.block:
-        sys.exit("tool_side_by_side: --steps must be a multiple of --block")
+    if args.steps % args.block or args.warmup % args.block:
+        sys.exit("tool_side_by_side: --steps and --warmup must be multiples of --block (the "
+                 "force blocks of both codes end at the same steps)")
     args.threads = [int(t) for t in args.threads.split(",")]
     os.makedirs(args.dir, exist_ok=True)
 
@@ -239,7 +244,8 @@ def main():
             runs["ours"].append(a)
             runs["liggghts"].append(b)
             fa, fb = force_stats(a["forces"]), force_stats(b["forces"])
-            if fa["blocks"] != fb["blocks"]:
+            if fa["blocks"] != fb["blocks"] or any(
+                    abs(x[0] - y[0]) > 1e-9 for x, y in zip(a["forces"], b["forces"])):
                 sys.exit(f"tool_side_by_side: {fa['blocks']} force blocks from ours, "
                          f"{fb['blocks']} from LIGGGHTS")
             d_mean = abs(fa["mean_fy"] - fb["mean_fy"]) / abs(fb["mean_fy"])
@@ -264,6 +270,7 @@ def main():
             row[code] = {"wall": wall, "rtf": wall / sim, "rate": n * args.steps / wall,
                          "walls": [r["seconds"] for r in runs[code]],
                          "rebuilds": runs[code][-1]["rebuilds"],
+                         "phases": runs[code][-1]["phases"],
                          "cpu_share": statistics.median(r["cpu_share"] for r in runs[code])}
         rows.append(row)
 
@@ -280,6 +287,13 @@ def main():
                          + (f"**{r['ratio']:.2f}** ({', '.join(f'{x:.2f}' for x in r['ratios'])})"
                             if code == "ours" else "") +
                          f" | {c['rebuilds']} | {c['cpu_share']:.2f} |")
+    phase_lines = []
+    for r in rows:
+        for code, name in (("ours", "ours"), ("liggghts", "LIGGGHTS")):
+            ph = r[code]["phases"]
+            total = sum(ph.values())
+            phase_lines.append(f"* {r['threads']} vs {r['threads']}, {name}: " + ", ".join(
+                f"{k} {v:.2f} s ({v / total:.0%})" for k, v in ph.items() if v > 0))
     force = ["| threads vs ranks | repeat | mean F_y ours [N] | LIGGGHTS [N] | difference | "
              "peak block F_y ours [N] | LIGGGHTS [N] | difference | mean horizontal magnitude "
              "ours / LIGGGHTS [N] |",
@@ -293,11 +307,14 @@ def main():
     blocks = ["| t [s] | F_y ours [N] | F_y LIGGGHTS [N] |", "| ---: | ---: | ---: |"]
     for (t, _, fy1, _), (_, _, fy2, _) in zip(checks[0]["blocks_ours"],
                                               checks[0]["blocks_liggghts"]):
-        blocks.append(f"| {t:.3f} | {fy1:.1f} | {fy2:.1f} |")
+        blocks.append(f"| {t:.4f} | {fy1:.1f} | {fy2:.1f} |")
     head = (f"Tool side by side with LIGGGHTS {version}, {os.cpu_count()} x {cpu}, "
             f"{started:%Y-%m-%d %H:%M}-{ended:%H:%M} UTC, median of {args.repeats}, load "
             f"average {load0[0]:.2f} at the start and {load1[0]:.2f} at the end")
-    text = (head + "\n\n" + "\n".join(table) + "\n\nForce on the bucket in the direction of "
+    text = (head + "\n\n" + "\n".join(table) + "\n\nTime per phase in the timed steps "
+            "(last repeat; ours: the engine's timer, mesh_contacts = walls and the bucket; "
+            "LIGGGHTS: its log, Other = the fixes: walls, mesh, mesh motion, integration):\n\n"
+            + "\n".join(phase_lines) + "\n\nForce on the bucket in the direction of "
             f"motion, block means of {args.block} steps (tolerance: window mean "
             f"{MEAN_TOL:.0%}, peak block {PEAK_TOL:.0%}):\n\n" + "\n".join(force) +
             f"\n\nBlock means of the first pair ({checks[0]['threads']} vs "
