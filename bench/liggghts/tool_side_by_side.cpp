@@ -182,7 +182,11 @@ void prepare(const std::string& bed, const std::string& dir) {
   dem::State st;
   std::int64_t removed = 0;
   std::vector<std::size_t> order(in.size());
-  for (std::size_t i = 0; i < in.size(); ++i) order[static_cast<std::size_t>(in.id[i])] = i;
+  for (std::size_t i = 0; i < in.size(); ++i) {
+    if (in.id[i] < 0 || static_cast<std::size_t>(in.id[i]) >= in.size())
+      throw std::runtime_error(bed + ".h5: particle ids are not 0..n-1");
+    order[static_cast<std::size_t>(in.id[i])] = i;
+  }
   for (const std::size_t i : order) {
     const dem::Vec3 c = in.x[i];
     bool hit = false;
