@@ -17,7 +17,8 @@
 //       <seconds> ..." (the engine's timer over the timed steps), then one line per block of
 //       B timed steps "F <t_end> <mean Fx> <mean Fy> <mean Fz>" (force on the bucket, N,
 //       averaged over every step of the block; the sums cost nothing measurable).
-//       --interval 0 rebuilds only when needed (the skin guard).
+//       --interval 0 rebuilds only when needed (the skin guard). --shift D moves the bucket's
+//       path by D metres in y (default 0): a perturbed start, for the spread of our own results.
 //
 // The bucket: an open box (floor, back, two sides; open to +y and to the top) of
 // W x L x H = 0.24 x 0.16 x 0.12 m, cut into 1 cm squares (2 triangles each), centred in x,
@@ -219,7 +220,8 @@ void prepare(const std::string& bed, const std::string& dir) {
                ref.z);
 }
 
-dem::Scene make_scene(const KV& box, const std::string& dir, int threads, int interval) {
+dem::Scene make_scene(const KV& box, const std::string& dir, int threads, int interval,
+                      double shift) {
   dem::Scene s;
   dem::Species sp;
   sp.name = "grain";
@@ -255,6 +257,7 @@ dem::Scene make_scene(const KV& box, const std::string& dir, int threads, int in
              {"y0", {0, 0, 0}, {0, 1, 0}},
              {"y1", {0, sy, 0}, {0, -1, 0}}};
   const dem::Vec3 ref{num(box, "ref_x"), num(box, "ref_y"), num(box, "ref_z")};
+  const dem::Vec3 path{0, shift, 0};  // --shift: the whole path moved by this much in y
   const dem::Vec3 vel{num(box, "vx"), num(box, "vy"), num(box, "vz")};
   dem::Tool tool;
   tool.name = "bucket";
@@ -262,9 +265,9 @@ dem::Scene make_scene(const KV& box, const std::string& dir, int threads, int in
   const double t_end = 10.0;  // s; far beyond any run
   dem::Keyframe k0, k1;
   k0.time = 0;
-  k0.position = {ref.x, ref.y, ref.z};
+  k0.position = {ref.x, ref.y + path.y, ref.z};
   k1.time = t_end;
-  k1.position = {ref.x + vel.x * t_end, ref.y + vel.y * t_end, ref.z + vel.z * t_end};
+  k1.position = {ref.x + vel.x * t_end, ref.y + path.y + vel.y * t_end, ref.z + vel.z * t_end};
   tool.motion.keyframes = {k0, k1};
   dem::validate_keyframes(tool.motion.keyframes, "tool_side_by_side.bucket");
   s.tools.push_back(std::move(tool));
@@ -277,9 +280,10 @@ double cpu_seconds() {
   return t.tv_sec + 1e-9 * t.tv_nsec;
 }
 
-int run(const std::string& dir, int threads, int interval, int steps, int warmup, int block) {
+int run(const std::string& dir, int threads, int interval, int steps, int warmup, int block,
+        double shift) {
   const KV box = read_kv(dir + "/tool_bed.box");
-  const dem::Scene scene = make_scene(box, dir, threads, interval);
+  const dem::Scene scene = make_scene(box, dir, threads, interval, shift);
   dem::State st = dem::load_checkpoint(dir + "/tool_bed.h5");
   st.tool_pose.assign(scene.tools.size(), {});
   dem::Engine engine(scene);
@@ -334,7 +338,7 @@ int main(int argc, char** argv) {
                                          {"--dir", "results/bench_liggghts"},
                                          {"--threads", "1"}, {"--interval", "0"},
                                          {"--steps", "1000"}, {"--warmup", "100"},
-                                         {"--block", "100"}};
+                                         {"--block", "100"}, {"--shift", "0"}};
   for (int a = 2; a + 1 < argc; a += 2) {
     if (!opt.count(argv[a])) {
       std::fprintf(stderr, "dem_tool_side_by_side: unknown option %s\n", argv[a]);
@@ -350,7 +354,7 @@ int main(int argc, char** argv) {
     if (cmd == "run")
       return run(opt["--dir"], std::stoi(opt["--threads"]), std::stoi(opt["--interval"]),
                  std::stoi(opt["--steps"]), std::stoi(opt["--warmup"]),
-                 std::stoi(opt["--block"]));
+                 std::stoi(opt["--block"]), std::stod(opt["--shift"]));
     std::fprintf(stderr, "dem_tool_side_by_side: unknown command %s\n", cmd.c_str());
     return 2;
   } catch (const std::exception& e) {
