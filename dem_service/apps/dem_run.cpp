@@ -47,7 +47,7 @@ std::string extent(const dem::State& s) {
 }
 
 void print_timing(const dem::Engine& engine, const dem::State& s, double sim_time, long long steps,
-                  double wall, long long rebuilds, long long early) {
+                  double wall, long long rebuilds, long long early, double asleep_share) {
   std::vector<cosim::TimingRow> rows = engine.timing().rows();
   rows.push_back({"other", std::max(0.0, wall - engine.timing().sum())});
   char title[160], rtf[96], rate[96], phases[128];
@@ -66,7 +66,21 @@ void print_timing(const dem::Engine& engine, const dem::State& s, double sim_tim
                 static_cast<double>(dem::bytes(s)) / n,
                 static_cast<double>(engine.workspace_bytes()) / n,
                 static_cast<double>(cosim::peak_resident_bytes()) / 1e6);
-  cosim::print_timing_table(std::cout, title, rows, wall, {rtf, rate, phases, memory});
+  std::vector<std::string> notes{rtf, rate, phases, memory};
+  const dem::Scene& scene = engine.scene();
+  if (scene.sleep.enabled) {
+    char line[160];
+    std::snprintf(line, sizeof line, "Sleeping: %.1f %% of particle-steps asleep, %lld asleep at the end",
+                  100 * asleep_share, static_cast<long long>(engine.sleeping()));
+    notes.emplace_back(line);
+  }
+  if (scene.region.enabled) {
+    char line[160];
+    std::snprintf(line, sizeof line, "Left the region of interest: %lld particles, %.6g kg",
+                  static_cast<long long>(s.removed_count), s.removed_mass);
+    notes.emplace_back(line);
+  }
+  cosim::print_timing_table(std::cout, title, rows, wall, notes);
   // Where broad_phase went, stage by stage (docs/performance.md).
   cosim::print_timing_table(std::cout, "Broad phase by stage", engine.broad_phase_stages().rows(),
                             wall);
@@ -148,6 +162,7 @@ int run(int argc, char** argv) {
   const double t0 = s.step * scene.dt;
   const long long rebuilds0 = s.rebuilds, early0 = s.early_rebuilds;
   const cosim::Stopwatch loop;
+  double asleep_steps = 0, particle_steps = 0;  // sleeping share of the run
   cosim::Stopwatch since_progress;
   cosim::Stopwatch output;
   out.snapshot(s, t0);
@@ -156,6 +171,8 @@ int run(int argc, char** argv) {
     set_tool_poses(scene, s);
     const double t_force = s.step * scene.dt;
     engine.step(s);
+    asleep_steps += static_cast<double>(engine.sleeping());
+    particle_steps += static_cast<double>(s.size());
     output.restart();
     if (k % wrench_every == 0) out.sample_wrenches(s, engine, t_force);
     if (snap_every && k % snap_every == 0 && k != steps) out.snapshot(s, s.step * scene.dt);
@@ -163,8 +180,16 @@ int run(int argc, char** argv) {
     if (since_progress.seconds() >= rc.output.progress_every) {
       since_progress.restart();
       const double rate = k / loop.seconds();
-      std::fprintf(stderr, "t = %.4f s  step %lld/%lld  %.0f steps/s  ETA %.0f s\n",
-                   s.step * scene.dt, k, steps, rate, (steps - k) / rate);
+      if (scene.sleep.enabled || scene.region.enabled)
+        std::fprintf(stderr,
+                     "t = %.4f s  step %lld/%lld  %.0f steps/s  ETA %.0f s  asleep %lld/%zu  "
+                     "removed %lld\n",
+                     s.step * scene.dt, k, steps, rate, (steps - k) / rate,
+                     static_cast<long long>(engine.sleeping()), s.size(),
+                     static_cast<long long>(s.removed_count));
+      else
+        std::fprintf(stderr, "t = %.4f s  step %lld/%lld  %.0f steps/s  ETA %.0f s\n",
+                     s.step * scene.dt, k, steps, rate, (steps - k) / rate);
     }
   }
   output.restart();
@@ -176,7 +201,7 @@ int run(int argc, char** argv) {
   std::fprintf(stderr, "dem_run: wrote %s and %s\n", rc.output.file.c_str(),
                out.xdmf_path().c_str());
   print_timing(engine, s, s.step * scene.dt - t0, steps, wall, s.rebuilds - rebuilds0,
-               s.early_rebuilds - early0);
+               s.early_rebuilds - early0, particle_steps > 0 ? asleep_steps / particle_steps : 0.0);
   return 0;
 }
 

@@ -54,6 +54,8 @@ void save_checkpoint(const State& s, const std::string& path) {
                                            s.rebuilds, s.early_rebuilds};
   h5::write(file, "counters", counters);
   h5::write(file, "max_displacement", std::vector<double>{s.max_displacement});
+  h5::write(file, "removed_count", std::vector<std::int64_t>{s.removed_count});
+  h5::write(file, "removed_mass", std::vector<double>{s.removed_mass});
   for_each_array(s, [&](const char* name, const auto& array, Field) {
     write_array(file, name, array);
   });
@@ -77,6 +79,11 @@ State load_checkpoint(const std::string& path) {
     s.rebuilds = counters[3];
     s.early_rebuilds = counters[4];
     s.max_displacement = h5::read<double>(file, "max_displacement").at(0);
+    // Written since the region of interest exists; older checkpoints removed nothing.
+    if (H5Lexists(file, "removed_count", H5P_DEFAULT) > 0) {
+      s.removed_count = h5::read<std::int64_t>(file, "removed_count").at(0);
+      s.removed_mass = h5::read<double>(file, "removed_mass").at(0);
+    }
     for_each_array(s, [&](const char* name, auto& array, Field) {
       // Older checkpoints lack wall masks or slot blocks (they had a block per particle):
       // the first step then rebuilds the lists.
@@ -87,6 +94,8 @@ State load_checkpoint(const std::string& path) {
         s.lists_valid = false;
         return;
       }
+      // Older checkpoints lack the rest counters of sleeping: every particle starts awake.
+      if (key == "rest_steps" && H5Lexists(file, name, H5P_DEFAULT) <= 0) return;
       read_array(file, name, array);
     });
   } catch (const std::exception& e) {

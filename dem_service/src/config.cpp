@@ -107,10 +107,60 @@ ThreadWait parse_thread_wait(const YAML::Node& s, ThreadWait fallback) {
   return fallback;  // not reached: get_choice refused anything else
 }
 
+void parse_sleep(const YAML::Node& sl, const Scene& sc, SleepOptions& o) {
+  const std::string p = "scene.sleep";
+  if (!sl.IsMap())
+    throw ConfigError(p + ": expected a map {enabled, speed, steps, tool_distance}");
+  cfg::check_keys(sl, p, {"enabled", "speed", "steps", "tool_distance"});
+  o.enabled = cfg::get_bool_or(sl, p, "enabled", o.enabled);
+  o.speed = cfg::get_double_or(sl, p, "speed", o.speed);
+  if (!(o.speed > 0) || !std::isfinite(o.speed))
+    throw ConfigError("scene.sleep.speed: must be a speed > 0 in m/s (e.g. 0.01), got " +
+                      std::to_string(o.speed));
+  const long long steps = cfg::get_int_or(sl, p, "steps", o.steps);
+  if (steps < 1 || steps > 100000000)
+    throw ConfigError("scene.sleep.steps: must be between 1 and 1e8 steps (e.g. 200), got " +
+                      std::to_string(steps));
+  o.steps = static_cast<int>(steps);
+  o.tool_distance = cfg::get_double_or(sl, p, "tool_distance", o.tool_distance);
+  if (!(o.tool_distance >= 0) || !std::isfinite(o.tool_distance))
+    throw ConfigError("scene.sleep.tool_distance: must be a distance >= 0 in m (e.g. 0.5), got " +
+                      std::to_string(o.tool_distance));
+  // A particle thrown up is slower than `speed` for 2 speed / (|g| dt) steps around its apex:
+  // `steps` must be longer, or it would fall asleep in the air.
+  const double g = norm(sc.gravity);
+  if (o.enabled && g > 0) {
+    const double apex = 2 * o.speed / (g * sc.dt);
+    if (static_cast<double>(o.steps) <= apex) {
+      std::ostringstream msg;
+      msg << "scene.sleep.steps: " << o.steps << " steps is not longer than the " << apex
+          << " steps a particle in free flight spends slower than scene.sleep.speed = "
+          << o.speed << " m/s around its apex (2 speed / (|g| dt)); it would fall asleep in "
+          << "the air. Raise scene.sleep.steps above " << static_cast<long long>(apex)
+          << " or lower scene.sleep.speed";
+      throw ConfigError(msg.str());
+    }
+  }
+}
+
+void parse_region(const YAML::Node& r, RegionOptions& o) {
+  const std::string p = "scene.region";
+  if (!r.IsMap()) throw ConfigError(p + ": expected a map {min: [x, y, z], max: [x, y, z]}");
+  cfg::check_keys(r, p, {"min", "max"});
+  if (!r["min"] || !r["max"])
+    throw ConfigError(p + ": needs both min and max (the corners of the box particles must stay in)");
+  o.min = vec3(r, p, "min");
+  o.max = vec3(r, p, "max");
+  if (!(o.min.x < o.max.x && o.min.y < o.max.y && o.min.z < o.max.z))
+    throw ConfigError(p + ": min must be below max in x, y and z (swap the corners?)");
+  o.enabled = true;
+}
+
 void parse_scene_options(const YAML::Node& s, Scene& sc) {
   if (!s) throw ConfigError("scene: missing (expected a map with dt, gravity, ...)");
   cfg::check_keys(s, "scene", {"dt", "gravity", "broad_phase_interval", "skin", "guard", "threads",
-                               "min_particles_per_thread", "thread_wait", "stability"});
+                               "min_particles_per_thread", "thread_wait", "stability", "sleep",
+                               "region"});
   sc.dt = cfg::get_positive(s, "scene", "dt");
   if (s["gravity"]) sc.gravity = vec3(s, "scene", "gravity");
   sc.broad_phase_interval =
@@ -132,6 +182,8 @@ void parse_scene_options(const YAML::Node& s, Scene& sc) {
     throw ConfigError("scene.min_particles_per_thread: must be >= 1 (1 = always use scene.threads)");
   sc.thread_wait = parse_thread_wait(s, sc.thread_wait);
   if (const YAML::Node st = s["stability"]) parse_stability(st, sc.stability);
+  if (const YAML::Node sl = s["sleep"]) parse_sleep(sl, sc, sc.sleep);
+  if (const YAML::Node r = s["region"]) parse_region(r, sc.region);
 }
 
 std::vector<Species> parse_species(const YAML::Node& mats, const YAML::Node& sps) {

@@ -106,6 +106,7 @@ Timing make_timing() {
 Engine::Engine(const Scene& scene) : scene_(scene) {
   max_threads_ = threads_ = std::max(1, scene.threads);
   remote_.resize(max_threads_);
+  remote_wake_.resize(max_threads_);
   thread_tool_wrench_.assign(max_threads_, std::vector<Wrench>(scene.tools.size()));
   thread_stats_.assign(max_threads_, ContactStats{});
   boundary_stats_.assign(max_threads_, ContactStats{});
@@ -149,10 +150,37 @@ bool Engine::guard_fires(const State& s, double* moved) const {
   return worst > scene_.skin_distance();
 }
 
+void Engine::size_sleep_arrays(State& s) {
+  // rest_steps is a sorted field: the broad phase permutes it, so it must have one entry per
+  // particle before every build, with sleeping enabled or not (then it stays all zero).
+  if (s.rest_steps.size() != s.size()) s.rest_steps.resize(s.size(), 0);
+}
+
+void Engine::remove_outside(State& s) {
+  removed_last_ = 0;
+  if (!scene_.region.enabled) return;
+  const std::size_t n = s.size();
+  const Vec3 lo = scene_.region.min, hi = scene_.region.max;
+  remove_.assign(n, 0);
+  bool any = false;
+  for (std::size_t i = 0; i < n; ++i) {
+    const Vec3 p = s.x[i];
+    // NaN compares false: a NaN particle is left for the blow-up check to name.
+    const bool out = p.x < lo.x || p.y < lo.y || p.z < lo.z || p.x > hi.x || p.y > hi.y ||
+                     p.z > hi.z;
+    remove_[i] = out;
+    any = any || out;
+  }
+  if (any) removed_last_ = static_cast<std::int64_t>(remove_particles(s, remove_));
+}
+
 void Engine::rebuild(State& s) {
   choose_threads(s);
   cosim::Stopwatch watch;
   update_tool_geometry(s);
+  size_sleep_arrays(s);
+  remove_outside(s);
+  choose_threads(s);
   broad_.build(scene_, s, tool_vertices_, threads_);
   timing_.lap(section::broad_phase, watch);
 }
@@ -168,6 +196,8 @@ void Engine::prepare(State& s) {
   cosim::Stopwatch watch;
   update_tool_geometry(s);
   timing_.lap(section::mesh_contacts, watch);
+  size_sleep_arrays(s);
+  removed_last_ = 0;
 
   const bool due = !s.lists_valid || s.steps_since_rebuild >= scene_.broad_phase_interval ||
                    s.pair_offset.size() != s.size() + 1 || s.slot_block.size() != s.size() ||
@@ -175,6 +205,8 @@ void Engine::prepare(State& s) {
                    s.pair_work.size() != s.size() + 1;
   double moved = 0;
   if (due) {
+    remove_outside(s);
+    choose_threads(s);
     broad_.build(scene_, s, tool_vertices_, threads_);
   } else if (guard_fires(s, &moved)) {
     if (scene_.guard == GuardMode::strict) {
@@ -188,6 +220,8 @@ void Engine::prepare(State& s) {
       throw SimulationError(msg.str());
     }
     ++s.early_rebuilds;
+    remove_outside(s);
+    choose_threads(s);
     broad_.build(scene_, s, tool_vertices_, threads_);
   }
   timing_.lap(section::broad_phase, watch);
@@ -216,7 +250,23 @@ void Engine::step(State& s) {
 }
 
 void Engine::pair_forces(State& s) {
+  if (scene_.sleep.enabled)
+    pair_forces_impl<true>(s);
+  else
+    pair_forces_impl<false>(s);
+}
+
+// Sleep = false is the all-active loop; Sleep = true adds the sleeper rules (Scene::sleep) and
+// computes every force that the all-active loop computes between awake particles in the same
+// order, so the awake part of the bed sees the same sums.
+template <bool Sleep>
+void Engine::pair_forces_impl(State& s) {
   const std::size_t n = s.size();
+  if (Sleep) wake_.resize(n);
+  const std::int32_t S = scene_.sleep.steps;
+  const double wake_speed2 = scene_.sleep.speed * scene_.sleep.speed;
+  const std::int32_t* const REST = s.rest_steps.data();
+  std::uint8_t* const WAKE = wake_.data();
   force_.resize(n);
   const int T = threads_;
   const ContactLaw law = scene_.particle_particle;  // a local copy: no reloads after stores
@@ -244,7 +294,27 @@ void Engine::pair_forces(State& s) {
     std::vector<Remote> remote;  // local for the loop (no false sharing), capacity kept
     remote.swap(remote_[t]);
     remote.clear();
-    for (std::size_t i = a0; i < a1; ++i) force_[i] = s.mass[i] * g;
+    std::vector<std::int32_t> remote_wake;
+    if (Sleep) {
+      remote_wake.swap(remote_wake_[t]);
+      remote_wake.clear();
+    }
+    if (Sleep) {
+      for (std::size_t i = a0; i < a1; ++i) {
+        force_[i] = REST[i] >= S ? Vec3{} : s.mass[i] * g;  // a sleeper feels no gravity
+        WAKE[i] = 0;
+      }
+    } else {
+      for (std::size_t i = a0; i < a1; ++i) force_[i] = s.mass[i] * g;
+    }
+    // Wake a sleeper: directly in this thread's range, queued otherwise (the partner j > i
+    // of a pair in this range is never in an earlier thread's range).
+    auto wake = [&](std::size_t p) {
+      if (p < a1)
+        WAKE[p] = 1;
+      else
+        remote_wake.push_back(static_cast<std::int32_t>(p));
+    };
     ContactCoefficients c;
     double last_ri = -1, last_mi = -1, last_rj = -1, last_mj = -1;
     // Raw pointers: the compiler cannot prove that writing a spring leaves the vectors'
@@ -266,15 +336,25 @@ void Engine::pair_forces(State& s) {
         last_rj = last_mj = -1;
       }
       Vec3 fi{};
+      const bool si = Sleep && REST[i] >= S;
       for (std::int32_t k = off[i]; k < off[i + 1]; ++k) {
         const std::int32_t j = J[k];
+        bool sj = false;
+        if (Sleep) {
+          sj = REST[j] >= S;
+          if (si && sj) continue;  // two sleepers: no force, the spring stays as it was
+        }
         const Vec3 d = xi - X[j];
         const double rsum = ri + R[j];
         const double d2 = norm2(d);
         const Vec3 urel = ui - U[j];
         if (d2 >= rsum * rsum && surely_apart(d2, rsum, norm2(urel), dt)) {
           // Contact ended: history is forgotten (write only if there is something to clear).
-          if (spring[k].x != 0 || spring[k].y != 0 || spring[k].z != 0) spring[k] = Vec3{};
+          if (spring[k].x != 0 || spring[k].y != 0 || spring[k].z != 0) {
+            // A sleeper whose contact with an awake particle ends may have lost its support.
+            if (Sleep && (si || sj)) wake(si ? i : static_cast<std::size_t>(j));
+            spring[k] = Vec3{};
+          }
           continue;
         }
         const double dist = std::sqrt(d2);
@@ -295,6 +375,19 @@ void Engine::pair_forces(State& s) {
         if (rsum - dist > max_overlap_ratio * std::min(ri, rj))
           max_overlap_ratio = (rsum - dist) / std::min(ri, rj);
         max_overlap = std::max(max_overlap, rsum - dist);
+        if (Sleep && (si || sj)) {
+          // Awake against asleep: the force acts on the awake particle only; a partner moving
+          // faster than scene.sleep.speed relative to the sleeper wakes it.
+          if (norm2(urel) > wake_speed2) wake(si ? i : static_cast<std::size_t>(j));
+          if (sj) {
+            fi += f;
+          } else if (static_cast<std::size_t>(j) < a1) {
+            F[j] -= f;
+          } else {
+            remote.push_back({j, f});
+          }
+          continue;
+        }
         fi += f;
         // Partner in this thread's range: write directly; otherwise defer, applied below in
         // fixed thread order so the sums do not depend on scheduling.
@@ -306,15 +399,18 @@ void Engine::pair_forces(State& s) {
       F[i] += fi;
     }
     remote.swap(remote_[t]);
+    if (Sleep) remote_wake.swap(remote_wake_[t]);
     thread_stats_[t] = ContactStats{contacts, 0, max_overlap, max_overlap_ratio};
 
   }
   for (int t = 0; t < T; ++t)
     for (const Remote& r : remote_[t]) force_[r.j] -= r.f;
+  if (Sleep)
+    for (int t = 0; t < T; ++t)
+      for (const std::int32_t p : remote_wake_[t]) wake_[p] = 1;
 }
 
 void Engine::boundary_forces(State& s) {
-  const std::size_t n = s.size();
   const int T = threads_;
   const ContactLaw& law = scene_.particle_wall;
   const double dt = scene_.dt;
@@ -337,8 +433,12 @@ void Engine::boundary_forces(State& s) {
     // blocks out): threads share those equally, wherever they are in the bed.
     const std::size_t nb = s.slot_particle.size();
     const std::size_t k0 = nb * t / T, k1 = nb * (t + 1) / T;
+    const bool sleep_on = scene_.sleep.enabled;
+    const std::int32_t S = scene_.sleep.steps;
     for (std::size_t k = k0; k < k1; ++k) {
       const std::size_t i = static_cast<std::size_t>(s.slot_particle[k]);
+      // A sleeper has no wall or mesh forces; its boundary history stays as it was.
+      if (sleep_on && s.rest_steps[i] >= S) continue;
       // Nothing near and nothing remembered.
       if (s.wall_mask[i] == 0 && s.tri_offset[i] == s.tri_offset[i + 1] && s.slot_count[i] == 0)
         continue;
@@ -433,7 +533,28 @@ void Engine::boundary_forces(State& s) {
 }
 
 void Engine::integrate(State& s) {
+  if (scene_.sleep.enabled)
+    integrate_impl<true>(s);
+  else
+    integrate_impl<false>(s);
+}
+
+template <bool Sleep>
+void Engine::integrate_impl(State& s) {
   const std::size_t n = s.size();
+  // Sleeping: a tool's neighbourhood is the sphere around its reference point with the mesh's
+  // bounding radius plus scene.sleep.tool_distance (plus the particle radius below).
+  const std::size_t ntools = scene_.tools.size();
+  std::vector<Vec3> tool_centre(Sleep ? ntools : 0);
+  std::vector<double> tool_reach(Sleep ? ntools : 0);
+  if (Sleep)
+    for (std::size_t m = 0; m < ntools; ++m) {
+      tool_centre[m] = s.tool_pose[m].position;
+      tool_reach[m] = scene_.tools[m].mesh.bounding_radius + scene_.sleep.tool_distance;
+    }
+  const std::int32_t S = scene_.sleep.steps;
+  const double rest_speed2 = scene_.sleep.speed * scene_.sleep.speed;
+  std::int64_t sleeping = 0;
   const int T = threads_;
   const double dt = scene_.dt;
   const double vmax2 = scene_.stability.max_speed * scene_.stability.max_speed;
@@ -445,7 +566,25 @@ void Engine::integrate(State& s) {
     const std::size_t a0 = n * t / T, a1 = n * (t + 1) / T;
     double my_d2 = 0;
     std::int64_t my_bad = -1;
+    std::int64_t my_sleeping = 0;
+    auto near_tool = [&](std::size_t i) {
+      for (std::size_t m = 0; m < tool_centre.size(); ++m) {
+        const double reach = tool_reach[m] + s.radius[i];
+        if (norm2(s.x[i] - tool_centre[m]) < reach * reach) return true;
+      }
+      return false;
+    };
     for (std::size_t i = a0; i < a1; ++i) {
+      if (Sleep && s.rest_steps[i] >= S) {
+        // Asleep: not integrated. Woken by the pair loop or a tool, it is integrated from
+        // the next step on, with all its forces.
+        if (wake_[i] || near_tool(i))
+          s.rest_steps[i] = 0;
+        else
+          ++my_sleeping;
+        my_d2 = std::max(my_d2, norm2(s.x[i] - s.x_at_rebuild[i]));
+        continue;
+      }
       // Semi-implicit Euler: the new velocity moves the particle (symplectic, one force
       // evaluation per step); see docs/physics.md.
       const Vec3 dv = (dt / s.mass[i]) * force_[i];
@@ -457,14 +596,28 @@ void Engine::integrate(State& s) {
       const double v2 = norm2(v);
       if (!(v2 <= vmax2) && my_bad < 0) my_bad = static_cast<std::int64_t>(i);
       my_d2 = std::max(my_d2, norm2(x - s.x_at_rebuild[i]));
+      if (Sleep) {
+        std::int32_t r = s.rest_steps[i];
+        if (v2 < rest_speed2 && !near_tool(i)) {
+          if (++r >= S) {  // falls asleep where it is
+            s.v[i] = s.u[i] = Vec3{};
+            ++my_sleeping;
+          }
+        } else {
+          r = 0;
+        }
+        s.rest_steps[i] = r;
+      }
     }
 #pragma omp critical(dem_integrate)
     {
       max_d2 = std::max(max_d2, my_d2);
+      sleeping += my_sleeping;
       if (my_bad >= 0 && (bad < 0 || my_bad < bad)) bad = my_bad;
     }
   }
   s.max_displacement = std::sqrt(max_d2);
+  sleeping_ = sleeping;
   ++s.step;
   ++s.steps_since_rebuild;
   if (bad >= 0) {

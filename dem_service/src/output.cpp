@@ -129,6 +129,13 @@ void RunOutput::write_summary(const Timing& t, const State& s, double sim_time) 
   h5::write_double_attribute(g, "simulated_time", sim_time);
   h5::write_double_attribute(g, "rebuilds", static_cast<double>(s.rebuilds));
   h5::write_double_attribute(g, "early_rebuilds", static_cast<double>(s.early_rebuilds));
+  // Region of interest (scene.region): particles removed so far and their mass; sleeping.
+  h5::write_double_attribute(g, "removed_count", static_cast<double>(s.removed_count));
+  h5::write_double_attribute(g, "removed_mass", s.removed_mass);
+  std::int64_t asleep = 0;
+  if (scene_.sleep.enabled)
+    for (const std::int32_t r : s.rest_steps) asleep += r >= scene_.sleep.steps;
+  h5::write_double_attribute(g, "sleeping", static_cast<double>(asleep));
 }
 
 void RunOutput::write_xdmf() const {

@@ -1,5 +1,6 @@
 #include <algorithm>
 #include <cmath>
+#include <string_view>
 
 #include "dem/scene.hpp"
 #include "dem/state.hpp"
@@ -25,6 +26,76 @@ void add_particle(State& s, Vec3 x, Vec3 v, double radius, double mass, int spec
   s.species.push_back(species);
   s.id.push_back(id);
   s.lists_valid = false;
+}
+
+}  // namespace dem
+
+namespace dem {
+
+std::size_t remove_particles(State& s, const std::vector<std::uint8_t>& remove) {
+  const std::size_t n = s.size();
+  std::vector<std::int32_t> new_index(n, -1);
+  std::size_t m = 0;
+  double mass = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (remove[i])
+      mass += s.mass[i];
+    else
+      new_index[i] = static_cast<std::int32_t>(m++);
+  }
+  if (m == n) return 0;
+  // The lists read the old numbering: compact them first. Rows of removed particles and
+  // entries naming one go; the rest keep their order (so i < j still holds).
+  if (s.pair_offset.size() == n + 1) {
+    std::vector<std::int32_t> off(m + 1, 0), J;
+    std::vector<Vec3> spring;
+    J.reserve(s.pair_j.size());
+    spring.reserve(s.pair_spring.size());
+    for (std::size_t i = 0; i < n; ++i) {
+      if (remove[i]) continue;
+      for (std::int32_t k = s.pair_offset[i]; k < s.pair_offset[i + 1]; ++k) {
+        const std::int32_t j = new_index[s.pair_j[k]];
+        if (j < 0) continue;
+        J.push_back(j);
+        spring.push_back(s.pair_spring[k]);
+      }
+      off[new_index[i] + 1] = static_cast<std::int32_t>(J.size());
+    }
+    s.pair_offset.swap(off);
+    s.pair_j.swap(J);
+    s.pair_spring.swap(spring);
+  }
+  if (s.tri_offset.size() == n + 1) {
+    std::vector<std::int32_t> off(m + 1, 0), tool, tri;
+    for (std::size_t i = 0; i < n; ++i) {
+      if (remove[i]) continue;
+      for (std::int32_t k = s.tri_offset[i]; k < s.tri_offset[i + 1]; ++k) {
+        tool.push_back(s.tri_tool[k]);
+        tri.push_back(s.tri_index[k]);
+      }
+      off[new_index[i] + 1] = static_cast<std::int32_t>(tool.size());
+    }
+    s.tri_offset.swap(off);
+    s.tri_tool.swap(tool);
+    s.tri_index.swap(tri);
+  }
+  // Every per-particle array of the field list (particle and sorted fields, and the two derived
+  // arrays that have one entry per particle); the boundary slot pool stays (slot_block keeps
+  // indexing it) and tool poses are not per particle.
+  auto compact = [&](auto& a) {
+    if (a.size() != n) return;  // a sorted field before the first broad phase
+    std::size_t k = 0;
+    for (std::size_t i = 0; i < n; ++i)
+      if (!remove[i]) a[k++] = a[i];
+    a.resize(m);
+  };
+  for_each_array(s, [&](const char* name, auto& a, Field field) {
+    const std::string_view key(name);
+    if (field != Field::derived || key == "x_at_rebuild" || key == "wall_mask") compact(a);
+  });
+  s.removed_count += static_cast<std::int64_t>(n - m);
+  s.removed_mass += mass;
+  return n - m;
 }
 
 }  // namespace dem

@@ -113,6 +113,7 @@ void ServiceModel::configure(const YAML::Node& parameters, const cosim::RunInfo&
   last_particles_.reset();
   steps_done_ = 0;
   snapshot_seconds_ = 0;
+  asleep_steps_ = particle_steps_ = 0;
   snapshot_.reset();
   for (std::size_t m = 0; m < scene.tools.size(); ++m)
     rc_->state.tool_pose[m] = scene.tools[m].motion.evaluate(cosim::to_seconds(run.t_start));
@@ -200,6 +201,8 @@ cosim::StepResult ServiceModel::step(const cosim::StepInputs& in, bool want_aver
     const TimePoint t = in.t_start() + k * inner_step_;
     set_tool_poses(in, t);
     engine.step(s);  // forces at t with the poses at t, then positions to t + dt
+    asleep_steps_ += static_cast<double>(engine.sleeping());
+    particle_steps_ += static_cast<double>(s.size());
     for (std::size_t m = 0; m < ntools; ++m) {
       sum[m].force += engine.tool_wrenches()[m].force;
       sum[m].torque += engine.tool_wrenches()[m].torque;
@@ -247,6 +250,9 @@ cosim::StepResult ServiceModel::step(const cosim::StepInputs& in, bool want_aver
       {"max_overlap_ratio", max_ratio},
       {"broad_phases", static_cast<double>(s.rebuilds - rebuilds0)},
       {"early_rebuilds", static_cast<double>(s.early_rebuilds - early0)},
+      {"sleeping", static_cast<double>(engine.sleeping())},
+      {"removed", static_cast<double>(s.removed_count)},
+      {"removed_mass", s.removed_mass},
   };
   for (const cosim::TimingRow& row : engine.timing().rows_since(before))
     r.diagnostics.emplace_back("seconds_" + row.section, row.seconds);
@@ -285,10 +291,23 @@ void ServiceModel::finish(std::ostream& report) {
   std::snprintf(rtf, sizeof rtf, "Real-time factor (wall / simulated): %.3g", sim > 0 ? wall / sim : 0.0);
   std::snprintf(phases, sizeof phases, "Broad phases: %lld (early rebuilds by the guard: %lld)",
                 static_cast<long long>(s.rebuilds), static_cast<long long>(s.early_rebuilds));
-  cosim::print_timing_table(report, title, rows, wall,
-                            {"snapshot: state copies for repeated steps; other: waiting for the "
-                             "master (bus) and the rest",
-                             rtf, phases});
+  std::vector<std::string> notes{"snapshot: state copies for repeated steps; other: waiting for "
+                                 "the master (bus) and the rest",
+                                 rtf, phases};
+  if (rc_->scene.sleep.enabled) {
+    char line[160];
+    std::snprintf(line, sizeof line, "Sleeping: %.1f %% of particle-steps asleep, %lld asleep at the end",
+                  particle_steps_ > 0 ? 100 * asleep_steps_ / particle_steps_ : 0.0,
+                  static_cast<long long>(engine_->sleeping()));
+    notes.emplace_back(line);
+  }
+  if (rc_->scene.region.enabled) {
+    char line[160];
+    std::snprintf(line, sizeof line, "Left the region of interest: %lld particles, %.6g kg",
+                  static_cast<long long>(s.removed_count), s.removed_mass);
+    notes.emplace_back(line);
+  }
+  cosim::print_timing_table(report, title, rows, wall, notes);
   if (out_) report << "dem_service: wrote " << rc_->output.file << " and " << out_->xdmf_path() << "\n";
 }
 

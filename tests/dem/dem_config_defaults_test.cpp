@@ -84,6 +84,12 @@ std::string describe(const dem::RunConfig& rc) {
   o << "stability " << s.stability.min_steps_per_contact << ' '
     << static_cast<int>(s.stability.on_violation) << ' ' << s.stability.max_speed << ' '
     << s.stability.overlap_tolerance << '\n';
+  o << "sleep " << s.sleep.enabled << ' ' << s.sleep.speed << ' ' << s.sleep.steps << ' '
+    << s.sleep.tool_distance << '\n';
+  o << "region " << s.region.enabled << ' ';
+  v(s.region.min);
+  v(s.region.max);
+  o << '\n';
   for (const dem::Species& sp : s.species) {
     o << "species " << sp.name << ' ' << sp.density << ' ' << static_cast<int>(sp.radius.kind)
       << ' ' << sp.radius.min << ' ' << sp.radius.max << ' ';
@@ -195,7 +201,9 @@ TEST(dem_ConfigDefaults, AWrongDefaultIsNoticed) {
   const std::string base = describe(dem::load_config(minimal_config(), dir()));
   for (const char* set : {"scene.skin=0.4", "contact.particle_wall.friction=0.4",
                           "tools.0.scale=2", "particles.keep_time=true", "settle.max_time=4",
-                          "particles.fill.0.seed=2", "walls.0.open_top=false"}) {
+                          "particles.fill.0.seed=2", "walls.0.open_top=false",
+                          "scene.sleep.speed=0.02", "scene.sleep.steps=400",
+                          "scene.sleep.tool_distance=0.4"}) {
     YAML::Node root = minimal_config();
     cosim::config::apply_override(root, set);
     EXPECT_NE(describe(dem::load_config(root, dir())), base) << set;

@@ -72,6 +72,10 @@ class Engine {
   int threads() const { return threads_; }  // threads of the last step
   // Bytes of workspace the engine and its broad phase keep between steps (not State).
   std::size_t workspace_bytes() const;
+  // Particles asleep after the last step (scene.sleep; 0 when sleeping is disabled) and
+  // particles removed by the region of interest in the last prepare()/rebuild().
+  std::int64_t sleeping() const { return sleeping_; }
+  std::int64_t removed_last() const { return removed_last_; }
   // The broad phase's own stages (grid, sort, permute, ...): where section broad_phase goes.
   const cosim::Timer& broad_phase_stages() const { return broad_.stages(); }
   cosim::Timer& broad_phase_stages() { return broad_.stages(); }
@@ -93,8 +97,14 @@ class Engine {
   void choose_threads(const State& s);
   bool guard_fires(const State& s, double* moved) const;
   void pair_forces(State& s);
+  template <bool Sleep>
+  void pair_forces_impl(State& s);
   void boundary_forces(State& s);
   void integrate(State& s);
+  template <bool Sleep>
+  void integrate_impl(State& s);
+  void remove_outside(State& s);
+  void size_sleep_arrays(State& s);
 
   const Scene& scene_;
   int threads_ = 1;  // used by the current step: scene.threads capped by the scene size
@@ -109,6 +119,13 @@ class Engine {
   };
   std::vector<std::vector<Remote>> remote_;              // per thread
   std::vector<std::size_t> bounds_;  // particle ranges of the threads in pair_forces
+  // Sleeping: wake_[i] set by the pair loop when a sleeper is to wake; wakes of particles in
+  // another thread's range are queued per thread and applied after the loop.
+  std::vector<std::uint8_t> wake_;
+  std::vector<std::vector<std::int32_t>> remote_wake_;  // per thread
+  std::vector<std::uint8_t> remove_;                    // region of interest workspace
+  std::int64_t sleeping_ = 0;
+  std::int64_t removed_last_ = 0;
   std::vector<std::vector<Wrench>> thread_tool_wrench_;  // per thread
   std::vector<std::vector<Vec3>> thread_wall_force_;     // per thread
   std::vector<ContactStats> thread_stats_, boundary_stats_;  // per thread

@@ -55,6 +55,27 @@ struct StabilityOptions {
   double overlap_tolerance = 0.01;  // initial overlap allowed, fraction of the smaller radius
 };
 
+// Sleeping particles (docs/dem.md "Sleeping and the region of interest"): a particle slower than
+// `speed` for `steps` consecutive steps while more than `tool_distance` from every tool's
+// bounding sphere falls asleep (v = u = 0, x fixed, not integrated, no gravity, no wall or mesh
+// forces, no forces between two sleepers). Its contacts with awake particles act on the awake
+// one. It wakes when an awake contact partner moves faster than `speed` relative to it, when
+// a contact with an awake particle ends, or when a tool's bounding sphere comes within
+// `tool_distance`.
+struct SleepOptions {
+  bool enabled = false;
+  double speed = 0.01;        // m/s
+  int steps = 500;            // consecutive steps at rest before sleeping
+  double tool_distance = 0.5; // m, gap to a tool's bounding sphere (reference point + radius)
+};
+
+// Region of interest: particles whose centre leaves the box are removed at the next broad
+// phase and counted (State::removed_count, removed_mass). Off when `enabled` is false.
+struct RegionOptions {
+  bool enabled = false;
+  Vec3 min, max;
+};
+
 struct Scene {
   double dt = 1e-5;
   Vec3 gravity{0, 0, -9.81};
@@ -69,6 +90,8 @@ struct Scene {
   // dem_run, dem_service and dem_side_by_side apply it with apply_thread_wait.
   ThreadWait thread_wait = ThreadWait::passive;
   StabilityOptions stability;
+  SleepOptions sleep;
+  RegionOptions region;
   std::vector<Species> species;
   ContactLaw particle_particle;
   ContactLaw particle_wall;  // walls and tools

@@ -76,6 +76,7 @@ class ServiceModel final : public cosim::Model {
   cosim::TimePoint t_now_{};
   std::int64_t steps_done_ = 0;
   double snapshot_seconds_ = 0;
+  double asleep_steps_ = 0, particle_steps_ = 0;  // sleeping share (scene.sleep)
   bool finished_ = false;
   bool pristine_ = true;  // rc_ is the start-up build, untouched by any session
   cosim::Stopwatch session_wall_, since_report_;

@@ -70,6 +70,14 @@ struct State {
   std::vector<Vec3> slot_spring;
   std::vector<std::int32_t> slot_particle;  // pool: the particle of each block, ascending
 
+  // Sleeping (Scene::sleep): consecutive steps each particle has been at rest; it is asleep
+  // when this reached scene.sleep.steps. Sized with the particles at every step while sleep
+  // is enabled (all zero otherwise); empty in checkpoints written before sleeping existed.
+  std::vector<std::int32_t> rest_steps;
+  // Particles removed because they left the region of interest (Scene::region) and their mass.
+  std::int64_t removed_count = 0;
+  double removed_mass = 0;
+
   std::size_t size() const { return x.size(); }
 };
 
@@ -109,6 +117,7 @@ void for_each_array(S& s, F&& f) {
   f("slot_count", s.slot_count, Field::sorted);
   f("slot_block", s.slot_block, Field::sorted);
   f("slot_particle", s.slot_particle, Field::derived);
+  f("rest_steps", s.rest_steps, Field::sorted);
 }
 
 // Bytes the arrays of State hold (capacity, not size): the memory of a scene.
@@ -123,5 +132,11 @@ inline std::size_t bytes(const State& s) {
 // Appends one particle; radius and mass must already be validated.
 void add_particle(State& s, Vec3 x, Vec3 v, double radius, double mass, int species,
                   std::int64_t id);
+
+// Removes the particles with remove[i] != 0 from every array of State (field list), keeping
+// the order of the rest; the pair and triangle lists drop their rows and entries and are
+// renumbered, so the lists stay valid and the tangential history of the others survives.
+// Adds the count and mass to removed_count / removed_mass. Returns the number removed.
+std::size_t remove_particles(State& s, const std::vector<std::uint8_t>& remove);
 
 }  // namespace dem

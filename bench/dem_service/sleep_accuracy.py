@@ -1,0 +1,152 @@
+"""Sleeping particles on the wheel-loader job: speed against accuracy (docs/performance.md,
+"Sleeping particles").
+
+Runs the main job (configs/wheel_loader.yaml: Simbody wheel loader + dem_service on the 10k
+pile) once all-active (the reference), once all-active with the DEM on 1 thread (only the
+summation order differs: the scene's run-to-run scatter), and once per sleep threshold. Prints
+per run: the DEM's compute time (sum of the soil participant's per-step compute), its speed-up
+against the reference, the mean share of particles asleep, and the change of the bearing
+forces against the reference (charts.py's measure: RMS difference of the four section forces,
+raw and 0.25 s filtered, relative to the reference's RMS; plus the A-bearing longitudinal
+force's mean over the filling phase 2 s .. end). Draws speed-up against filtered error.
+
+  /usr/bin/python3 bench/dem_service/sleep_accuracy.py [--end 8] [--out results/sleep_study]
+      [--only NAME,...] [--table-only]
+
+Runs go one after another under nice -n 19 on a private LCM URL. About 4-10 minutes per run
+for --end 8 on the shared 2-core machine.
+"""
+import argparse
+import os
+import subprocess
+import sys
+import time
+
+import h5py
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(os.path.dirname(HERE))
+sys.path.insert(0, os.path.join(ROOT, "master", "studies"))
+import charts  # noqa: E402
+
+SIGNALS = [{"path": f"participants/loader/outputs/{s}"} for s in ("a_long", "j_long", "a_vert", "j_vert")]
+SOIL = "participants.soil.parameters"
+
+
+def sleep_set(speed, steps, tool_distance):
+    return {f"{SOIL}.scene.sleep.enabled": "true", f"{SOIL}.scene.sleep.speed": str(speed),
+            f"{SOIL}.scene.sleep.steps": str(steps), f"{SOIL}.scene.sleep.tool_distance": str(tool_distance)}
+
+
+RUNS = [
+    ("active", "all active, 2 threads (reference)", {}),
+    ("active_1thread", "all active, DEM on 1 thread (scatter)", {f"{SOIL}.scene.threads": "1"}),
+    ("sleep_tight", "sleep: speed 0.005 m/s, 500 steps, tool 1.0 m", sleep_set(0.005, 500, 1.0)),
+    ("sleep_mid", "sleep: speed 0.02 m/s, 500 steps, tool 0.5 m", sleep_set(0.02, 500, 0.5)),
+    ("sleep_loose", "sleep: speed 0.05 m/s, 200 steps, tool 0.25 m", sleep_set(0.05, 200, 0.25)),
+]
+
+
+def run(name, sets, args):
+    h5 = os.path.join(args.out, name + ".h5")
+    log = os.path.join(args.out, name + ".log")
+    cmd = ["nice", "-n", "19", os.path.join(ROOT, "build/bin/cosim_master"),
+           os.path.join(ROOT, "configs/wheel_loader.yaml"), "--output", h5,
+           "--set", "output.csv=", "--set", "output.progress=off",
+           "--set", f"time.end={args.end}", "--set", f"bus.url={args.bus}",
+           "--set", f"{SOIL}.output.file=\"\""]
+    for k, v in sets.items():
+        cmd += ["--set", f"{k}={v}"]
+    t0 = time.monotonic()
+    with open(log, "w") as f:
+        f.write(" ".join(cmd) + "\n")
+        f.flush()
+        code = subprocess.call(cmd, stdout=f, stderr=subprocess.STDOUT, cwd=ROOT)
+    print(f"  {name}: exit {code}, {time.monotonic() - t0:.0f} s wall", flush=True)
+    if code != 0:
+        sys.exit(f"sleep_accuracy: {name} failed, see {log}")
+
+
+def load(name, args):
+    h5 = os.path.join(args.out, name + ".h5")
+    with h5py.File(h5, "r") as f:
+        t = f["time"][:]
+        out = {s["path"]: np.asarray(f[s["path"]][:], dtype=float).reshape(len(t), -1)[:, 0] for s in SIGNALS}
+        dem = float(np.sum(f["participants/soil/timing/compute"][:]))
+        d = "participants/soil/diagnostics/sleeping"
+        asleep = float(np.mean(f[d][:])) if d in f else 0.0
+        wall = float(np.sum(f["timing/step_wall"][:]))
+    return {"t": t, "y": out, "dem": dem, "asleep": asleep, "wall": wall}
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--end", type=float, default=8.0, help="simulated seconds of the maneuver")
+    ap.add_argument("--out", default="results/sleep_study")
+    ap.add_argument("--bus", default="udpm://239.255.76.143:7743?ttl=0")
+    ap.add_argument("--only", default="", help="comma-separated run names to (re)run")
+    ap.add_argument("--table-only", action="store_true", help="only read existing runs")
+    ap.add_argument("--particles", type=float, default=10000)
+    args = ap.parse_args()
+    args.out = os.path.join(ROOT, args.out) if not os.path.isabs(args.out) else args.out
+    os.makedirs(args.out, exist_ok=True)
+    only = set(filter(None, args.only.split(",")))
+    if not args.table_only:
+        subprocess.call(["bash", os.path.join(ROOT, "scripts/multicast.sh")])
+        for name, _, sets in RUNS:
+            if not only or name in only:
+                run(name, sets, args)
+    res = {}
+    for name, label, _ in RUNS:
+        if os.path.exists(os.path.join(args.out, name + ".h5")):
+            res[name] = load(name, args)
+    ref = res["active"]
+    fill = ref["t"] >= 2.0
+    a_ref = np.mean(ref["y"][SIGNALS[0]["path"]][fill])
+    print(f"\nwheel-loader job, {args.end:g} s of maneuver; reference: all active, 2 threads; "
+          f"A-bearing longitudinal mean over 2 s .. end: {a_ref/1e3:.1f} kN\n")
+    print("| run | DEM compute [s] | speed-up | asleep (mean) | force error raw | filtered | A_long mean 2 s..end |")
+    print("| --- | ---: | ---: | ---: | ---: | ---: | ---: |")
+    points = []
+    for name, label, _ in RUNS:
+        if name not in res:
+            continue
+        r = res[name]
+        raw, filt = charts.errors((ref["t"], ref["y"], 0), (r["t"], r["y"], 0), SIGNALS, 0.25)
+        a = np.mean(r["y"][SIGNALS[0]["path"]][r["t"] >= 2.0])
+        speed = ref["dem"] / r["dem"]
+        err = "" if name == "active" else f"{100*raw:.1f} %"
+        errf = "" if name == "active" else f"{100*filt:.1f} %"
+        print(f"| {label} | {r['dem']:.0f} | {speed:.2f} | {100*r['asleep']/args.particles:.0f} % | "
+              f"{err} | {errf} | {a/1e3:.1f} kN ({100*(a/a_ref-1):+.1f} %) |")
+        if name != "active":
+            points.append((name, label, speed, filt))
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+        fig, ax = plt.subplots(figsize=(6.5, 4.2))
+        for name, label, speed, filt in points:
+            ax.plot(100 * filt, speed, "o" if name.startswith("sleep") else "s",
+                    color="C0" if name.startswith("sleep") else "C3")
+            ax.annotate(label.replace("sleep: ", ""), (100 * filt, speed), fontsize=7,
+                        xytext=(4, 4), textcoords="offset points")
+        scatter = [100 * f for n, _, _, f in points if n == "active_1thread"]
+        if scatter:
+            ax.axvline(scatter[0], color="C3", ls="--", lw=0.8, label="run-to-run scatter (1 vs 2 threads)")
+            ax.legend(fontsize=7, loc="lower right")
+        ax.set_xlabel("bearing-force change vs all-active run, filtered [%]")
+        ax.set_ylabel("DEM speed-up vs all-active run")
+        ax.set_title(f"Sleeping particles, wheel-loader job ({args.end:g} s)", fontsize=9)
+        ax.grid(alpha=0.3)
+        fig.tight_layout()
+        png = os.path.join(args.out, "speed_accuracy.png")
+        fig.savefig(png, dpi=120)
+        print(f"\nchart: {os.path.relpath(png, ROOT)}")
+    except ImportError:
+        pass
+
+
+if __name__ == "__main__":
+    main()

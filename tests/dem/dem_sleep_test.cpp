@@ -1,0 +1,401 @@
+// Sleeping particles (scene.sleep) and the region of interest (scene.region): a bed at rest
+// falls asleep, a sleeping column holds the closed-form static overlaps, sleepers wake when hit
+// or when a tool comes near, sleep that never triggers changes nothing (bit for bit), runs with
+// the same thread count stay bit-identical with sleepers, removal keeps the lists and the
+// tangential history of the others, bad values are refused naming the key.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cstring>
+#include <filesystem>
+#include <map>
+#include <random>
+
+#include "cosim/yaml_config.hpp"
+#include "dem/checkpoint.hpp"
+#include "dem/config.hpp"
+#include "dem_test_util.hpp"
+
+namespace {
+
+using namespace demtest;
+using dem::State;
+
+constexpr double kR = 0.005;
+constexpr double kK = 2e4;  // N/m
+constexpr double kG = 9.81;
+
+std::int64_t asleep(const dem::Scene& sc, const State& st) {
+  std::int64_t n = 0;
+  for (const std::int32_t r : st.rest_steps) n += r >= sc.sleep.steps;
+  return n;
+}
+bool is_asleep(const dem::Scene& sc, const State& st, std::int64_t id) {
+  return st.rest_steps[index_of(st, id)] >= sc.sleep.steps;
+}
+
+// A vertical column of equal spheres on a plane floor, frictionless, released 1 mm apart.
+struct Column {
+  dem::Scene scene;
+  State st;
+};
+
+Column make_column(int count, double speed) {
+  Column c;
+  c.scene = one_species_scene(kR, kR);
+  c.scene.gravity = {0, 0, -kG};
+  c.scene.particle_particle = c.scene.particle_wall = law_n_per_m(kK, 0.3, true);
+  c.scene.walls.push_back({"floor", {0, 0, 0}, {0, 0, 1}});
+  c.scene.dt = M_PI / std::sqrt(kK / sphere_mass(kR)) / 40;
+  c.scene.sleep.enabled = true;
+  c.scene.sleep.speed = speed;
+  c.scene.sleep.steps = 200;
+  c.scene.sleep.tool_distance = 0.02;
+  for (int k = 0; k < count; ++k) add(c.st, {0, 0, kR + 0.001 + k * (2 * kR + 0.001)}, {}, kR);
+  return c;
+}
+
+// Static column: the contact under sphere k (k = 0 at the floor) carries the weight of the
+// spheres k..n-1, so its overlap is (n - k) m g / k_N; the centre heights follow.
+std::vector<double> closed_form_heights(int n) {
+  const double w = sphere_mass(kR) * kG;
+  std::vector<double> z(n);
+  double h = 0;
+  for (int k = 0; k < n; ++k) {
+    const double overlap = (n - k) * w / kK;
+    h += (k == 0 ? kR : 2 * kR) - overlap;
+    z[k] = h;
+  }
+  return z;
+}
+
+double worst_height_error(const State& st, int n) {
+  const auto z = closed_form_heights(n);
+  double worst = 0;
+  for (int k = 0; k < n; ++k) worst = std::max(worst, std::abs(st.x[index_of(st, k)].z - z[k]));
+  return worst;
+}
+
+TEST(dem_Sleep, SettledColumnSleepsInPlaceAndWakesWhenHit) {
+  Column c = make_column(5, 1e-5);
+  dem::Engine e(c.scene);
+  while (c.st.step * c.scene.dt < 1.0) e.step(c.st);
+  const double overlap0 = 5 * sphere_mass(kR) * kG / kK;  // the floor contact, 3.2 um
+  EXPECT_EQ(e.sleeping(), 5);
+  EXPECT_EQ(asleep(c.scene, c.st), 5);
+  std::printf("asleep column: worst height error %.2e m (floor overlap %.2e m)\n",
+              worst_height_error(c.st, 5), overlap0);
+  EXPECT_LT(worst_height_error(c.st, 5), 0.01 * overlap0);
+  // Asleep: nothing moves, bit for bit, and nothing wakes.
+  const std::vector<Vec3> x = c.st.x;
+  for (int k = 0; k < 2000; ++k) e.step(c.st);
+  EXPECT_EQ(0, std::memcmp(x.data(), c.st.x.data(), x.size() * sizeof(Vec3)));
+  EXPECT_EQ(e.sleeping(), 5);
+
+  // A sixth sphere dropped from 2 cm wakes the column; it settles and sleeps again at the
+  // closed form of six.
+  add(c.st, {0, 0, c.st.x[index_of(c.st, 4)].z + 2 * kR + 0.02}, {}, kR);
+  bool top_woke = false;
+  std::int64_t fewest = 6;
+  while (c.st.step * c.scene.dt < 3.0) {
+    e.step(c.st);
+    top_woke = top_woke || !is_asleep(c.scene, c.st, 4);
+    fewest = std::min(fewest, e.sleeping());
+  }
+  EXPECT_TRUE(top_woke);
+  EXPECT_EQ(fewest, 0) << "the impact should wake the whole column";
+  EXPECT_EQ(e.sleeping(), 6);
+  const double overlap6 = 6 * sphere_mass(kR) * kG / kK;
+  std::printf("after the hit: worst height error %.2e m (floor overlap %.2e m)\n",
+              worst_height_error(c.st, 6), overlap6);
+  EXPECT_LT(worst_height_error(c.st, 6), 0.01 * overlap6);
+}
+
+// A free particle slower than `speed` near its apex must not fall asleep in the air (the
+// config refuses steps shorter than the apex time; here they are just longer).
+TEST(dem_Sleep, BallThrownUpDoesNotSleepAtTheApex) {
+  Column c = make_column(1, 0.01);
+  c.scene.sleep.steps = static_cast<int>(2 * 0.01 / (kG * c.scene.dt)) + 5;
+  c.st.x[0].z = 0.1;
+  c.st.v[0] = c.st.u[0] = {0, 0, 0.5};
+  dem::Engine e(c.scene);
+  const double t_apex = 0.5 / kG;
+  while (c.st.step * c.scene.dt < 2 * t_apex) {
+    e.step(c.st);
+    ASSERT_EQ(e.sleeping(), 0) << "asleep in flight at t = " << c.st.step * c.scene.dt;
+  }
+  // Free flight is untouched by the sleep bookkeeping: z(t) of semi-implicit Euler.
+  const double t = c.st.step * c.scene.dt;
+  EXPECT_NEAR(c.st.x[0].z, 0.1 + 0.5 * t - 0.5 * kG * t * t, 1e-3);
+}
+
+TEST(dem_Sleep, ToolNeighbourhoodWakesOnlyTheParticlesNearIt) {
+  Column c = make_column(5, 1e-5);
+  // A small triangle around its reference point (bounding radius 1 cm), parked far away.
+  c.scene.tools.push_back(static_tool("probe", {{0.01, 0, 0}, {-0.005, 0.0087, 0}, {-0.005, -0.0087, 0}}));
+  c.st.tool_pose.resize(1);
+  c.st.tool_pose[0].position = {1, 0, 1};
+  dem::Engine e(c.scene);
+  while (c.st.step * c.scene.dt < 1.0) e.step(c.st);
+  ASSERT_EQ(e.sleeping(), 5);
+  const double rb = c.scene.tools[0].mesh.bounding_radius;
+  ASSERT_NEAR(rb, 0.01, 1e-4);
+  // Beside the top sphere: gap to spheres 4 and 3 below tool_distance (2 cm), to 2 above it.
+  const Vec3 top = c.st.x[index_of(c.st, 4)];
+  c.st.tool_pose[0].position = {top.x + 0.03, 0, top.z};
+  auto gap = [&](int id) {
+    return norm(c.st.x[index_of(c.st, id)] - c.st.tool_pose[0].position) - rb - kR;
+  };
+  ASSERT_LT(gap(4), 0.02);
+  ASSERT_LT(gap(3), 0.02);
+  ASSERT_GT(gap(2), 0.02);
+  const std::vector<Vec3> x = c.st.x;
+  for (int k = 0; k < 1000; ++k) e.step(c.st);
+  EXPECT_FALSE(is_asleep(c.scene, c.st, 4));
+  EXPECT_FALSE(is_asleep(c.scene, c.st, 3));
+  for (int id : {0, 1, 2}) EXPECT_TRUE(is_asleep(c.scene, c.st, id)) << id;
+  // The two awake spheres rest on sleeper 2: its contact force holds them where they were.
+  for (int id : {3, 4})
+    EXPECT_LT(norm(c.st.x[index_of(c.st, id)] - x[index_of(c.st, id)]),
+              0.01 * sphere_mass(kR) * kG / kK)
+        << id;
+  // The tool leaves: they fall asleep again.
+  c.st.tool_pose[0].position = {1, 0, 1};
+  for (int k = 0; k < 400; ++k) e.step(c.st);
+  EXPECT_EQ(e.sleeping(), 5);
+}
+
+// The 150-sphere pile of dem_pile_test, frictional, on a plane.
+struct Pile {
+  dem::Scene scene;
+  State st;
+};
+Pile make_pile(int threads, bool sleep) {
+  Pile p;
+  p.scene = one_species_scene(0.8 * kR, kR);
+  p.scene.gravity = {0, 0, -kG};
+  p.scene.threads = threads;
+  p.scene.min_particles_per_thread = 1;
+  p.scene.particle_particle = p.scene.particle_wall = law_n_per_m(kK, 0.3, true, 0.5, 1.0, 0.5);
+  p.scene.walls.push_back({"floor", {0, 0, 0}, {0, 0, 1}});
+  p.scene.dt = M_PI / std::sqrt(kK / sphere_mass(0.8 * kR)) / 25;
+  p.scene.sleep.enabled = sleep;
+  p.scene.sleep.speed = 0.005;
+  p.scene.sleep.steps = 200;
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> U(0, 1);
+  const double h = 2.2 * kR;
+  for (int iz = 0; iz < 6; ++iz)
+    for (int iy = 0; iy < 5; ++iy)
+      for (int ix = 0; ix < 5; ++ix)
+        add(p.st, {(ix - 2) * h + 0.1 * kR * U(rng), (iy - 2) * h + 0.1 * kR * U(rng),
+                   kR + 0.001 + iz * h},
+            {}, kR * (0.8 + 0.2 * U(rng)));
+  return p;
+}
+
+TEST(dem_Sleep, BedAtRestFallsAsleep) {
+  Pile p = make_pile(1, true);
+  dem::Engine e(p.scene);
+  std::int64_t at_half = -1;
+  while (p.st.step * p.scene.dt < 2.0) {
+    e.step(p.st);
+    if (at_half < 0 && p.st.step * p.scene.dt >= 0.05) at_half = e.sleeping();
+  }
+  std::printf("asleep: %lld of 150 at 0.05 s (falling), %lld at 2 s\n",
+              static_cast<long long>(at_half), static_cast<long long>(e.sleeping()));
+  EXPECT_EQ(at_half, 0);
+  EXPECT_EQ(e.sleeping(), 150);
+  EXPECT_EQ(asleep(p.scene, p.st), 150);
+  EXPECT_EQ(dem::kinetic_energy(p.st), 0.0);
+}
+
+// Sleep enabled with a speed nobody gets below runs the same loops with the sleeper rules;
+// with no sleeper the result must be the all-active one, bit for bit.
+TEST(dem_Sleep, SleepThatNeverTriggersIsBitIdenticalToDisabled) {
+  for (int threads : {1, 2}) {
+    Pile a = make_pile(threads, false), b = make_pile(threads, true);
+    b.scene.sleep.speed = 1e-300;
+    dem::Engine ea(a.scene), eb(b.scene);
+    for (int k = 0; k < 3000; ++k) {
+      ea.step(a.st);
+      eb.step(b.st);
+    }
+    EXPECT_EQ(eb.sleeping(), 0);
+    ASSERT_EQ(a.st.size(), b.st.size());
+    EXPECT_EQ(0, std::memcmp(a.st.x.data(), b.st.x.data(), a.st.size() * sizeof(Vec3)))
+        << threads << " threads";
+    EXPECT_EQ(0, std::memcmp(a.st.v.data(), b.st.v.data(), a.st.size() * sizeof(Vec3)));
+    EXPECT_EQ(0, std::memcmp(a.st.pair_spring.data(), b.st.pair_spring.data(),
+                             a.st.pair_spring.size() * sizeof(Vec3)));
+    EXPECT_EQ(0, std::memcmp(&ea.wall_forces()[0], &eb.wall_forces()[0], sizeof(Vec3)));
+  }
+}
+
+// Same thread count, sleep on, a ball dropped into the half-asleep pile: bit-identical runs
+// (1 and 2 threads), and a checkpoint restored mid-way continues bit for bit.
+TEST(dem_Sleep, SameThreadCountIsBitIdenticalWithSleepers) {
+  const std::string path =
+      (std::filesystem::temp_directory_path() / "dem_sleep_checkpoint.h5").string();
+  for (int threads : {1, 2}) {
+    Pile a = make_pile(threads, true), b = make_pile(threads, true);
+    dem::Engine ea(a.scene), eb(b.scene);
+    std::int64_t max_asleep = 0;
+    auto run = [&](int steps) {
+      for (int k = 0; k < steps; ++k) {
+        ea.step(a.st);
+        eb.step(b.st);
+        max_asleep = std::max(max_asleep, ea.sleeping());
+      }
+    };
+    run(20000);
+    for (Pile* p : {&a, &b}) add(p->st, {0.001, 0.002, 0.12}, {0.2, 0, -1}, kR);
+    run(3000);
+    dem::save_checkpoint(a.st, path);
+    State c = dem::load_checkpoint(path);
+    Pile cp = make_pile(threads, true);
+    dem::Engine ec(cp.scene);
+    for (int k = 0; k < 3000; ++k) {
+      ea.step(a.st);
+      eb.step(b.st);
+      ec.step(c);
+    }
+    EXPECT_GT(max_asleep, 50) << threads << " threads";
+    for (const State* o : {&b.st, &c}) {
+      ASSERT_EQ(a.st.size(), o->size());
+      EXPECT_EQ(0, std::memcmp(a.st.x.data(), o->x.data(), a.st.size() * sizeof(Vec3)))
+          << threads << " threads";
+      EXPECT_EQ(0, std::memcmp(a.st.v.data(), o->v.data(), a.st.size() * sizeof(Vec3)));
+      EXPECT_EQ(a.st.rest_steps, o->rest_steps);
+    }
+  }
+}
+
+TEST(dem_Region, RemovalKeepsListsAndHistoryOfTheRest) {
+  Pile p = make_pile(1, false);
+  dem::Engine e(p.scene);
+  while (p.st.step * p.scene.dt < 0.5) e.step(p.st);
+  e.prepare(p.st);
+  // Tangential springs by particle-id pair before the removal.
+  auto springs = [](const State& st) {
+    std::map<std::pair<std::int64_t, std::int64_t>, Vec3> out;
+    for (std::size_t i = 0; i + 1 < st.pair_offset.size(); ++i)
+      for (std::int32_t k = st.pair_offset[i]; k < st.pair_offset[i + 1]; ++k)
+        out[{st.id[i], st.id[st.pair_j[k]]}] = st.pair_spring[k];
+    return out;
+  };
+  const auto before = springs(p.st);
+  std::vector<std::uint8_t> remove(p.st.size(), 0);
+  double mass = 0;
+  for (std::size_t i = 0; i < p.st.size(); ++i)
+    if (p.st.id[i] % 7 == 3) {
+      remove[i] = 1;
+      mass += p.st.mass[i];
+    }
+  const std::size_t n_removed = dem::remove_particles(p.st, remove);
+  EXPECT_EQ(n_removed, 21u);  // ids 3, 10, ..., 143
+  EXPECT_EQ(p.st.size(), 129u);
+  EXPECT_EQ(p.st.removed_count, 21);
+  EXPECT_EQ(p.st.removed_mass, mass);
+  const auto after = springs(p.st);
+  std::size_t kept = 0, nonzero = 0;
+  for (const auto& [ids, spring] : before) {
+    const bool gone = ids.first % 7 == 3 || ids.second % 7 == 3;
+    const auto it = after.find(ids);
+    if (gone) {
+      EXPECT_TRUE(it == after.end());
+      continue;
+    }
+    ASSERT_TRUE(it != after.end());
+    EXPECT_EQ(0, std::memcmp(&it->second, &spring, sizeof(Vec3)));
+    ++kept;
+    nonzero += norm(spring) > 0;
+  }
+  EXPECT_EQ(kept, after.size());
+  EXPECT_GT(nonzero, 50u);
+  for (std::size_t i = 0; i < p.st.size(); ++i) EXPECT_NE(p.st.id[i] % 7, 3);
+  // Every per-particle array has the new size; the lists match a brute-force search.
+  dem::for_each_array(p.st, [&](const char* name, const auto& a, dem::Field f) {
+    if (f != dem::Field::derived) {
+      EXPECT_EQ(a.size(), 129u) << name;
+    }
+  });
+  EXPECT_EQ(p.st.x_at_rebuild.size(), 129u);
+  EXPECT_EQ(p.st.wall_mask.size(), 129u);
+  std::vector<std::pair<std::int64_t, std::int64_t>> brute;
+  for (std::size_t i = 0; i < p.st.size(); ++i)
+    for (std::size_t j = i + 1; j < p.st.size(); ++j) {
+      const double rs = p.st.radius[i] + p.st.radius[j];
+      if (norm2(p.st.x[i] - p.st.x[j]) < rs * rs)
+        brute.emplace_back(std::min(p.st.id[i], p.st.id[j]), std::max(p.st.id[i], p.st.id[j]));
+    }
+  std::sort(brute.begin(), brute.end());
+  EXPECT_EQ(e.particle_contacts(p.st), brute);
+  for (int k = 0; k < 100; ++k) e.step(p.st);  // and the run continues
+}
+
+TEST(dem_Region, ParticlesLeavingTheBoxAreRemovedAndCounted) {
+  Pile p = make_pile(1, false);
+  p.scene.region = {true, {-0.1, -0.1, -0.01}, {0.1, 0.1, 0.2}};
+  // Two strays: one thrown up out of the top, one sideways out of x.
+  add(p.st, {0.0, 0.0, 0.15}, {0, 0, 3}, kR);
+  add(p.st, {0.05, 0.0, 0.1}, {2, 0, 0}, 0.8 * kR);
+  const double m_out = sphere_mass(kR) + sphere_mass(0.8 * kR);
+  dem::Engine e(p.scene);
+  while (p.st.step * p.scene.dt < 0.1) e.step(p.st);
+  EXPECT_EQ(p.st.size(), 150u);
+  EXPECT_EQ(p.st.removed_count, 2);
+  EXPECT_NEAR(p.st.removed_mass, m_out, 1e-15);
+  EXPECT_EQ(index_of(p.st, 150), p.st.size());
+  EXPECT_EQ(index_of(p.st, 151), p.st.size());
+}
+
+std::string load_error(const std::vector<std::string>& sets) {
+  const char* base = R"(
+scene: {dt: 1.0e-5, threads: 1}
+materials: {sand: {density: 2600}}
+species: [{name: grain, material: sand, radius: 0.005}]
+contact:
+  particle_particle: {normal_stiffness: 4.0e7, restitution: 0.3, friction: 0.5}
+particles:
+  list:
+    - {species: grain, position: [0, 0, 0.1]}
+)";
+  try {
+    YAML::Node root = YAML::Load(base);
+    for (const auto& s : sets) cosim::config::apply_override(root, s);
+    dem::load_config(root, std::filesystem::temp_directory_path().string());
+    return "";
+  } catch (const std::exception& e) {
+    return e.what();
+  }
+}
+
+TEST(dem_Sleep, BadValuesRefusedNamingTheKey) {
+  EXPECT_EQ(load_error({"scene.sleep={enabled: true, speed: 0.001, steps: 100, tool_distance: 0.1}"}),
+            "");
+  EXPECT_EQ(load_error({"scene.region={min: [-1, -1, -1], max: [1, 1, 1]}"}), "");
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"scene.sleep.speed=0", "scene.sleep.speed"},
+      {"scene.sleep.speed=-1", "scene.sleep.speed"},
+      {"scene.sleep.steps=0", "scene.sleep.steps"},
+      {"scene.sleep.steps=2.5", "scene.sleep.steps"},
+      {"scene.sleep.tool_distance=-0.1", "scene.sleep.tool_distance"},
+      {"scene.sleep.enabled=maybe", "scene.sleep.enabled"},
+      {"scene.sleep.sped=0.1", "speed"},  // did you mean
+      {"scene.sleep=3", "scene.sleep"},
+      // dt 1e-5 s: a thrown particle is slower than 0.01 m/s for 204 steps around its apex
+      {"scene.sleep={enabled: true, speed: 0.01, steps: 100}", "scene.sleep.steps"},
+      {"scene.region={min: [1, -1, -1], max: [0, 1, 1]}", "scene.region"},
+      {"scene.region={min: [0, 0, 0]}", "scene.region"},
+      {"scene.region={min: [0, 0], max: [1, 1, 1]}", "scene.region.min"},
+  };
+  for (const auto& [set, key] : cases) {
+    const std::string msg = load_error({set});
+    EXPECT_NE(msg.find(key), std::string::npos) << set << " -> '" << msg << "'";
+  }
+  const std::string apex = load_error({"scene.sleep={enabled: true, speed: 0.01, steps: 100}"});
+  EXPECT_NE(apex.find("above 203"), std::string::npos) << apex;
+}
+
+}  // namespace
