@@ -1,0 +1,22 @@
+#!/usr/bin/env bash
+# Cost of a DEM step on the wheel-loader pile (10k spheres, 1 thread, bucket parked away from
+# the pile) with every particle awake and with sleeping enabled (everything falls asleep within
+# the first scene.sleep.steps steps): CPU seconds of the process (/usr/bin/time, which a shared
+# machine inflates less than wall time) and dem_run's timing table per section.
+# Usage: bash bench/dem/sleep_cost.sh [simulated seconds, default 0.3]
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+dur=${1:-0.3}
+[ -f results/pile_small.h5 ] || ./build/bin/dem_run configs/soil/pile_prepare.yaml
+out=$(mktemp -d)
+trap 'rm -rf "$out"' EXIT
+export OMP_WAIT_POLICY=PASSIVE
+for mode in active sleep; do
+  args=(--set run.duration=$dur --output "$out/$mode.h5")
+  [ $mode = sleep ] && args+=(--set 'scene.sleep={enabled: true, speed: 0.02, steps: 200, tool_distance: 0.5}')
+  /usr/bin/time -o "$out/$mode.cpu" -f "%U %S" nice -n 19 ./build/bin/dem_run bench/dem/sleep_cost.yaml \
+    "${args[@]}" > "$out/$mode.txt" 2> "$out/$mode.err"
+  read -r u s < "$out/$mode.cpu"
+  echo "== $mode: CPU $(echo "$u + $s" | bc) s"
+  sed -n '/^Loop time/,$p' "$out/$mode.txt"
+done
