@@ -29,7 +29,7 @@ PHASES = [
 POLICIES = {"every5": {"scene.broad_phase_interval": "5"},
             "needed": {"scene.broad_phase_interval": "1000000", "scene.guard": "rebuild"}}
 EDGE_X = 1.65      # cutting edge in the bucket frame (configs/wheel_loader/machine.yaml)
-A_PIN_Z = 0.55     # bucket bottom (mesh z min -0.51) 4 cm above the ground
+A_PIN_Z = 0.62     # bucket bottom (mesh z min -0.51) 11 cm above the ground: over the bottom layer (r <= 5 cm), which a prescribed bucket would otherwise crush into the floor
 LEAD = 0.10        # the edge starts this far in front of the pile's face
 
 
@@ -90,8 +90,11 @@ def run_phase(dem_run, policy, k, window, ckpt_in, log):
            "--output", f"{OUT}/{policy}_{k + 1}_{name}_out.h5"]
     for key, value in POLICIES[policy].items():
         cmd += ["--set", f"{key}={value}"]
-    if k > 0:   # a continuation of the same run: the bucket presses grains into each other
-        cmd += ["--set", "scene.stability.overlap_tolerance=0.5"]
+    if k > 0:
+        # A continuation of the same run, not a new bed: the prescribed bucket (it yields to no
+        # force) presses grains under its floor into each other and the ground by up to ~60 %
+        # of a radius, which the load check of a new bed would refuse.
+        cmd += ["--set", "scene.stability.overlap_tolerance=1.0"]
     with open(log, "w") as f:
         f.write(" ".join(cmd) + "\n")
         f.flush()
