@@ -34,6 +34,7 @@
 #include <string>
 #include <vector>
 
+#include "../common/cli.hpp"
 #include "../common/tiled_bed.hpp"
 #include "cosim/resources.hpp"
 #include "dem/bed.hpp"
@@ -290,11 +291,6 @@ void prepare(const std::string& kind, long n, const std::string& dir) {
   write_box(b, stem + ".box");  // last: its presence marks a complete scene
 }
 
-double cpu_seconds() {
-  timespec t{};
-  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
-  return t.tv_sec + 1e-9 * t.tv_nsec;
-}
 
 int run(const std::string& kind, long n, const std::string& dir, int threads, int interval,
         int steps) {
@@ -306,14 +302,14 @@ int run(const std::string& kind, long n, const std::string& dir, int threads, in
   const auto rebuilds0 = st.rebuilds;
   engine.timing().reset();
   engine.broad_phase_stages().reset();
-  const double cpu0 = cpu_seconds();
+  const double cpu0 = bench::cpu_seconds();
   const auto t0 = std::chrono::steady_clock::now();
   for (int k = 0; k < steps; ++k) engine.step(st);
   const double wall =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   // Share of its cores the run got (LAMMPS prints the same as "% CPU use"): below 1 the
   // machine was busy with something else.
-  const double share = (cpu_seconds() - cpu0) / (wall * engine.threads());
+  const double share = (bench::cpu_seconds() - cpu0) / (wall * engine.threads());
   std::printf("rate %.6g seconds %.6g rebuilds %lld threads %d cpu_share %.3f\n",
               static_cast<double>(st.size()) * steps / wall, wall,
               static_cast<long long>(st.rebuilds - rebuilds0), engine.threads(), share);
@@ -372,13 +368,7 @@ int main(int argc, char** argv) {
                                          {"--every", "0.002"},
                                          {"--thread-wait",
                                           dem::thread_wait_name(dem::Scene{}.thread_wait)}};
-  for (int a = 2; a + 1 < argc; a += 2) {
-    if (!opt.count(argv[a])) {
-      std::fprintf(stderr, "dem_side_by_side: unknown option %s\n", argv[a]);
-      return 2;
-    }
-    opt[argv[a]] = argv[a + 1];
-  }
+  if (!bench::parse_options(argc, argv, 2, "dem_side_by_side", opt)) return 2;
   try {
     const std::string kind = opt["--kind"], dir = opt["--dir"];
     const long n = std::stol(opt["--n"]);

@@ -41,6 +41,7 @@
 #include <string>
 #include <vector>
 
+#include "../common/cli.hpp"
 #include "dem/checkpoint.hpp"
 #include "dem/engine.hpp"
 #include "dem/mesh.hpp"
@@ -274,11 +275,6 @@ dem::Scene make_scene(const KV& box, const std::string& dir, int threads, int in
   return s;
 }
 
-double cpu_seconds() {
-  timespec t{};
-  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
-  return t.tv_sec + 1e-9 * t.tv_nsec;
-}
 
 int run(const std::string& dir, int threads, int interval, int steps, int warmup, int block,
         double shift) {
@@ -296,7 +292,7 @@ int run(const std::string& dir, int threads, int interval, int steps, int warmup
   const auto rebuilds0 = st.rebuilds;
   engine.timing().reset();
   std::vector<dem::Vec3> sums((steps + block - 1) / block);
-  const double cpu0 = cpu_seconds();
+  const double cpu0 = bench::cpu_seconds();
   const auto t0 = std::chrono::steady_clock::now();
   for (int k = 0; k < steps; ++k) {
     advance();
@@ -304,7 +300,7 @@ int run(const std::string& dir, int threads, int interval, int steps, int warmup
   }
   const double wall =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  const double share = (cpu_seconds() - cpu0) / (wall * engine.threads());
+  const double share = (bench::cpu_seconds() - cpu0) / (wall * engine.threads());
   std::printf("rate %.6g seconds %.6g simulated %.6g rebuilds %lld threads %d cpu_share %.3f "
               "n %zu\n",
               static_cast<double>(st.size()) * steps / wall, wall, steps * kDt,
@@ -339,13 +335,7 @@ int main(int argc, char** argv) {
                                          {"--threads", "1"}, {"--interval", "0"},
                                          {"--steps", "1000"}, {"--warmup", "100"},
                                          {"--block", "100"}, {"--shift", "0"}};
-  for (int a = 2; a + 1 < argc; a += 2) {
-    if (!opt.count(argv[a])) {
-      std::fprintf(stderr, "dem_tool_side_by_side: unknown option %s\n", argv[a]);
-      return 2;
-    }
-    opt[argv[a]] = argv[a + 1];
-  }
+  if (!bench::parse_options(argc, argv, 2, "dem_tool_side_by_side", opt)) return 2;
   try {
     if (cmd == "prepare") {
       prepare(opt["--bed"], opt["--dir"]);

@@ -90,6 +90,8 @@ def run_phase(dem_run, policy, k, window, ckpt_in, log):
            "--output", f"{OUT}/{policy}_{k + 1}_{name}_out.h5"]
     for key, value in POLICIES[policy].items():
         cmd += ["--set", f"{key}={value}"]
+    for kv in args.set:
+        cmd += ["--set", kv]
     if k > 0:
         # A continuation of the same run, not a new bed: the prescribed bucket (it yields to no
         # force) presses grains under its floor into each other and the ground by up to ~60 %
@@ -117,6 +119,8 @@ parser.add_argument("--dem-run", default="build/bin/dem_run")
 parser.add_argument("--window", type=float, default=0.3,
                     help="simulated seconds per phase (default 0.3)")
 parser.add_argument("--policies", default="every5,needed")
+parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                    help="extra dem_run --set for every window, e.g. scene.sleep.enabled=true")
 parser.add_argument("--threads", type=int, default=2)
 parser.add_argument("--out", default=OUT, help="folder for logs, checkpoints, the motion CSV")
 parser.add_argument("--config", default=CONFIG, help=argparse.SUPPRESS)   # for testing the script

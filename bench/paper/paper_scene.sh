@@ -3,7 +3,7 @@
 # "The paper's scene"):
 #
 #   nice -n 19 bash bench/paper/paper_scene.sh [--window 0.3] [--policies every5,needed]
-#                                              [--threads 2] [--prepare]
+#                                              [--threads 2] [--prepare] [--set KEY=VALUE ...]
 #
 # Drives the 40,662-triangle bucket through the settled 150,000-sphere pile (results/pile_paper.h5)
 # along a prescribed maneuver in three phases (penetration, tilt, lift; --window simulated seconds
