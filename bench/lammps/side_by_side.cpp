@@ -34,6 +34,7 @@
 #include <string>
 #include <vector>
 
+#include "../common/anchor.hpp"
 #include "../common/cli.hpp"
 #include "../common/tiled_bed.hpp"
 #include "cosim/resources.hpp"
@@ -45,26 +46,10 @@
 
 namespace {
 
-constexpr double kR = 0.005;          // m
-constexpr double kDensity = 2500;     // kg/m^3
-constexpr double kStiffness = 2e5;    // N/m
-constexpr double kRestitution = 0.3;  // between two spheres
-constexpr double kFriction = 0.5;
-constexpr double kDt = 1e-5;        // s
-constexpr double kSkin = 0.5;       // of r
+using namespace bench;  // the shared scene's parameters (bench/common/anchor.hpp)
 using bench::kTile;  // beds above 10k are tiles of the settled 10k bed (bench/common/tiled_bed.hpp)
 constexpr double kGasFraction = 0.1;  // solid volume fraction of the gas
 constexpr double kGasSpeed = 1.0;     // m/s, standard deviation of each velocity component
-
-double sphere_mass() { return kDensity * 4.0 / 3.0 * M_PI * kR * kR * kR; }
-
-// gamma_n [1/s] of LAMMPS gran/hooke/history for restitution e between two equal spheres:
-// eta_N = m* gamma_n with m* = m/2 and eta_N = 2 zeta sqrt(m* k).
-double gamma_n() {
-  const double le = std::log(kRestitution);
-  const double zeta = -le / std::sqrt(M_PI * M_PI + le * le);
-  return 2 * zeta * std::sqrt(kStiffness / (sphere_mass() / 2));
-}
 
 // The walls of a scene: planes at the faces of [0,sx] x [0,sy] x [0,sz]; the bed has no lid
 // (sz = 0 means none). gravity: -z or off.
@@ -178,24 +163,10 @@ dem::State load(const std::string& dir, const std::string& kind, long n) {
 }
 
 void write_lammps_data(const Box& b, const dem::State& st, const std::string& file) {
-  std::FILE* f = std::fopen(file.c_str(), "w");
-  if (!f) throw std::runtime_error("cannot write " + file);
-  std::fprintf(f, "soilcosim side-by-side scene %s %ld (bench/lammps)\n\n", b.kind.c_str(), b.n);
-  std::fprintf(f, "%zu atoms\n1 atom types\n\n", st.size());
-  std::fprintf(f, "0 %.17g xlo xhi\n0 %.17g ylo yhi\n0 %.17g zlo zhi\n\n", b.sx, b.sy, b.ztop);
-  std::fprintf(f, "Atoms # sphere\n\n");
-  for (std::size_t i = 0; i < st.size(); ++i) {
-    const double r = st.radius[i];
-    const double rho = st.mass[i] / (4.0 / 3.0 * M_PI * r * r * r);
-    std::fprintf(f, "%lld 1 %.17g %.17g %.17g %.17g %.17g\n",
-                 static_cast<long long>(st.id[i]) + 1, 2 * r, rho, st.x[i].x, st.x[i].y,
-                 st.x[i].z);
-  }
-  std::fprintf(f, "\nVelocities\n\n");
-  for (std::size_t i = 0; i < st.size(); ++i)
-    std::fprintf(f, "%lld %.17g %.17g %.17g 0 0 0\n", static_cast<long long>(st.id[i]) + 1,
-                 st.v[i].x, st.v[i].y, st.v[i].z);
-  std::fclose(f);
+  write_data_file(st, b.sx, b.sy, b.ztop,
+                  "soilcosim side-by-side scene " + b.kind + " " + std::to_string(b.n) +
+                      " (bench/lammps)",
+                  DataFormat{}, file);
 }
 
 std::uint64_t splitmix(std::uint64_t& s) {

@@ -41,6 +41,7 @@
 #include <string>
 #include <vector>
 
+#include "../common/anchor.hpp"
 #include "../common/cli.hpp"
 #include "dem/checkpoint.hpp"
 #include "dem/engine.hpp"
@@ -50,14 +51,9 @@
 
 namespace {
 
-// The bed's parameters (the same as bench/lammps/side_by_side.cpp; checked against the .box).
-constexpr double kR = 0.005;          // m
-constexpr double kDensity = 2500;     // kg/m^3
-constexpr double kStiffness = 2e5;    // N/m
-constexpr double kRestitution = 0.3;  // between two spheres
-constexpr double kFriction = 0.5;
-constexpr double kDt = 1e-5;   // s
-constexpr double kSkin = 0.5;  // of r
+// The bed's parameters: the LAMMPS side-by-side's (bench/common/anchor.hpp; checked against
+// the .box).
+using namespace bench;
 
 // The bucket and its motion.
 constexpr double kWidth = 0.24;    // x, m
@@ -67,14 +63,6 @@ constexpr double kElement = 0.01;  // m, side of the squares the faces are cut i
 constexpr double kDepth = 0.10;    // floor below the bed's top sphere centre, m
 constexpr double kBackY = 0.08;    // m
 constexpr double kSpeed = 1.0;     // m/s, +y
-
-double sphere_mass() { return kDensity * 4.0 / 3.0 * M_PI * kR * kR * kR; }
-
-double gamma_n() {
-  const double le = std::log(kRestitution);
-  const double zeta = -le / std::sqrt(M_PI * M_PI + le * le);
-  return 2 * zeta * std::sqrt(kStiffness / (sphere_mass() / 2));
-}
 
 using KV = std::map<std::string, std::string>;
 
@@ -143,22 +131,9 @@ void write_stl(const std::vector<std::array<dem::Vec3, 3>>& tris, const std::str
 }
 
 void write_data(const dem::State& st, double sx, double sy, double ztop, const std::string& file) {
-  std::FILE* f = std::fopen(file.c_str(), "w");
-  if (!f) throw std::runtime_error("cannot write " + file);
-  std::fprintf(f, "soilcosim tool side-by-side bed (bench/liggghts)\n\n");
-  std::fprintf(f, "%zu atoms\n2 atom types\n\n", st.size());  // type 2: walls and the bucket
-  std::fprintf(f, "0 %.17g xlo xhi\n0 %.17g ylo yhi\n0 %.17g zlo zhi\n\n", sx, sy, ztop);
-  std::fprintf(f, "Atoms\n\n");
-  for (std::size_t i = 0; i < st.size(); ++i) {
-    const double r = st.radius[i];
-    const double rho = st.mass[i] / (4.0 / 3.0 * M_PI * r * r * r);
-    std::fprintf(f, "%zu 1 %.17g %.17g %.17g %.17g %.17g\n", i + 1, 2 * r, rho, st.x[i].x,
-                 st.x[i].y, st.x[i].z);
-  }
-  std::fprintf(f, "\nVelocities\n\n");
-  for (std::size_t i = 0; i < st.size(); ++i)
-    std::fprintf(f, "%zu %.17g %.17g %.17g 0 0 0\n", i + 1, st.v[i].x, st.v[i].y, st.v[i].z);
-  std::fclose(f);
+  // Type 2 is for the walls and the bucket; IDs by index (the bucket's spheres were removed).
+  write_data_file(st, sx, sy, ztop, "soilcosim tool side-by-side bed (bench/liggghts)",
+                  DataFormat{2, false, "Atoms"}, file);
 }
 
 void prepare(const std::string& bed, const std::string& dir) {
