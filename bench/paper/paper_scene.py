@@ -92,11 +92,6 @@ def run_phase(dem_run, policy, k, window, ckpt_in, log):
         cmd += ["--set", f"{key}={value}"]
     for kv in args.set:
         cmd += ["--set", kv]
-    if k > 0:
-        # A continuation of the same run, not a new bed: the prescribed bucket (it yields to no
-        # force) presses grains under its floor into each other and the ground by up to ~60 %
-        # of a radius, which the load check of a new bed would refuse.
-        cmd += ["--set", "scene.stability.overlap_tolerance=1.0"]
     with open(log, "w") as f:
         f.write(" ".join(cmd) + "\n")
         f.flush()

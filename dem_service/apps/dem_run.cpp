@@ -124,7 +124,7 @@ int run(int argc, char** argv) {
   dem::Scene& scene = rc.scene;
   dem::State& s = rc.state;
   dem::check_dt(scene, std::cerr);
-  dem::validate_state(scene, s);
+  dem::validate_state(scene, s, !rc.continues);
   std::fprintf(stderr, "dem_run: %zu particles, %zu walls, %zu tools, dt %.3g s (largest safe %.3g s)\n",
                s.size(), scene.walls.size(), scene.tools.size(), scene.dt,
                dem::largest_safe_dt(scene));

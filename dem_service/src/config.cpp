@@ -462,6 +462,8 @@ RunConfig load_config(const YAML::Node& root, const std::string& base_dir) {
   rc.output = parse_output(root["output"]);
 
   rc.state = load_bed(particles, base_dir);
+  rc.continues = !particles.checkpoint.empty() && particles.keep_time && particles.list.empty() &&
+                 rc.fill.empty();
   place_listed(sc, particles.list, rc.state);
   for (const FillRegion& r : rc.fill) fill_region(sc, r, rc.state);
   pose_tools(sc, rc.state);

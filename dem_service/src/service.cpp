@@ -72,7 +72,7 @@ void ServiceModel::build(YAML::Node root, const std::string& what) {
   std::ostringstream warn;
   check_dt(rc->scene, warn);
   if (!warn.str().empty()) std::cerr << "dem_service: " << warn.str();
-  validate_state(rc->scene, rc->state);
+  validate_state(rc->scene, rc->state, !rc->continues);
   inner_step_ = cosim::seconds_to_duration(rc->scene.dt, "scene.dt");
   if (std::abs(cosim::to_seconds(inner_step_) - rc->scene.dt) > 1e-12 * rc->scene.dt)
     throw cfg::ConfigError("scene.dt: " + std::to_string(rc->scene.dt) +

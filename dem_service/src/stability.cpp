@@ -64,7 +64,7 @@ void check_dt(const Scene& scene, std::ostream& warn) {
   warn << "warning: " << msg.str() << "\n";
 }
 
-void validate_state(const Scene& scene, const State& s) {
+void validate_state(const Scene& scene, const State& s, bool check_overlaps) {
   const std::size_t n = s.size();
   auto where = [&](std::size_t i) {
     std::ostringstream w;
@@ -90,6 +90,7 @@ void validate_state(const Scene& scene, const State& s) {
     if (!std::isfinite(p.x + p.y + p.z + v.x + v.y + v.z))
       throw std::invalid_argument(where(i) + ": position or velocity is not finite");
   }
+  if (!check_overlaps) return;
   const double tol = scene.stability.overlap_tolerance;
   // Walls.
   for (std::size_t i = 0; i < n; ++i)

@@ -5,6 +5,7 @@
 #include <fstream>
 
 #include "cosim/yaml_config.hpp"
+#include "dem/checkpoint.hpp"
 #include "dem/config.hpp"
 #include "dem/stability.hpp"
 #include "dem_test_util.hpp"
@@ -40,7 +41,7 @@ std::string error_of(const std::vector<std::string>& sets, bool check = true) {
     if (check) {
       std::ostringstream warn;
       dem::check_dt(rc.scene, warn);
-      dem::validate_state(rc.scene, rc.state);
+      dem::validate_state(rc.scene, rc.state, !rc.continues);
     }
     return "";
   } catch (const std::exception& e) {
@@ -117,6 +118,24 @@ TEST(dem_BadInput, DtAboveSafeLimitNamesTheSafeDt) {
   };
   EXPECT_EQ(error_of({dt_set(safe * 0.999)}), "");
   EXPECT_NE(error_of({dt_set(safe * 1.001)}), "");
+}
+
+// A checkpoint's overlaps are refused when it starts a new scene and accepted when it continues
+// its own run (particles.keep_time), where they are the run's, not a set-up error.
+TEST(dem_BadInput, CheckpointOverlapsRefusedUnlessTheRunContinues) {
+  dem::State s;
+  dem::add_particle(s, {0, 0, 0.1}, {}, 0.005, 1e-3, 0, 0);
+  dem::add_particle(s, {0.006, 0, 0.1}, {}, 0.005, 1e-3, 0, 1);  // 40 % of r
+  s.step = 123;
+  const std::string path = (fs::path(dir()) / "overlapping.h5").string();
+  dem::save_checkpoint(s, path);
+  const std::string ck = "particles={checkpoint: " + path;
+  const auto fresh = error_of({ck + "}"});
+  expect_has(fresh, "overlap_tolerance");
+  EXPECT_EQ(error_of({ck + ", keep_time: true}"}), "");
+  // Particles added to a continued checkpoint are a new set-up again: checked.
+  expect_has(error_of({ck + ", keep_time: true, list: [{species: grain, position: [1, 1, 1]}]}"}),
+             "overlap_tolerance");
 }
 
 TEST(dem_BadInput, OverlappingInitialParticles) {

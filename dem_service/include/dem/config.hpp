@@ -36,6 +36,9 @@ struct RunConfig {
   SettleOptions settle;
   OutputOptions output;
   double duration = 0;
+  // The state continues a run: a checkpoint with particles.keep_time and nothing added to it.
+  // Its overlaps are the run's own, so validate_state does not check them.
+  bool continues = false;
   std::string config_text;  // the config as run (after --set), stored in the output
 };
 

@@ -24,7 +24,8 @@ void check_dt(const Scene& scene, std::ostream& warn);
 // Refuses (std::invalid_argument) a state whose particles have a non-positive or non-finite
 // radius, mass or position, an unknown species, a radius above the species' maximum, or that
 // overlap each other or a wall by more than scene.stability.overlap_tolerance of the smaller
-// radius.
-void validate_state(const Scene& scene, const State& s);
+// radius. check_overlaps = false skips the overlap tests: for a run continued from its own
+// checkpoint (RunConfig::continues), whose overlaps are the run's, not a bed's set-up error.
+void validate_state(const Scene& scene, const State& s, bool check_overlaps = true);
 
 }  // namespace dem
