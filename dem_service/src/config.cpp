@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <limits>
 #include <filesystem>
 #include <map>
 #include <numeric>
@@ -302,14 +304,35 @@ struct ListedParticle {
 struct ParticleSources {
   std::string checkpoint;  // as written ("" = none)
   bool keep_time = false;
+  Perturbation perturb;
   std::vector<ListedParticle> list;
   std::vector<FillRegion> fill;
 };
 
 ParticleSources parse_particles(const YAML::Node& parts, const Scene& sc) {
   if (!parts) throw ConfigError("particles: missing (give fill, list or checkpoint)");
-  cfg::check_keys(parts, "particles", {"fill", "list", "checkpoint", "keep_time"});
+  cfg::check_keys(parts, "particles", {"fill", "list", "checkpoint", "keep_time", "perturb"});
   ParticleSources src;
+  if (const YAML::Node pt = parts["perturb"]) {
+    cfg::check_keys(pt, "particles.perturb", {"amplitude", "seed"});
+    src.perturb.amplitude = cfg::get_double_or(pt, "particles.perturb", "amplitude", 0.0);
+    if (!(src.perturb.amplitude >= 0) || !std::isfinite(src.perturb.amplitude))
+      throw ConfigError("particles.perturb.amplitude: must be a finite length >= 0 m, got " +
+                        std::to_string(src.perturb.amplitude));
+    double r_min = std::numeric_limits<double>::infinity();
+    for (const Species& sp : sc.species) r_min = std::min(r_min, sp.radius.min);
+    if (src.perturb.amplitude > kMaxPerturbation * r_min) {
+      std::ostringstream m;
+      m << "particles.perturb.amplitude: " << src.perturb.amplitude << " m is more than "
+        << kMaxPerturbation << " of the smallest radius (" << r_min
+        << " m); a perturbation for ensembles must be physically negligible (try 1e-6 of the "
+           "radius)";
+      throw ConfigError(m.str());
+    }
+    const long long seed = cfg::get_int_or(pt, "particles.perturb", "seed", 0);
+    if (seed < 0) throw ConfigError("particles.perturb.seed: must be an integer >= 0");
+    src.perturb.seed = static_cast<std::uint64_t>(seed);
+  }
   if (parts["checkpoint"]) {
     src.checkpoint = cfg::get_string(parts, "particles", "checkpoint");
     src.keep_time = cfg::get_bool_or(parts, "particles", "keep_time", src.keep_time);
@@ -424,6 +447,15 @@ void place_listed(const Scene& sc, const std::vector<ListedParticle>& list, Stat
   }
 }
 
+// Splitmix64: a well-mixed 64-bit hash, so a particle's displacement depends only on (seed,
+// particle id, axis), not on the order of the particles or the library's random engines.
+std::uint64_t mix64(std::uint64_t x) {
+  x += 0x9E3779B97F4A7C15ull;
+  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
+  x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
+  return x ^ (x >> 31);
+}
+
 // Checkpointed beds may come from another scene: the tool count is this scene's.
 void pose_tools(const Scene& sc, State& s) {
   s.tool_pose.resize(sc.tools.size());
@@ -433,6 +465,19 @@ void pose_tools(const Scene& sc, State& s) {
 }
 
 }  // namespace
+
+void perturb_positions(State& s, const Perturbation& p) {
+  if (!(p.amplitude > 0)) return;
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    double d[3];
+    for (int a = 0; a < 3; ++a) {
+      const std::uint64_t h = mix64(mix64(p.seed) ^ mix64(static_cast<std::uint64_t>(s.id[i]) * 3 + a));
+      // 53 random bits -> [0, 1) -> [-1, 1)
+      d[a] = p.amplitude * (2.0 * static_cast<double>(h >> 11) * 0x1.0p-53 - 1.0);
+    }
+    s.x[i] += Vec3{d[0], d[1], d[2]};
+  }
+}
 
 ThreadWait read_thread_wait(const YAML::Node& root) {
   const YAML::Node s = root["scene"];
@@ -466,6 +511,8 @@ RunConfig load_config(const YAML::Node& root, const std::string& base_dir) {
                  rc.fill.empty();
   place_listed(sc, particles.list, rc.state);
   for (const FillRegion& r : rc.fill) fill_region(sc, r, rc.state);
+  perturb_positions(rc.state, particles.perturb);
+  rc.perturb = particles.perturb;
   pose_tools(sc, rc.state);
   return rc;
 }

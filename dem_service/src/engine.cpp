@@ -668,6 +668,27 @@ std::size_t Engine::workspace_bytes() const {
   return b;
 }
 
+double payload_mass(const State& s, const Mesh& mesh, const ToolPose& pose) {
+  if (mesh.vertices.empty()) return 0;
+  Vec3 lo = mesh.vertices[0], hi = mesh.vertices[0];
+  for (const Vec3& v : mesh.vertices) {
+    lo = {std::min(lo.x, v.x), std::min(lo.y, v.y), std::min(lo.z, v.z)};
+    hi = {std::max(hi.x, v.x), std::max(hi.y, v.y), std::max(hi.z, v.z)};
+  }
+  const Mat3 R = to_matrix(pose.orientation);  // tool frame -> ground
+  double mass = 0;
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    const Vec3 d = s.x[i] - pose.position;
+    // R^T d: the centre in the tool frame.
+    const Vec3 l{R.m[0][0] * d.x + R.m[1][0] * d.y + R.m[2][0] * d.z,
+                 R.m[0][1] * d.x + R.m[1][1] * d.y + R.m[2][1] * d.z,
+                 R.m[0][2] * d.x + R.m[1][2] * d.y + R.m[2][2] * d.z};
+    if (l.x >= lo.x && l.x <= hi.x && l.y >= lo.y && l.y <= hi.y && l.z >= lo.z && l.z <= hi.z)
+      mass += s.mass[i];
+  }
+  return mass;
+}
+
 double kinetic_energy(const State& s) {
   double e = 0;
   for (std::size_t i = 0; i < s.size(); ++i) e += 0.5 * s.mass[i] * norm2(s.v[i]);

@@ -254,6 +254,9 @@ cosim::StepResult ServiceModel::step(const cosim::StepInputs& in, bool want_aver
       {"removed", static_cast<double>(s.removed_count)},
       {"removed_mass", s.removed_mass},
   };
+  for (std::size_t m = 0; m < ntools; ++m)
+    r.diagnostics.emplace_back("payload_" + scene.tools[m].name,
+                               payload_mass(s, scene.tools[m].mesh, s.tool_pose[m]));
   for (const cosim::TimingRow& row : engine.timing().rows_since(before))
     r.diagnostics.emplace_back("seconds_" + row.section, row.seconds);
   r.diagnostics.emplace_back("seconds_step", wall_step.seconds());

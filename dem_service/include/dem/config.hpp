@@ -6,6 +6,7 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include <cstdint>
 #include <string>
 
 #include "dem/bed.hpp"
@@ -29,6 +30,18 @@ struct OutputOptions {
   std::string checkpoint;      // final state ("" = none)
 };
 
+// particles.perturb: every particle's position moves by a seeded displacement, uniform in
+// [-amplitude, amplitude] per axis, a function of (seed, particle id, axis) only. Members of an
+// ensemble differ by their seed: a physically negligible change whose effect the scene's own
+// chaos amplifies (docs/studies.md).
+struct Perturbation {
+  double amplitude = 0;  // m; 0 = none
+  std::uint64_t seed = 0;
+};
+// The largest amplitude accepted, as a fraction of the smallest species radius.
+inline constexpr double kMaxPerturbation = 1e-2;
+void perturb_positions(State& s, const Perturbation& p);
+
 struct RunConfig {
   Scene scene;
   State state;  // initial particles and tool poses
@@ -39,6 +52,7 @@ struct RunConfig {
   // The state continues a run: a checkpoint with particles.keep_time and nothing added to it.
   // Its overlaps are the run's own, so validate_state does not check them.
   bool continues = false;
+  Perturbation perturb;     // applied to state already
   std::string config_text;  // the config as run (after --set), stored in the output
 };
 

@@ -138,4 +138,9 @@ class Engine {
 // Kinetic energy of all particles.
 double kinetic_energy(const State& s);
 
+// The payload of a tool: the mass of the particles whose centres lie in the box that bounds
+// the tool's mesh in its own frame (for a bucket: its cavity and a shell-thin margin around
+// it), at the given pose.
+double payload_mass(const State& s, const Mesh& mesh, const ToolPose& pose);
+
 }  // namespace dem
