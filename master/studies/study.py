@@ -51,7 +51,7 @@ def load_study(path):
     with open(path) as f:
         s = yaml.safe_load(f)
     allowed = {"name", "description", "base", "output_dir", "set", "reference", "variants", "signals",
-               "filter_seconds", "binary_dir", "ensemble", "outcomes"}
+               "filter_seconds", "binary_dir", "ensemble", "outcomes", "members_dir"}
     unknown = set(s) - allowed
     if unknown:
         sys.exit(f"study: {path}: unknown key(s) {sorted(unknown)} (allowed: {sorted(allowed)})")
@@ -145,11 +145,14 @@ def run_ensemble(study, a, out_dir, binary):
     if a.plot_only:
         run_list = []
     try:
-        metas = ensemble_run.run(study, run_list, out_dir, binary, ROOT, as_set_args, only_members)
-        # Members of variants not run now: whatever earlier runs left in OUTPUT_DIR.
+        # Members live in members_dir (default: output_dir); studies that share it share the
+        # members of variants with the same name and command.
+        members_dir = os.path.join(ROOT, study.get("members_dir", study["output_dir"]))
+        metas = ensemble_run.run(study, run_list, members_dir, binary, ROOT, as_set_args, only_members)
+        # Members of variants not run now: whatever earlier runs left in members_dir.
         for v in variants:
             if v["name"] not in metas:
-                metas.update(ensemble_run.run(study, [v], out_dir, binary, ROOT, as_set_args, only_members=set()))
+                metas.update(ensemble_run.run(study, [v], members_dir, binary, ROOT, as_set_args, only_members=set()))
         results = ensemble_charts.make(study, variants, metas, out_dir)
     except ensemble.StudyError as e:
         sys.exit(f"study: {e}")
