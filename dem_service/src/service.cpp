@@ -185,7 +185,12 @@ cosim::StepResult ServiceModel::step(const cosim::StepInputs& in, bool want_aver
   const Timing before = engine.timing();
   const std::int64_t early0 = s.early_rebuilds, rebuilds0 = s.rebuilds;
   const std::size_t ntools = scene.tools.size();
+  // Interval sums for the average: force, and torque about each tool's reference point at the
+  // step's start (each DEM step's torque is about that step's own reference point, which moves).
   std::vector<Wrench> sum(ntools);
+  std::vector<Vec3> r0(ntools);
+  for (std::size_t m = 0; m < ntools; ++m) r0[m] = s.tool_pose[m].position;
+  std::vector<Vec3> at_force(ntools);  // the reference points of the current DEM step
   const std::int64_t n = in.length() / inner_step_;
   double max_overlap = 0, max_ratio = 0;
   // Particle snapshots only at a step's start: that state is accepted (a repeat starts from it).
@@ -200,12 +205,14 @@ cosim::StepResult ServiceModel::step(const cosim::StepInputs& in, bool want_aver
   for (std::int64_t k = 0; k < n; ++k) {
     const TimePoint t = in.t_start() + k * inner_step_;
     set_tool_poses(in, t);
+    for (std::size_t m = 0; m < ntools; ++m) at_force[m] = s.tool_pose[m].position;
     engine.step(s);  // forces at t with the poses at t, then positions to t + dt
     asleep_steps_ += static_cast<double>(engine.sleeping());
     particle_steps_ += static_cast<double>(s.size());
     for (std::size_t m = 0; m < ntools; ++m) {
-      sum[m].force += engine.tool_wrenches()[m].force;
-      sum[m].torque += engine.tool_wrenches()[m].torque;
+      const Wrench& w = engine.tool_wrenches()[m];
+      sum[m].force += w.force;
+      sum[m].torque += w.torque + cross(at_force[m] - r0[m], w.force);
     }
     const ContactStats& c = engine.contact_stats();
     max_overlap = std::max(max_overlap, c.max_overlap);
@@ -229,7 +236,9 @@ cosim::StepResult ServiceModel::step(const cosim::StepInputs& in, bool want_aver
   if (want_average) {
     cosim::Signals avg;
     for (std::size_t m = 0; m < ntools; ++m) {
-      const Wrench mean{inv_n * sum[m].force, inv_n * sum[m].torque};
+      // Mean torque about the start point, moved to the end point like the sample's.
+      const Vec3 F = inv_n * sum[m].force;
+      const Wrench mean{F, inv_n * sum[m].torque - cross(s.tool_pose[m].position - r0[m], F)};
       const cosim::Wrench w = to_wrench(mean, s.tool_pose[m].position);
       avg[scene.tools[m].name] = {cosim::SignalKind::Wrench, w.to_value()};
     }

@@ -154,6 +154,73 @@ TEST(DemService, RepeatedStepIsBitIdenticalAndOtherInputsEqualAFreshRun) {
   EXPECT_EQ(wrench(a.step(request(k + 1))), wrench(b.step(request(k + 1))));
 }
 
+// The interval average (want_average) is the mean of the DEM steps' wrenches about one point:
+// each step's torque is about that step's own reference point, which moves with the tool, so
+// the service moves every step's torque to a common point before averaging. Checked against a
+// service whose macro step is the DEM step, whose replies are those steps' wrenches.
+TEST(DemService, IntervalAverageIsTheMeanOfTheDemStepsWrenchesAboutOnePoint) {
+  const auto step_request = [](std::int64_t t0, std::int64_t t1, std::int64_t index, bool average) {
+    cosim::step_request_t q{};
+    q.session_id = 7;
+    q.participant = "dem";
+    q.step_index = index;
+    q.t_start_ns = t0;
+    q.t_end_ns = t1;
+    q.want_average = average;
+    Polynomials in;
+    in["blade"] = cosim::fit_polynomial(SignalKind::Kinematics, {0.0, 1.0},
+                                        {blade_pose(t0), blade_pose(t1)}, 1, 0);
+    q.inputs = cosim::to_message(in);
+    return q;
+  };
+  Service coarse;  // macro step 5 dt
+  dem::ServiceModel fine_model(cosim::config::load_file(scene_path()), harness::source("tests/dem_service"));
+  cosim::ParticipantCore fine("dem", fine_model);
+  auto cfg = configure_message();
+  cfg.macro_step_ns = kDt;
+  auto ready = fine.configure(cfg);
+  ASSERT_TRUE(ready && ready->ok) << (ready ? ready->error : "no answer");
+  const int n = static_cast<int>(kMacro / kDt);
+  std::int64_t fine_index = 0;
+  for (int k = 0;; ++k) {
+    const std::int64_t t0 = k * kMacro, t1 = t0 + kMacro;
+    const auto r = coarse.step(step_request(t0, t1, k, true));
+    ASSERT_EQ(r.status, cosim::step_reply_t::OK) << r.message;
+    ASSERT_TRUE(r.has_average);
+    std::vector<cosim::Wrench> steps;
+    for (int j = 0; j < n; ++j, ++fine_index) {
+      auto q = fine.handle(step_request(t0 + j * kDt, t0 + (j + 1) * kDt, fine_index, false));
+      ASSERT_TRUE(q && q->status == cosim::step_reply_t::OK);
+      steps.push_back(cosim::Wrench::from_value(cosim::from_message(q->outputs, "reply").at("blade").value));
+    }
+    const auto avg = cosim::Wrench::from_value(cosim::from_message(r.average, "average").at("blade").value);
+    if (k < 10 || std::abs(avg.force[0]) < 1.0) {
+      ASSERT_LT(k, 400) << "the blade never touched the bed";
+      continue;
+    }
+    cosim::Vec3 F{}, T{};
+    for (const auto& w : steps) {
+      const cosim::Wrench about = w.shifted_to(avg.point);
+      for (int a = 0; a < 3; ++a) {
+        F[a] += about.force[a] / n;
+        T[a] += about.torque[a] / n;
+      }
+    }
+    // The reference point of the average is the last DEM step's, like the end sample's.
+    EXPECT_EQ(avg.point, steps.back().point);
+    // The two services took their poses from different polynomials (rounding apart); the
+    // torque of the old average (each step's torque about its own point) was off by
+    // |r_j - r_end| |F| ~ 1e-4 m |F|, 1e-3 of the torque here.
+    const double tnorm = std::sqrt(T[0] * T[0] + T[1] * T[1] + T[2] * T[2]);
+    const double fnorm = std::sqrt(F[0] * F[0] + F[1] * F[1] + F[2] * F[2]);
+    for (int a = 0; a < 3; ++a) {
+      EXPECT_NEAR(avg.force[a], F[a], 1e-7 * fnorm) << a;
+      EXPECT_NEAR(avg.torque[a], T[a], 1e-7 * tnorm) << a;
+    }
+    break;
+  }
+}
+
 TEST(DemService, BadStepsAreRefusedAndTheServiceKeepsServing) {
   Service s;
   ASSERT_EQ(s.step(request(0)).status, cosim::step_reply_t::OK);
