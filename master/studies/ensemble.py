@@ -160,13 +160,20 @@ def smooth(t, y, seconds):
     return np.convolve(pad, kernel, mode="valid")
 
 
+def finite(t, y):
+    """The samples with a finite value (a power has none at t_start, for example)."""
+    ok = np.isfinite(y)
+    return (t, y) if ok.all() else (t[ok], y[ok])
+
+
 def on_grid(members, paths, grid, seconds):
     """members: list of (t, {path: y}); returns array [member, signal, time]: each series
-    smoothed on its own time points, then interpolated linearly onto the grid."""
+    smoothed on its own (finite) time points, then interpolated linearly onto the grid."""
     out = np.empty((len(members), len(paths), len(grid)))
     for m, (t, ys) in enumerate(members):
         for s, p in enumerate(paths):
-            out[m, s] = np.interp(grid, t, smooth(t, ys[p], seconds))
+            tt, yy = finite(t, ys[p])
+            out[m, s] = np.interp(grid, tt, smooth(tt, yy, seconds))
     return out
 
 
@@ -226,7 +233,7 @@ def compare(X, R, alpha=0.05, bootstrap=2000, seed=12345):
 
 
 def outcome(t, y, o):
-    """One scalar outcome of one member's (smoothed) series."""
+    """One scalar outcome of one member's (smoothed, finite) series."""
     t0 = float(o.get("from", t[0]))
     t1 = float(o.get("to", t[-1]))
     sel = (t >= t0 - 1e-12) & (t <= t1 + 1e-12)

@@ -73,8 +73,10 @@ def analyse(study, variants, metas):
         r["band_std"] = arrays[r["name"]].std(axis=0, ddof=1)
         r["outcomes"] = {}
         for o, k in zip(outcomes, okeys):
-            vals = [ens.outcome(t, ens.smooth(t, ys[k], seconds), o) * float(o.get("scale", 1.0))
-                    for t, ys in data[r["name"]]]
+            vals = []
+            for t, ys in data[r["name"]]:
+                tt, yy = ens.finite(t, ys[k])
+                vals.append(ens.outcome(tt, ens.smooth(tt, yy, seconds), o) * float(o.get("scale", 1.0)))
             r["outcomes"][o["name"]] = vals
     ref = next((r for r in usable if r["reference"]), None)
     alpha = float(e.get("alpha", 0.05))
