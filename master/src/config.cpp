@@ -10,6 +10,8 @@ namespace master {
 namespace cfg = cosim::config;
 using cfg::ConfigError;
 
+const char* use_name(Use use) { return use == Use::End ? "end" : "average"; }
+
 const ParticipantSpec& Config::participant(const std::string& name) const {
   for (const auto& p : participants)
     if (p.name == name) return p;
@@ -170,7 +172,7 @@ std::vector<ConnectionSpec> parse_connections(const YAML::Node& conns, const Con
   std::set<std::string> inputs_seen;
   for (std::size_t i = 0; i < conns.size(); ++i) {
     const std::string path = "connections." + std::to_string(i);
-    cfg::check_keys(conns[i], path, {"from", "to", "predictor"});
+    cfg::check_keys(conns[i], path, {"from", "to", "predictor", "use"});
     ConnectionSpec k;
     k.from = parse_endpoint(conns[i], path, "from", c);
     k.to = parse_endpoint(conns[i], path, "to", c);
@@ -183,6 +185,9 @@ std::vector<ConnectionSpec> parse_connections(const YAML::Node& conns, const Con
       k.predictor = pred.IsScalar() ? named_predictor(named, k.predictor_name, path + ".predictor")
                                     : parse_predictor(pred, path + ".predictor");
     }
+    k.use = cfg::get_choice(conns[i], path, "use", {"end", "average"}, use_name(k.use)) == "end"
+                ? Use::End
+                : Use::Average;
     out.push_back(k);
   }
   return out;
@@ -331,6 +336,10 @@ void check_wiring(const Config& c, const std::map<std::string, cosim::Participan
     if (in->kind != out->kind)
       throw ConfigError(what + ": output is " + std::string(cosim::kind_name(out->kind)) +
                         " but the input is " + std::string(cosim::kind_name(in->kind)));
+    if (k.use == Use::Average && out->kind == cosim::SignalKind::Kinematics)
+      throw ConfigError("connections." + std::to_string(i) + ".use: 'average' is not allowed for " +
+                        k.from.str() + ", a kinematics signal (a pose has no plain average); "
+                        "use: end (allowed for kinematics: end)");
   }
   for (const auto& [name, info] : parts) {
     for (const auto& in : info.inputs) {

@@ -29,10 +29,17 @@ struct Endpoint {
   std::string str() const { return participant + "." + signal; }
 };
 
+// What a connection hands over from its source: the output at each macro time point (End), or
+// its mean over each macro step (Average: the source is asked for interval averages and the
+// predictor fits them by histopolation; scalars and wrenches only).
+enum class Use { End, Average };
+const char* use_name(Use use);  // "end", "average"
+
 struct ConnectionSpec {
   Endpoint from, to;
   PredictorSpec predictor;
   std::string predictor_name;  // named predictor it uses, or "" for inline
+  Use use = Use::End;
 };
 
 struct PowerSpec {

@@ -67,7 +67,7 @@ void CoSimulation::connect() {
   for (const auto& k : config_.connections) {
     const auto& src = setup_.participants.at(k.from.participant);
     const auto& initial = src.initial_outputs.at(k.from.signal);
-    predictors_.emplace_back(initial.kind, k.predictor);
+    predictors_.emplace_back(initial.kind, k.predictor, k.use);
     predictors_.back().record(config_.t_start, initial.value);
     max_order_ = std::max(max_order_, k.predictor.order);
   }
@@ -86,7 +86,10 @@ std::vector<cosim::step_request_t> CoSimulation::requests(const std::vector<std:
     q.attempt = 0;
     q.t_start_ns = cosim::to_ns(t0);
     q.t_end_ns = cosim::to_ns(t1);
+    // Asked of a source whose output feeds a `use: average` connection.
     q.want_average = false;
+    for (const auto& k : config_.connections)
+      q.want_average = q.want_average || (k.from.participant == name && k.use == Use::Average);
     cosim::Polynomials inputs;
     for (std::size_t i = 0; i < config_.connections.size(); ++i)
       if (config_.connections[i].to.participant == name)
@@ -95,6 +98,23 @@ std::vector<cosim::step_request_t> CoSimulation::requests(const std::vector<std:
     out.push_back(std::move(q));
   }
   return out;
+}
+
+std::vector<cosim::StepAnswer> CoSimulation::exchange(const std::vector<cosim::step_request_t>& qs) {
+  try {
+    return transport_.exchange(qs);
+  } catch (const cosim::MissingAverageError& e) {
+    // The transport knows the participant, the config knows which connection asked.
+    for (std::size_t i = 0; i < config_.connections.size(); ++i) {
+      const auto& k = config_.connections[i];
+      if (k.use == Use::Average && k.from.participant == e.participant())
+        throw cosim::LinkError(e.participant(),
+                               "connections." + std::to_string(i) + " (" + k.from.str() + " -> " +
+                                   k.to.str() + ") has use: average, but " + e.what() +
+                                   "; set use: end on this connection");
+    }
+    throw;
+  }
 }
 
 void CoSimulation::run_step(int64_t step, TimePoint t0, TimePoint t1) {
@@ -109,6 +129,7 @@ void CoSimulation::run_step(int64_t step, TimePoint t0, TimePoint t1) {
   const bool iterate = step < max_order_ && can_iterate_;
   const int iterations = iterate ? 1 + config_.startup_iterations : 1;
   std::vector<InputPolynomial> sent(config_.connections.size());
+  std::map<std::string, cosim::Signals> averages;  // participants asked for interval averages
   for (int it = 0; it < iterations; ++it) {
     for (const auto& group : groups_) {
       auto qs = requests(group, step, it, t0, t1);
@@ -116,7 +137,7 @@ void CoSimulation::run_step(int64_t step, TimePoint t0, TimePoint t1) {
         for (const auto& name : group)
           if (config_.connections[i].to.participant == name) sent[i] = predictors_[i].predict(t0, t1);
       const cosim::Stopwatch wait;
-      const auto answers = transport_.exchange(qs);
+      const auto answers = exchange(qs);
       waiting += wait.seconds();
       for (std::size_t g = 0; g < group.size(); ++g) {
         const auto& name = group[g];
@@ -124,9 +145,15 @@ void CoSimulation::run_step(int64_t step, TimePoint t0, TimePoint t1) {
         rec.diagnostics[name] = answers[g].diagnostics;
         rec.compute_seconds[name] = answers[g].compute_seconds;
         rec.round_trip_seconds[name] = answers[g].round_trip_seconds;
-        for (std::size_t i = 0; i < config_.connections.size(); ++i)
-          if (config_.connections[i].from.participant == name)
-            predictors_[i].record(t1, answers[g].outputs.at(config_.connections[i].from.signal).value);
+        if (answers[g].average) averages[name] = *answers[g].average;
+        for (std::size_t i = 0; i < config_.connections.size(); ++i) {
+          const auto& k = config_.connections[i];
+          if (k.from.participant != name) continue;
+          if (k.use == Use::Average)  // the mean over this step: interpolation from now on
+            predictors_[i].record_mean(t0, t1, answers[g].average->at(k.from.signal).value);
+          else
+            predictors_[i].record(t1, answers[g].outputs.at(k.from.signal).value);
+        }
       }
     }
   }
@@ -135,9 +162,15 @@ void CoSimulation::run_step(int64_t step, TimePoint t0, TimePoint t1) {
     const auto& k = config_.connections[i];
     ConnectionRecord c;
     c.sent = sent[i];
-    c.predicted = sent[i].evaluate(1.0);
     c.received = rec.outputs.at(k.from.participant).at(k.from.signal).value;
-    c.deviation = deviation(sent[i].kind, c.predicted, c.received);
+    if (k.use == Use::Average) {
+      c.predicted = sent[i].mean();
+      c.received_average = averages.at(k.from.participant).at(k.from.signal).value;
+      c.deviation = deviation(sent[i].kind, c.predicted, c.received_average);
+    } else {
+      c.predicted = sent[i].evaluate(1.0);
+      c.deviation = deviation(sent[i].kind, c.predicted, c.received);
+    }
     rec.connections.push_back(std::move(c));
   }
   for (const auto& p : config_.power) {
@@ -152,8 +185,8 @@ void CoSimulation::run_step(int64_t step, TimePoint t0, TimePoint t1) {
     const auto kind = sent.empty() ? SignalKind::Scalar
                                    : (f.received.size() == 1 ? SignalKind::Scalar : SignalKind::Wrench);
     PowerRecord r;
-    r.force_side = power(kind, f.received, v.predicted);
-    r.motion_side = power(kind, f.predicted, v.received);
+    r.force_side = power(kind, f.received_for_power(), v.predicted);
+    r.motion_side = power(kind, f.predicted, v.received_for_power());
     r.residual = r.force_side - r.motion_side;
     rec.power.push_back(r);
   }

@@ -15,11 +15,19 @@ namespace master {
 
 struct ConnectionRecord {
   cosim::InputPolynomial sent;  // the polynomial the consumer got (last iteration)
-  cosim::Value predicted;       // sent evaluated at t_end
+  cosim::Value predicted;       // use: end: sent evaluated at t_end; use: average: its mean over the step
   cosim::Value received;        // the source's output at t_end
-  std::vector<double> deviation;  // predicted - received (orientation: rotation vector)
+  cosim::Value received_average;  // use: average: the source's mean over the step (else empty)
+  // predicted - received (use: average: - received_average; orientation: rotation vector)
+  std::vector<double> deviation;
+  // What the consumer's side of a power pair compares: the received average for use: average,
+  // else the end sample.
+  const cosim::Value& received_for_power() const {
+    return received_average.empty() ? received : received_average;
+  }
 };
 
+// Where a connection is averaged, its interval means stand in for its end values (docs/output.md).
 struct PowerRecord {
   double force_side = 0;   // F received * v predicted: what the force side computed against
   double motion_side = 0;  // F predicted * v received: what the motion side felt
@@ -69,6 +77,8 @@ class CoSimulation {
   std::vector<cosim::step_request_t> requests(const std::vector<std::string>& group, int64_t step,
                                        int iteration, TimePoint t0, TimePoint t1);
   void run_step(int64_t step, TimePoint t0, TimePoint t1);
+  // transport_.exchange, with a missing interval average named by its connection.
+  std::vector<cosim::StepAnswer> exchange(const std::vector<cosim::step_request_t>& requests);
 
   const Config& config_;
   cosim::Transport& transport_;

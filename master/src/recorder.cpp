@@ -40,7 +40,8 @@ struct H5Recorder::Impl {
   std::map<std::string, std::unique_ptr<Table>> diagnostics;
   std::map<std::string, std::unique_ptr<Table>> compute, round_trip;
   std::unique_ptr<Table> master_s, wall_s, iterations;
-  struct Conn { std::unique_ptr<Table> sent, predicted, received, deviation; int width = 0; };
+  // received_average: use: average connections only (else null).
+  struct Conn { std::unique_ptr<Table> sent, predicted, received, received_average, deviation; int width = 0; };
   std::vector<Conn> conns;
   struct Pow { std::unique_ptr<Table> force_side, motion_side, residual, energy_residual; double energy = 0; double last = kNaN; };
   std::vector<Pow> pows;
@@ -51,7 +52,10 @@ struct H5Recorder::Impl {
     time->flush();
     f(outputs); f(diagnostics); f(compute); f(round_trip);
     master_s->flush(); wall_s->flush(); iterations->flush();
-    for (auto& c : conns) c.sent->flush(), c.predicted->flush(), c.received->flush(), c.deviation->flush();
+    for (auto& c : conns) {
+      c.sent->flush(), c.predicted->flush(), c.received->flush(), c.deviation->flush();
+      if (c.received_average) c.received_average->flush();
+    }
     for (auto& p : pows) p.force_side->flush(), p.motion_side->flush(), p.residual->flush(), p.energy_residual->flush();
     H5Fflush(file, H5F_SCOPE_GLOBAL);
   }
@@ -116,6 +120,16 @@ void H5Recorder::on_start(const RunSetup& s) {
     cr.deviation = table(I.file, g + "/deviation", tw);
     cr.predicted->attribute("source", k.from.str());
     cr.predicted->attribute("components", join(cosim::component_names(kind)));
+    cr.predicted->attribute("use", use_name(k.use));
+    cr.predicted->attribute("meaning", k.use == Use::Average
+                                           ? "mean of the sent polynomial over the step"
+                                           : "the sent polynomial at the step's end");
+    if (k.use == Use::Average) {
+      cr.received_average = table(I.file, g + "/received_average", cosim::value_size(kind));
+      cr.received_average->attribute("source", k.from.str());
+      cr.received_average->attribute("meaning", "the source's mean over the step ending at time[i]");
+      cr.received_average->append(std::vector<double>(cosim::value_size(kind), kNaN));
+    }
     cr.sent->append(kNaN);
     cr.predicted->append(kNaN);
     cr.received->append(src.initial_outputs.at(k.from.signal).value);
@@ -166,6 +180,7 @@ void H5Recorder::on_step(const StepRecord& r) {
     I.conns[i].sent->append(coeff);
     I.conns[i].predicted->append(cr.predicted);
     I.conns[i].received->append(cr.received);
+    if (I.conns[i].received_average) I.conns[i].received_average->append(cr.received_average);
     I.conns[i].deviation->append(cr.deviation);
   }
   const Duration H = c.macro_step;

@@ -20,8 +20,8 @@ using namespace cosim::stability;
 
 constexpr const char* kUsage =
     "usage: cosim_stability [--scheme jacobi|gauss_seidel|all] [--kq K] [--kf K]\n"
-    "                       [--samples-q M] [--samples-f M] [--H seconds ...]\n"
-    "                       [--param key=value ...] [--csv FILE]\n"
+    "                       [--samples-q M] [--samples-f M] [--use-force end|average]\n"
+    "                       [--H seconds ...] [--param key=value ...] [--csv FILE]\n"
     "  --scheme      which scheme(s) to analyse (default all)\n"
     "  --kq, --kf    predictor orders 0..3 of the kinematic inputs and of the force; giving "
     "either\n"
@@ -29,6 +29,9 @@ constexpr const char* kUsage =
     "                (0,0) (1,0) (0,1) (1,1) (2,1) (2,2) (3,3)\n"
     "  --samples-q, --samples-f\n"
     "                samples fitted (default order + 1; more gives a least-squares fit)\n"
+    "  --use-force   what the force connection hands over: end (the force at each macro time,\n"
+    "                default) or average (its mean over each macro step, fitted by\n"
+    "                histopolation), as the master's connections[].use\n"
     "  --H           macro steps in seconds: print rho and rho - 1 at each instead of the table\n"
     "  --param       oscillator parameters, keys m1 c1 d1 m2 c2 d2 cc dc (SI units)\n"
     "  --csv FILE    also write the rows as CSV\n";
@@ -41,6 +44,7 @@ struct UsageError : std::runtime_error {
 struct Options {
   std::vector<Scheme> schemes{Scheme::Jacobi, Scheme::GaussSeidel};
   std::optional<int> kq, kf, mq, mf;
+  ForceUse force = ForceUse::End;
   std::vector<double> H;
   OscParams params;
   std::string csv;
@@ -112,6 +116,11 @@ Options parse(int argc, char** argv) {
       o.mq = parse_int(flag, value(), 1, 16, "1..16 (and at least kq + 1)");
     } else if (flag == "--samples-f") {
       o.mf = parse_int(flag, value(), 1, 16, "1..16 (and at least kf + 1)");
+    } else if (flag == "--use-force") {
+      const std::string v = value();
+      const auto u = parse_force_use(v);
+      if (!u) throw UsageError("--use-force: '" + v + "' is not allowed; allowed: end, average");
+      o.force = *u;
     } else if (flag == "--H") {
       for (const auto& v : values()) {
         const double h = parse_double(flag, v);
@@ -136,7 +145,8 @@ Options parse(int argc, char** argv) {
       o.csv = value();
     } else {
       throw UsageError("unknown argument '" + flag +
-                       "'; allowed: --scheme --kq --kf --samples-q --samples-f --H --param --csv");
+                       "'; allowed: --scheme --kq --kf --samples-q --samples-f --use-force --H --param "
+                       "--csv");
     }
   }
   try {
@@ -158,11 +168,12 @@ Options parse(int argc, char** argv) {
 
 std::vector<Predictors> pairs(const Options& o) {
   if (o.kq || o.kf)
-    return {Predictors{o.kq.value_or(0), o.kf.value_or(0), o.mq.value_or(0), o.mf.value_or(0)}};
+    return {Predictors{o.kq.value_or(0), o.kf.value_or(0), o.mq.value_or(0), o.mf.value_or(0),
+                       o.force}};
   std::vector<Predictors> out;
   for (const auto& [kq, kf] :
        std::vector<std::pair<int, int>>{{0, 0}, {1, 0}, {0, 1}, {1, 1}, {2, 1}, {2, 2}, {3, 3}})
-    out.push_back(Predictors{kq, kf, 0, 0});
+    out.push_back(Predictors{kq, kf, 0, 0, o.force});
   return out;
 }
 
@@ -192,7 +203,7 @@ void print_at_steps(const Options& o, std::ostream* csv) {
   for (Scheme s : o.schemes)
     for (const auto& pr : pairs(o))
       for (double H : o.H) {
-        const double r1 = spectral_radius_minus_one(o.params, s, pr.kq, pr.kf, pr.mq, pr.mf, H);
+        const double r1 = spectral_radius_minus_one(o.params, s, pr, H);
         const double growth = std::log1p(r1) / H;
         std::printf("%s  %-10.4e  %-14.10f  %+.3e  %+.4e\n", row_prefix(s, pr).c_str(), H, 1.0 + r1,
                     r1, growth);
@@ -218,7 +229,7 @@ void print_table(const Options& o, std::ostream* csv) {
             "rho_minus_1_at_1e-3,rho_minus_1_at_5e-4,further_crossings\n";
   for (Scheme s : o.schemes)
     for (const auto& pr : pairs(o)) {
-      const StabilityScan scan = scan_stability(o.params, s, pr.kq, pr.kf, pr.mq, pr.mf, scan_opt);
+      const StabilityScan scan = scan_stability(o.params, s, pr, scan_opt);
       const auto crit = scan.critical();
       std::string crit_text, crit_csv, notes, further;
       if (scan.unstable_at_h_min) {
@@ -247,7 +258,7 @@ void print_table(const Options& o, std::ostream* csv) {
       std::printf("%s  %-12s", row_prefix(s, pr).c_str(), crit_text.c_str());
       if (csv) *csv << csv_prefix(s, pr) << "," << crit_csv;
       for (double H : refs) {
-        const double r1 = spectral_radius_minus_one(o.params, s, pr.kq, pr.kf, pr.mq, pr.mf, H);
+        const double r1 = spectral_radius_minus_one(o.params, s, pr, H);
         std::printf("  %+.3e", r1);
         if (csv) *csv << "," << fmt("%.9e", r1);
       }
@@ -275,6 +286,8 @@ int main(int argc, char** argv) {
                                  "'; check that its folder exists and is writable");
     }
     std::ostream* csv = o.csv.empty() ? nullptr : &csv_file;
+    if (o.force == ForceUse::Average)
+      std::printf("force connection: use average (mf interval means, histopolation fit)\n");
     if (o.H.empty())
       print_table(o, csv);
     else

@@ -6,6 +6,7 @@
 #include <limits>
 #include <sstream>
 #include <stdexcept>
+#include <utility>
 #include <unsupported/Eigen/MatrixFunctions>
 
 namespace cosim::stability {
@@ -55,6 +56,35 @@ HalfPropagator propagate(const Eigen::Matrix2d& A, const Eigen::MatrixXd& B, int
   return out;
 }
 
+// The means over one macro step of a half's state, for the same inputs:
+//   mean of y over [t_n, t_n + H] = Em y(t_n) + Gm w.
+// Two integrator states I' = y (in sigma, so I(1) is the mean) appended to the augmented system
+// of propagate(); one matrix exponential gives Em and Gm exactly. Only the ForceUse::Average map
+// needs them (mass2's interval-mean coupling force).
+struct HalfMean {
+  Eigen::Matrix2d e;
+  Eigen::MatrixXd g;  // 2 x (inputs * (k + 1))
+};
+
+HalfMean interval_mean(const Eigen::Matrix2d& A, const Eigen::MatrixXd& B, int k, double H) {
+  const int inputs = static_cast<int>(B.cols());
+  const int nc = k + 1;
+  const int n = 2 + inputs * nc;
+  Eigen::MatrixXd M = Eigen::MatrixXd::Zero(n + 2, n + 2);
+  M.topLeftCorner<2, 2>() = H * A;
+  for (int i = 0; i < inputs; ++i) {
+    const int c = 2 + i * nc;
+    M.block(0, c, 2, 1) = H * B.col(i);
+    for (int j = 0; j < k; ++j) M(c + j, c + j + 1) = j + 1;
+  }
+  M.block<2, 2>(n, 0) = Eigen::Matrix2d::Identity();  // d/dsigma (integral of y) = y
+  const Eigen::MatrixXd expM = M.exp();
+  HalfMean out;
+  out.e = expM.block<2, 2>(n, 0);
+  out.g = expM.block(n, 2, 2, n - 2);
+  return out;
+}
+
 // The (k+1) x m matrix P taking m sample values at abscissae s (in units of H from t_n) to the
 // polynomial coefficients: exact interpolation for m = k + 1, least squares for m > k + 1 —
 // the same fit as cosim::fit_polynomial, which the master's predictor calls.
@@ -68,6 +98,31 @@ Eigen::MatrixXd fit_matrix(const std::vector<double>& s, int k) {
   const Eigen::MatrixXd I = Eigen::MatrixXd::Identity(m, m);
   if (m == k + 1) return Eigen::FullPivLU<Eigen::MatrixXd>(V).solve(I);
   return Eigen::ColPivHouseholderQR<Eigen::MatrixXd>(V).solve(I);
+}
+
+// The (k+1) x m histopolation matrix: from the means of p over m intervals [a_i, b_i] (in units
+// of H from t_n) to the coefficients of p, the polynomial of order k whose interval means equal
+// the given ones (exactly for m = k + 1, least squares for more) — the same fit as
+// cosim::fit_polynomial_to_means, which the master's predictor calls for `use: average`.
+Eigen::MatrixXd histopolation_matrix(const std::vector<std::pair<double, double>>& intervals, int k) {
+  const int m = static_cast<int>(intervals.size());
+  Eigen::MatrixXd V(m, k + 1);
+  for (int i = 0; i < m; ++i) {
+    const auto [a, b] = intervals[static_cast<std::size_t>(i)];
+    double pa = a, pb = b;  // a^(j+1), b^(j+1)
+    for (int j = 0; j <= k; ++j, pa *= a, pb *= b) V(i, j) = (pb - pa) / ((j + 1) * (b - a));
+  }
+  const Eigen::MatrixXd I = Eigen::MatrixXd::Identity(m, m);
+  if (m == k + 1) return Eigen::FullPivLU<Eigen::MatrixXd>(V).solve(I);
+  return Eigen::ColPivHouseholderQR<Eigen::MatrixXd>(V).solve(I);
+}
+
+// The m latest macro-step intervals, newest first, the newest ending at `newest_end` (0: the
+// step [t_{n-1}, t_n]).
+std::vector<std::pair<double, double>> intervals(int m, double newest_end) {
+  std::vector<std::pair<double, double>> out;
+  for (int i = 0; i < m; ++i) out.emplace_back(newest_end - i - 1, newest_end - i);
+  return out;
 }
 
 // Abscissae of the m latest samples, newest first, starting at `newest` (0: t_n, 1: t_{n+1}).
@@ -166,6 +221,14 @@ void validate(const OscParams& p) {
     throw std::invalid_argument("oscillator masses m1 and m2 must be > 0");
 }
 
+std::string_view force_use_name(ForceUse u) { return u == ForceUse::End ? "end" : "average"; }
+
+std::optional<ForceUse> parse_force_use(std::string_view name) {
+  if (name == "end") return ForceUse::End;
+  if (name == "average") return ForceUse::Average;
+  return std::nullopt;
+}
+
 std::string_view scheme_name(Scheme s) { return s == Scheme::Jacobi ? "jacobi" : "gauss_seidel"; }
 
 std::optional<Scheme> parse_scheme(std::string_view name) {
@@ -219,7 +282,12 @@ StepMap step_map(const OscParams& p, Scheme scheme, const Predictors& pr, double
   const HalfPropagator h1 = propagate(A1, B1, kf, H);
   const HalfPropagator h2 = propagate(A2, B2, kq, H);
 
-  const Eigen::MatrixXd PF = fit_matrix(abscissae(mf, 0.0), kf);
+  const bool average = pr.force == ForceUse::Average;
+  // Force end samples F_n, F_{n-1}, ... at s = 0, -1, ...; or interval means over [-1, 0],
+  // [-2, -1], ... (histopolation). mass1 steps first in both schemes: always extrapolation.
+  const Eigen::MatrixXd PF = average ? histopolation_matrix(intervals(mf, 0.0), kf)
+                                     : fit_matrix(abscissae(mf, 0.0), kf);
+  const HalfMean m2 = average ? interval_mean(A2, B2, kq, H) : HalfMean{};
   const Eigen::MatrixXd Pq = fit_matrix(abscissae(mq, scheme == Scheme::Jacobi ? 0.0 : 1.0), kq);
 
   // z_{n+1} - z_n for one macro step from z_n. Linear in z, so applying it to the unit vectors
@@ -256,8 +324,21 @@ StepMap step_map(const OscParams& p, Scheme scheme, const Predictors& pr, double
     const Eigen::Vector2d dy2 = h2.e_minus_identity * y2 + h2.g * w2;
     const Eigen::Vector2d y2_new = y2 + dy2;
 
-    // mass2's output: the force on mass1 with the input polynomial's value at the step's end.
-    const double F_new = -(p.cc * (wx.sum() - y2_new(0)) + p.dc * (wv.sum() - y2_new(1)));
+    // mass2's output: the force on mass1 with the input polynomial's value at the step's end;
+    // or its exact mean over the step, from the means of the input polynomial (sum w_j / (j+1))
+    // and of mass2's state.
+    double F_new = 0.0;
+    if (!average) {
+      F_new = -(p.cc * (wx.sum() - y2_new(0)) + p.dc * (wv.sum() - y2_new(1)));
+    } else {
+      double ux_mean = 0.0, uv_mean = 0.0;
+      for (int j = 0; j <= kq; ++j) {
+        ux_mean += wx(j) / (j + 1);
+        uv_mean += wv(j) / (j + 1);
+      }
+      const Eigen::Vector2d y2_mean = m2.e * y2 + m2.g * w2;
+      F_new = -(p.cc * (ux_mean - y2_mean(0)) + p.dc * (uv_mean - y2_mean(1)));
+    }
 
     dz.segment<2>(0) = dy1;
     dz.segment<2>(2) = dy2;
@@ -299,7 +380,16 @@ Eigen::VectorXd initial_extended_state(const OscParams& p, Scheme scheme, const 
 
 double spectral_radius_minus_one(const OscParams& p, Scheme scheme, int kq, int kf, int mq, int mf,
                                  double H) {
-  const StepMap map = step_map(p, scheme, Predictors{kq, kf, mq, mf}, H);
+  return spectral_radius_minus_one(p, scheme, Predictors{kq, kf, mq, mf, ForceUse::End}, H);
+}
+
+double spectral_radius(const OscParams& p, Scheme scheme, const Predictors& pr, double H) {
+  return 1.0 + spectral_radius_minus_one(p, scheme, pr, H);
+}
+
+double spectral_radius_minus_one(const OscParams& p, Scheme scheme, const Predictors& pr,
+                                 double H) {
+  const StepMap map = step_map(p, scheme, pr, H);
   // Eigenvalues of phi - I are mu = lambda - 1; for the physical modes they are O(H), so
   // |lambda| - 1 keeps its digits where max |eig(phi)| - 1 would round to a few ulps of 1.
   Eigen::MatrixXd D = map.phi_minus_identity;
@@ -341,10 +431,15 @@ std::optional<double> StabilityScan::critical() const {
 
 StabilityScan scan_stability(const OscParams& p, Scheme scheme, int kq, int kf, int mq, int mf,
                              const ScanOptions& opt) {
+  return scan_stability(p, scheme, Predictors{kq, kf, mq, mf, ForceUse::End}, opt);
+}
+
+StabilityScan scan_stability(const OscParams& p, Scheme scheme, const Predictors& pr,
+                             const ScanOptions& opt) {
   if (!(opt.h_min > 0.0) || !(opt.h_max > opt.h_min) || opt.points < 2 || !(opt.rel_tol > 0.0))
     throw std::invalid_argument("stability scan needs 0 < h_min < h_max, points >= 2, rel_tol > 0");
   const auto unstable = [&](double H) {
-    return spectral_radius_minus_one(p, scheme, kq, kf, mq, mf, H) >= 0.0;
+    return spectral_radius_minus_one(p, scheme, pr, H) >= 0.0;
   };
   const double log_min = std::log(opt.h_min), log_max = std::log(opt.h_max);
   const auto grid = [&](int i) {
@@ -378,6 +473,11 @@ StabilityScan scan_stability(const OscParams& p, Scheme scheme, int kq, int kf, 
 std::optional<double> critical_macro_step(const OscParams& p, Scheme scheme, int kq, int kf, int mq,
                                           int mf, const ScanOptions& opt) {
   return scan_stability(p, scheme, kq, kf, mq, mf, opt).critical();
+}
+
+std::optional<double> critical_macro_step(const OscParams& p, Scheme scheme, const Predictors& pr,
+                                          const ScanOptions& opt) {
+  return scan_stability(p, scheme, pr, opt).critical();
 }
 
 }  // namespace cosim::stability

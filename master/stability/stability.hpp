@@ -5,7 +5,9 @@
 // The definitions mirror the co-simulation master (master/src/predictor.cpp): inputs are
 // polynomials in s = (t - t_n)/H fitted to the latest samples of the source output, Jacobi
 // extrapolates from samples at t_n, t_{n-1}, ..., Gauss-Seidel (mass1 first) lets mass2
-// interpolate through mass1's new sample at t_{n+1}. See docs/stability.md.
+// interpolate through mass1's new sample at t_{n+1}. The force connection can carry end samples
+// (`use: end`) or interval averages (`use: average`, fitted by histopolation). See
+// docs/stability.md.
 #pragma once
 
 #include <Eigen/Dense>
@@ -35,10 +37,19 @@ enum class Scheme { Jacobi, GaussSeidel };
 std::string_view scheme_name(Scheme s);  // "jacobi", "gauss_seidel"
 std::optional<Scheme> parse_scheme(std::string_view name);
 
+// What the force connection (mass2.force -> mass1.force) hands over, as the master's
+// `connections[].use`: End = the force at each macro time point, fitted by inter/extrapolation;
+// Average = the exact mean of mass2's coupling force over each macro step, fitted by
+// histopolation (the polynomial whose means over the latest intervals equal the received means).
+enum class ForceUse { End, Average };
+std::string_view force_use_name(ForceUse u);  // "end", "average"
+std::optional<ForceUse> parse_force_use(std::string_view name);
+
 // Predictor orders and sample counts. mq/mf = 0 means "k + 1" (exact inter/extrapolation).
 struct Predictors {
   int kq = 0, kf = 0;  // polynomial order of the kinematic inputs (x1, v1 -> mass2) and the force
   int mq = 0, mf = 0;  // number of samples fitted; more than k + 1 gives a least-squares fit
+  ForceUse force = ForceUse::End;  // force samples: end values or interval averages
   int samples_q() const { return mq > 0 ? mq : kq + 1; }
   int samples_f() const { return mf > 0 ? mf : kf + 1; }
 };
@@ -50,7 +61,8 @@ void validate(const Predictors& pr);
 // x1/v1 history: the past samples x1(t_{n-1}), x1(t_{n-2}), ... still needed by the predictor
 // (Jacobi: m_q - 1 of them; Gauss-Seidel: m_q - 2, because its newest sample is t_{n+1}).
 // F history: F_n, F_{n-1}, ... (m_f values). F_n is a state of its own: mass2 computed it from its
-// *predicted* kinematics, so it is not a function of (x1, v1, x2, v2).
+// *predicted* kinematics, so it is not a function of (x1, v1, x2, v2). With ForceUse::Average the
+// entries are the interval means Fbar_n (over [t_{n-1}, t_n]), Fbar_{n-1}, ... instead.
 struct Layout {
   int hq = 0;  // entries in each of the x1 and v1 histories
   int hf = 0;  // entries in the F history
@@ -72,7 +84,8 @@ StepMap step_map(const OscParams& p, Scheme scheme, const Predictors& pr, double
 
 // The extended state at t = 0 for a physical state x0 = (x1, v1, x2, v2) when every past sample
 // equals the initial output (x1 and v1 histories = x1(0), v1(0); F history = the coupling force
-// -(cc (x1 - x2) + dc (v1 - v2)) at t = 0).
+// -(cc (x1 - x2) + dc (v1 - v2)) at t = 0; for ForceUse::Average the same value stands for every
+// past interval mean, as the master's constant start).
 Eigen::VectorXd initial_extended_state(const OscParams& p, Scheme scheme, const Predictors& pr,
                                        const Eigen::Vector4d& x0);
 
@@ -82,6 +95,10 @@ Eigen::VectorXd initial_extended_state(const OscParams& p, Scheme scheme, const 
 // mq/mf = 0 means k + 1 samples. Throws std::invalid_argument for invalid parameters/orders/H.
 double spectral_radius(const OscParams& p, Scheme scheme, int kq, int kf, int mq, int mf, double H);
 double spectral_radius_minus_one(const OscParams& p, Scheme scheme, int kq, int kf, int mq, int mf,
+                                 double H);
+// The same for any Predictors (force end samples or interval averages).
+double spectral_radius(const OscParams& p, Scheme scheme, const Predictors& pr, double H);
+double spectral_radius_minus_one(const OscParams& p, Scheme scheme, const Predictors& pr,
                                  double H);
 
 // The monolithic 4x4 system x' = A x on x = (x1, v1, x2, v2), and the slowest decay rate
@@ -109,9 +126,13 @@ struct StabilityScan {
 };
 StabilityScan scan_stability(const OscParams& p, Scheme scheme, int kq, int kf, int mq, int mf,
                              const ScanOptions& opt = {});
+StabilityScan scan_stability(const OscParams& p, Scheme scheme, const Predictors& pr,
+                             const ScanOptions& opt = {});
 // Shortcut: scan_stability(...).critical(). Empty means "no crossing from below": stable on the
 // whole range, or (check scan_stability's unstable_at_h_min) already unstable at h_min.
 std::optional<double> critical_macro_step(const OscParams& p, Scheme scheme, int kq, int kf,
                                           int mq = 0, int mf = 0, const ScanOptions& opt = {});
+std::optional<double> critical_macro_step(const OscParams& p, Scheme scheme, const Predictors& pr,
+                                          const ScanOptions& opt = {});
 
 }  // namespace cosim::stability

@@ -41,33 +41,51 @@ Half::Half(Side side, const Parameters& p, double inner_step) : side_(side), p_(
     M.block(2 + j * m, 2 + (j + 1) * m, m, m) =
         Eigen::MatrixXd::Identity(m, m) * (static_cast<double>(j + 1) / h_);
   step_ = (M * h_).exp();
+  // Integrator states I' = z appended: exp([[M, 0], [1, 0]] h) has the integral of exp(M tau)
+  // over [0, h] in its lower left block, which takes z at an inner step's start to z's integral
+  // over that inner step.
+  Eigen::MatrixXd Mi = Eigen::MatrixXd::Zero(2 * n, 2 * n);
+  Mi.topLeftCorner(n, n) = M;
+  Mi.bottomLeftCorner(n, n) = Eigen::MatrixXd::Identity(n, n);
+  mean_step_ = (Mi * h_).exp().bottomLeftCorner(n, n);
 }
 
+namespace {
+// The augmented state at a step's start: a_j multiplies s^j with s = tau / H = sigma / n_inner,
+// so w_j = a_j / n_inner^j.
+Eigen::VectorXd augmented(const Eigen::Vector2d& x, const std::vector<Eigen::VectorXd>& a, int m,
+                          int n_inner) {
+  Eigen::VectorXd z = Eigen::VectorXd::Zero(2 + kMaxCoefficients * m);
+  z.head<2>() = x;
+  double scale = 1.0;
+  for (std::size_t j = 0; j < a.size(); ++j, scale /= n_inner) z.segment(2 + j * m, m) = a[j] * scale;
+  return z;
+}
+}  // namespace
+
 void Half::advance(const std::vector<Eigen::VectorXd>& a, int n_inner) {
-  advance_with_average(a, n_inner);
+  Eigen::VectorXd z = augmented(x_, a, input_size(), n_inner);
+  for (int k = 0; k < n_inner; ++k) z = step_ * z;
+  x_ = z.head<2>();
 }
 
 Eigen::VectorXd Half::advance_with_average(const std::vector<Eigen::VectorXd>& a, int n_inner) {
   const int m = input_size();
-  Eigen::VectorXd z = Eigen::VectorXd::Zero(2 + kMaxCoefficients * m);
-  z.head<2>() = x_;
-  // a_j multiplies s^j with s = tau / H = sigma / n_inner: w_j = a_j / n_inner^j.
-  double scale = 1.0;
-  for (std::size_t j = 0; j < a.size(); ++j, scale /= n_inner) z.segment(2 + j * m, m) = a[j] * scale;
-  Eigen::VectorXd sum = 0.5 * output(z.segment(2, m));
+  Eigen::VectorXd z = augmented(x_, a, m, n_inner);
+  Eigen::VectorXd integral = Eigen::VectorXd::Zero(z.size());
   for (int k = 0; k < n_inner; ++k) {
+    integral += mean_step_ * z;
     z = step_ * z;
-    x_ = z.head<2>();
-    sum += (k + 1 < n_inner ? 1.0 : 0.5) * output(z.segment(2, m));
   }
   x_ = z.head<2>();
-  return sum / n_inner;
+  const Eigen::VectorXd mean = integral / (n_inner * h_);  // w_0 is the input's current value
+  return output_of(mean.head<2>(), mean.segment(2, m));
 }
 
-Eigen::VectorXd Half::output(const Eigen::VectorXd& u) const {
-  if (side_ == Side::Mass1) return x_;
+Eigen::VectorXd Half::output_of(const Eigen::Vector2d& x, const Eigen::VectorXd& u) const {
+  if (side_ == Side::Mass1) return x;
   Eigen::VectorXd f(1);
-  f(0) = -(p_.cc * (u(0) - x_(0)) + p_.dc * (u(1) - x_(1)));
+  f(0) = -(p_.cc * (u(0) - x(0)) + p_.dc * (u(1) - x(1)));
   return f;
 }
 

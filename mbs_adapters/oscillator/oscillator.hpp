@@ -29,20 +29,25 @@ class Half {
   int input_size() const { return side_ == Side::Mass1 ? 1 : 2; }
   // Advances n inner steps across one macro step H = n * inner_step. coefficients[j] is a_j.
   void advance(const std::vector<Eigen::VectorXd>& coefficients, int n_inner);
-  // Like advance, also returning the trapezoid average of output() over the inner steps.
+  // Like advance, also returning the exact mean of the output over the step: output() is linear
+  // in the state and the input, so its mean is output_of(mean state, mean input), and those
+  // means are the integral of the augmented state (exact, see mean_step_).
   Eigen::VectorXd advance_with_average(const std::vector<Eigen::VectorXd>& coefficients,
                                        int n_inner);
   // mass1: [x1, v1]; mass2: [F] for the input value u_end at the end of the step.
-  Eigen::VectorXd output(const Eigen::VectorXd& u_end) const;
+  Eigen::VectorXd output(const Eigen::VectorXd& u_end) const { return output_of(x_, u_end); }
   const Eigen::Vector2d& state() const { return x_; }
   void set_state(const Eigen::Vector2d& x) { x_ = x; }
 
  private:
+  Eigen::VectorXd output_of(const Eigen::Vector2d& x, const Eigen::VectorXd& u) const;
+
   Side side_;
   Parameters p_;
   double h_;
   Eigen::Vector2d x_;
-  Eigen::MatrixXd step_;  // exp(M h) of the augmented system
+  Eigen::MatrixXd step_;       // exp(M h) of the augmented system
+  Eigen::MatrixXd mean_step_;  // integral of exp(M tau) over [0, h]: z's integral over an inner step
 };
 
 // The monolithic system matrix for (x1, v1, x2, v2) and its exact solution at time t.

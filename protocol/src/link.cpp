@@ -41,7 +41,10 @@ StepAnswer Transport::accept(const step_request_t& q, const step_reply_t& r,
     a.outputs = from_message(r.outputs, "outputs");
     check_against_ports(a.outputs, info.outputs, "outputs");
     if (q.want_average) {
-      if (!r.has_average) throw ProtocolError("the interval average was asked for but not sent");
+      if (!r.has_average)
+        throw MissingAverageError(q.participant,
+                                  what + ": the interval average of its outputs was asked for but "
+                                         "not sent (it does not compute averages)");
       a.average = from_message(r.average, "averages");
       check_against_ports(*a.average, info.outputs, "averages");
     }

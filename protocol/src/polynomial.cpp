@@ -25,6 +25,16 @@ Value InputPolynomial::evaluate(double s) const {
   return from_tangent(kind, t, orientation_reference);
 }
 
+Value InputPolynomial::mean() const {
+  if (kind == SignalKind::Kinematics)
+    throw std::invalid_argument("the mean of a kinematics polynomial is not defined");
+  const int n = tangent_size(kind);
+  Value m(static_cast<std::size_t>(n), 0.0);
+  for (int j = 0; j < n_coefficients; ++j)
+    for (int c = 0; c < n; ++c) m[c] += coefficients[j * n + c] / (j + 1);
+  return m;
+}
+
 InputPolynomial InputPolynomial::constant(SignalKind kind, const Value& value) {
   InputPolynomial p;
   p.kind = kind;
@@ -69,6 +79,49 @@ InputPolynomial fit_polynomial(SignalKind kind, const std::vector<double>& s,
     if (qr.rank() < order + 1) throw std::invalid_argument("fit_polynomial: repeated sample times");
     C = qr.solve(Y);
   }
+  p.coefficients.resize(static_cast<std::size_t>((order + 1) * n));
+  for (int j = 0; j <= order; ++j)
+    for (int c = 0; c < n; ++c) p.coefficients[j * n + c] = C(j, c);
+  return p;
+}
+
+InputPolynomial fit_polynomial_to_means(SignalKind kind,
+                                        const std::vector<std::pair<double, double>>& intervals,
+                                        const std::vector<Value>& means, int order) {
+  const int m = static_cast<int>(intervals.size());
+  if (kind == SignalKind::Kinematics)
+    throw std::invalid_argument("fit_polynomial_to_means: kinematics have no plain interval mean");
+  if (order < 0 || order > kMaxPolynomialOrder)
+    throw std::invalid_argument("polynomial order must be 0.." +
+                                std::to_string(kMaxPolynomialOrder));
+  if (m < order + 1 || means.size() != intervals.size())
+    throw std::invalid_argument("fit_polynomial_to_means: need at least order + 1 intervals");
+  const int n = tangent_size(kind);
+  // Row i: the means of 1, s, s^2, ... over [a_i, b_i], (b^(j+1) - a^(j+1)) / ((j+1) (b - a)).
+  Eigen::MatrixXd V(m, order + 1);
+  Eigen::MatrixXd Y(m, n);
+  for (int i = 0; i < m; ++i) {
+    const auto [a, b] = intervals[static_cast<std::size_t>(i)];
+    if (!(b > a)) throw std::invalid_argument("fit_polynomial_to_means: empty interval");
+    double pa = a, pb = b;
+    for (int j = 0; j <= order; ++j, pa *= a, pb *= b) V(i, j) = (pb - pa) / ((j + 1) * (b - a));
+    if (static_cast<int>(means[static_cast<std::size_t>(i)].size()) != n)
+      throw std::invalid_argument("fit_polynomial_to_means: a mean has the wrong size");
+    for (int c = 0; c < n; ++c) Y(i, c) = means[static_cast<std::size_t>(i)][c];
+  }
+  Eigen::MatrixXd C;
+  if (m == order + 1) {
+    Eigen::FullPivLU<Eigen::MatrixXd> lu(V);
+    if (!lu.isInvertible()) throw std::invalid_argument("fit_polynomial_to_means: repeated intervals");
+    C = lu.solve(Y);
+  } else {
+    Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(V);
+    if (qr.rank() < order + 1) throw std::invalid_argument("fit_polynomial_to_means: repeated intervals");
+    C = qr.solve(Y);
+  }
+  InputPolynomial p;
+  p.kind = kind;
+  p.n_coefficients = order + 1;
   p.coefficients.resize(static_cast<std::size_t>((order + 1) * n));
   for (int j = 0; j <= order; ++j)
     for (int c = 0; c < n; ++c) p.coefficients[j * n + c] = C(j, c);

@@ -36,6 +36,13 @@ class ParticipantConfigError : public LinkError {
   using LinkError::LinkError;
 };
 
+// A reply without the interval average its request asked for: the participant cannot average
+// its outputs (the master names the connection that asked).
+class MissingAverageError : public LinkError {
+ public:
+  using LinkError::LinkError;
+};
+
 struct LinkSettings {
   double timeout_s = 2.0;  // silence (no reply, no busy heartbeat) before a resend
   int retries = 3;         // resends before giving up

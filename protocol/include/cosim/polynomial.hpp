@@ -9,6 +9,7 @@
 
 #include <map>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "cosim/rotation.hpp"
@@ -27,6 +28,9 @@ struct InputPolynomial {
 
   int order() const { return n_coefficients - 1; }
   Value evaluate(double s) const;
+  // The mean over the step, s in [0, 1]: sum_j c_j / (j + 1) per component. Not for kinematics
+  // (the mean of a pose is not a pose): raises std::invalid_argument.
+  Value mean() const;
   // A constant polynomial that returns `value`.
   static InputPolynomial constant(SignalKind kind, const Value& value);
 };
@@ -44,6 +48,14 @@ Value from_tangent(SignalKind kind, const std::vector<double>& tangent, const Qu
 InputPolynomial fit_polynomial(SignalKind kind, const std::vector<double>& s,
                                const std::vector<Value>& values, int order,
                                std::size_t reference_sample);
+
+// Histopolation: the polynomial of `order` whose means over the intervals [a_i, b_i] (in s) equal
+// means_i. With order + 1 intervals it is exact; with more it is the least-squares fit of the
+// means. Scalars and wrenches only (raises std::invalid_argument for kinematics, too few
+// intervals, empty or repeated intervals).
+InputPolynomial fit_polynomial_to_means(SignalKind kind,
+                                        const std::vector<std::pair<double, double>>& intervals,
+                                        const std::vector<Value>& means, int order);
 
 polynomial_set_t to_message(const Polynomials& polynomials);
 // Validates sizes, orders (1..4 coefficients), finiteness and unit reference quaternions.
