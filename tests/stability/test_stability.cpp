@@ -230,6 +230,199 @@ TEST(StabilityStepMap, MatchesDirectRk4Step) {
     }
 }
 
+// ---- use: average, against an independent construction ----
+//
+// The averaged force connection written out from its definition with tools of its own: both
+// halves by RK4 (mass2 with a third state, the integral of its coupling force, so the interval
+// mean is integral / H); the histopolation through the cumulative integral (the polynomial whose
+// means over [-m, -m+1], ..., [-1, 0] are the received means is the derivative of the degree-m
+// polynomial through the running sums C(-m) = 0, C(-m+1) = Fbar_oldest, ..., C(0) = sum, a
+// Lagrange interpolation); the kinematics by Lagrange interpolation. The step map is built
+// column by column from it and its eigenvalues taken directly.
+
+// Lagrange basis on nodes: value and derivative of sum_i y_i L_i at s.
+double lagrange(const std::vector<double>& nodes, const std::vector<double>& y, double s) {
+  double v = 0.0;
+  for (std::size_t i = 0; i < nodes.size(); ++i) {
+    double l = 1.0;
+    for (std::size_t j = 0; j < nodes.size(); ++j)
+      if (j != i) l *= (s - nodes[j]) / (nodes[i] - nodes[j]);
+    v += y[i] * l;
+  }
+  return v;
+}
+double lagrange_derivative(const std::vector<double>& nodes, const std::vector<double>& y, double s) {
+  double v = 0.0;
+  for (std::size_t i = 0; i < nodes.size(); ++i)
+    for (std::size_t l = 0; l < nodes.size(); ++l) {
+      if (l == i) continue;
+      double term = 1.0 / (nodes[i] - nodes[l]);
+      for (std::size_t j = 0; j < nodes.size(); ++j)
+        if (j != i && j != l) term *= (s - nodes[j]) / (nodes[i] - nodes[j]);
+      v += y[i] * term;
+    }
+  return v;
+}
+
+// One macro step of the averaged scheme, exact samples (m = k + 1). State: x1 v1 x2 v2, then the
+// x1 history, the v1 history and the mean-force history (newest first) as in Layout.
+Eigen::VectorXd averaged_step_rk4(const OscParams& p, Scheme scheme, int kq, int kf, double H,
+                                  const Eigen::VectorXd& z, int hq) {
+  const int mf = kf + 1, mq = kq + 1, f0 = 4 + 2 * hq;
+  // Histopolation via the running sums of the means, oldest first.
+  std::vector<double> nodes{static_cast<double>(-mf)}, sums{0.0};
+  for (int i = mf - 1; i >= 0; --i) {
+    nodes.push_back(-i);
+    sums.push_back(sums.back() + z(f0 + i));
+  }
+  const auto force = [&](double s) { return lagrange_derivative(nodes, sums, s); };
+  const int n = 1000;
+  const double h = H / n;
+  Eigen::Vector2d y1 = z.segment<2>(0);
+  for (int i = 0; i < n; ++i) {
+    const double t = i * h;
+    const auto rhs = [&](const Eigen::Vector2d& q, double tt) {
+      return Eigen::Vector2d(q(1), (-p.c1 * q(0) - p.d1 * q(1) + force(tt / H)) / p.m1);
+    };
+    const Eigen::Vector2d k1 = rhs(y1, t), k2 = rhs(y1 + 0.5 * h * k1, t + 0.5 * h),
+                          k3 = rhs(y1 + 0.5 * h * k2, t + 0.5 * h), k4 = rhs(y1 + h * k3, t + h);
+    y1 += h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
+  }
+  // Kinematic samples, newest first: Gauss-Seidel's x1(t_{n+1}) at s = 1, then t_n, history.
+  std::vector<double> sq, xs, vs;
+  if (scheme == Scheme::GaussSeidel) sq = {1.0}, xs = {y1(0)}, vs = {y1(1)};
+  sq.push_back(0.0), xs.push_back(z(0)), vs.push_back(z(1));
+  for (int j = 0; static_cast<int>(sq.size()) < mq; ++j)
+    sq.push_back(-1.0 - j), xs.push_back(z(4 + j)), vs.push_back(z(4 + hq + j));
+  sq.resize(mq), xs.resize(mq), vs.resize(mq);
+  // mass2 with the integral of its coupling force on mass1 as a third state.
+  const auto rhs2 = [&](const Eigen::Vector3d& q, double tt) {
+    const double ux = lagrange(sq, xs, tt / H), uv = lagrange(sq, vs, tt / H);
+    const double fc = p.cc * (ux - q(0)) + p.dc * (uv - q(1));
+    return Eigen::Vector3d(q(1), (-p.c2 * q(0) - p.d2 * q(1) + fc) / p.m2, -fc);
+  };
+  Eigen::Vector3d y2(z(2), z(3), 0.0);
+  for (int i = 0; i < n; ++i) {
+    const double t = i * h;
+    const Eigen::Vector3d k1 = rhs2(y2, t), k2 = rhs2(y2 + 0.5 * h * k1, t + 0.5 * h),
+                          k3 = rhs2(y2 + 0.5 * h * k2, t + 0.5 * h), k4 = rhs2(y2 + h * k3, t + h);
+    y2 += h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
+  }
+  Eigen::VectorXd out(z.size());
+  out.head<4>() << y1, y2.head<2>();
+  for (int j = 0; j < hq; ++j) {
+    out(4 + j) = j == 0 ? z(0) : z(4 + j - 1);
+    out(4 + hq + j) = j == 0 ? z(1) : z(4 + hq + j - 1);
+  }
+  for (int j = 0; j < mf; ++j) out(f0 + j) = j == 0 ? y2(2) / H : z(f0 + j - 1);
+  return out;
+}
+
+double averaged_rho_rk4(const OscParams& p, Scheme scheme, int kq, int kf, double H) {
+  const int hq = scheme == Scheme::Jacobi ? kq : std::max(kq - 1, 0);
+  const int N = 4 + 2 * hq + kf + 1;
+  Eigen::MatrixXd phi(N, N);
+  for (int c = 0; c < N; ++c)
+    phi.col(c) = averaged_step_rk4(p, scheme, kq, kf, H, Eigen::VectorXd::Unit(N, c), hq);
+  const Eigen::EigenSolver<Eigen::MatrixXd> es(phi, false);
+  double rho = 0.0;
+  for (const auto& l : es.eigenvalues()) rho = std::max(rho, std::abs(l));
+  return rho;
+}
+
+struct AveragedCase {
+  Scheme scheme;
+  int kq, kf;
+};
+const AveragedCase kAveraged[] = {{Scheme::Jacobi, 0, 0},      {Scheme::Jacobi, 1, 0},
+                                  {Scheme::Jacobi, 1, 1},      {Scheme::Jacobi, 2, 2},
+                                  {Scheme::GaussSeidel, 1, 0}, {Scheme::GaussSeidel, 1, 1}};
+
+std::string describe(const AveragedCase& c) {
+  return std::string(scheme_name(c.scheme)) + " (" + std::to_string(c.kq) + "," +
+         std::to_string(c.kf) + ") use average";
+}
+
+TEST(StabilityAverage, StepMapMatchesAnIndependentRk4Construction) {
+  const OscParams p;
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (const auto& c : kAveraged) {
+    SCOPED_TRACE(describe(c));
+    const Predictors pr{c.kq, c.kf, 0, 0, ForceUse::Average};
+    const double H = 5e-3;
+    const StepMap map = step_map(p, c.scheme, pr, H);
+    Eigen::VectorXd z(map.layout.size());
+    for (int i = 0; i < z.size(); ++i) z(i) = u(rng);
+    z.tail(map.layout.hf) *= 100.0;
+    const Eigen::VectorXd expected = averaged_step_rk4(p, c.scheme, c.kq, c.kf, H, z, map.layout.hq);
+    EXPECT_LT((map.phi * z - expected).cwiseAbs().maxCoeff(), 1e-9);
+    // and it is not the end-sample map
+    const StepMap end = step_map(p, c.scheme, Predictors{c.kq, c.kf, 0, 0, ForceUse::End}, H);
+    EXPECT_GT((end.phi * z - expected).cwiseAbs().maxCoeff(), 1e-3);
+  }
+}
+
+TEST(StabilityAverage, SpectralRadiusMatchesTheIndependentConstruction) {
+  const OscParams p;
+  for (const auto& c : kAveraged)
+    for (double H : {1e-3, 5e-3, 2e-2}) {
+      SCOPED_TRACE(describe(c) + " H=" + std::to_string(H));
+      const double rho = spectral_radius(p, c.scheme, Predictors{c.kq, c.kf, 0, 0, ForceUse::Average}, H);
+      EXPECT_NEAR(rho, averaged_rho_rk4(p, c.scheme, c.kq, c.kf, H), 1e-10);
+    }
+}
+
+// The critical macro step of the library against a bisection of the independent rho(H) - 1,
+// started from a bracket of +-10 % around it.
+TEST(StabilityAverage, CriticalMacroStepMatchesTheIndependentConstruction) {
+  const OscParams p;
+  const AveragedCase cases[] = {{Scheme::Jacobi, 0, 0}, {Scheme::Jacobi, 1, 0},
+                                {Scheme::Jacobi, 1, 1}, {Scheme::GaussSeidel, 1, 0}};
+  for (const auto& c : cases) {
+    SCOPED_TRACE(describe(c));
+    const auto hc = critical_macro_step(p, c.scheme, Predictors{c.kq, c.kf, 0, 0, ForceUse::Average});
+    ASSERT_TRUE(hc.has_value());
+    double lo = 0.9 * *hc, hi = 1.1 * *hc;
+    ASSERT_LT(averaged_rho_rk4(p, c.scheme, c.kq, c.kf, lo), 1.0);
+    ASSERT_GT(averaged_rho_rk4(p, c.scheme, c.kq, c.kf, hi), 1.0);
+    while (hi - lo > 1e-7 * lo) {
+      const double mid = 0.5 * (lo + hi);
+      (averaged_rho_rk4(p, c.scheme, c.kq, c.kf, mid) < 1.0 ? lo : hi) = mid;
+    }
+    std::printf("%s: H_crit %.6e, independent %.6e\n", describe(c).c_str(), *hc, 0.5 * (lo + hi));
+    EXPECT_NEAR(0.5 * (lo + hi) / *hc, 1.0, 1e-5);
+    // and it differs from the end-sample limit
+    const auto he = critical_macro_step(p, c.scheme, c.kq, c.kf);
+    ASSERT_TRUE(he.has_value());
+    EXPECT_GT(std::abs(*he / *hc - 1.0), 0.05);
+  }
+}
+
+// An exact equivalence: with Gauss-Seidel (mass1 first), constant kinematics and averaged
+// force (0,0) is the same scheme as linear kinematics and end-sample force (1,0). Over a step,
+// mass2's input is held at x1(t_{n+1}); the moving average over one macro step of that
+// piecewise-constant input is the linear interpolation between x1(t_n) and x1(t_{n+1}), and
+// the moving average of mass2's state solves mass2's equation for that input (linear, time-
+// invariant), so the mean force of the one is the end force of the other.
+TEST(StabilityAverage, GaussSeidel00AverageEqualsGaussSeidel10End) {
+  const OscParams p;
+  for (double H : {1e-3, 5e-3, 2e-2, 5e-2}) {
+    const double a = spectral_radius_minus_one(p, Scheme::GaussSeidel, Predictors{0, 0, 0, 0, ForceUse::Average}, H);
+    const double e = spectral_radius_minus_one(p, Scheme::GaussSeidel, Predictors{1, 0, 0, 0, ForceUse::End}, H);
+    EXPECT_NEAR(a, e, 1e-12 + 1e-9 * std::abs(e)) << "H=" << H;
+  }
+}
+
+// use: end through the Predictors overloads is the int-argument result, bit for bit.
+TEST(StabilityAverage, EndThroughPredictorsIsUnchanged) {
+  const OscParams p;
+  for (Scheme s : {Scheme::Jacobi, Scheme::GaussSeidel})
+    for (double H : {1e-3, 1e-2})
+      EXPECT_EQ(spectral_radius_minus_one(p, s, Predictors{2, 1, 0, 0, ForceUse::End}, H),
+                spectral_radius_minus_one(p, s, 2, 1, 0, 0, H));
+}
+
 TEST(StabilityArguments, RejectsWhatTheMasterCannotRun) {
   const OscParams p;
   EXPECT_THROW(spectral_radius(p, Scheme::Jacobi, 4, 0, 0, 0, 1e-3), std::invalid_argument);
