@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "config.hpp"
+#include "cosimulation.hpp"
 
 namespace {
 
@@ -40,7 +41,7 @@ std::string describe(const master::Config& c) {
   }
   for (const auto& k : c.connections)
     o << "connection " << k.from.str() << ' ' << k.to.str() << ' ' << k.predictor.order << ' '
-      << k.predictor.samples << " '" << k.predictor_name << "'\n";
+      << k.predictor.samples << " '" << k.predictor_name << "' use " << master::use_name(k.use) << "\n";
   for (const auto& p : c.power)
     o << "power " << p.name << ' ' << p.force.str() << ' ' << p.velocity.str() << '\n';
   o << "output '" << c.output.file << "' '" << c.output.csv_file << "' " << c.output.progress
@@ -77,7 +78,8 @@ TEST(master_ConfigDefaults, DocsMatchTheCode) {
   const auto rows = documented_defaults();
   EXPECT_GE(rows.size(), 9u) << "docs/config.md: the defaults in backticks went missing";
   for (const Documented& d : rows) {
-    const std::string key = std::regex_replace(d.key, std::regex("<name>"), "a");
+    const std::string key = std::regex_replace(std::regex_replace(d.key, std::regex("<name>"), "a"),
+                                               std::regex("<i>"), "0");
     std::string with;
     try {
       with = describe(parse({key + "=" + d.value}));
@@ -96,8 +98,104 @@ TEST(master_ConfigDefaults, AWrongDefaultIsNoticed) {
   for (const char* set : {"scheme=gauss_seidel", "startup_iterations=3", "connect_timeout=31",
                           "participants.a.timeout=2.5", "participants.a.retries=4",
                           "participants.a.parameters={k: 1}", "output.progress=on",
-                          "output.file=x.h5", "time.start=0.5"})
+                          "output.file=x.h5", "time.start=0.5", "connections.0.use=average"})
     EXPECT_NE(describe(parse({set})), base) << set;
+}
+
+// ---- connections[].use ----
+
+std::string parse_error(const std::vector<std::string>& sets) {
+  try {
+    parse(sets);
+  } catch (const std::exception& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(master_ConnectionUse, ParsesEndAndAverageAndNamesTheAllowedValues) {
+  EXPECT_EQ(parse({}).connections[0].use, master::Use::End);
+  EXPECT_EQ(parse({"connections.0.use=average"}).connections[0].use, master::Use::Average);
+  EXPECT_EQ(parse({"connections.0.use=end"}).connections[0].use, master::Use::End);
+  EXPECT_EQ(parse_error({"connections.0.use=mean"}),
+            "connections.0.use: 'mean' is not allowed (allowed: end, average)");
+  EXPECT_EQ(parse_error({"connections.0.use=Average"}),
+            "connections.0.use: 'Average' is not allowed (allowed: end, average)");
+  EXPECT_NE(parse_error({"connections.0.use=[end]"}).find("connections.0.use"), std::string::npos);
+}
+
+cosim::ParticipantInfo info(cosim::Ports inputs, cosim::Ports outputs) {
+  cosim::ParticipantInfo i;
+  i.inputs = std::move(inputs);
+  i.outputs = std::move(outputs);
+  i.inner_step = cosim::Duration(1000);
+  return i;
+}
+
+TEST(master_ConnectionUse, AverageOnKinematicsIsRefusedAtTheWiringCheck) {
+  using cosim::SignalKind;
+  const auto parts = [](SignalKind kind) {
+    return std::map<std::string, cosim::ParticipantInfo>{
+        {"a", info({}, {{"x", kind}})}, {"b", info({{"x", kind}}, {})}};
+  };
+  const auto config = parse({"connections.0.use=average"});
+  EXPECT_NO_THROW(master::check_wiring(config, parts(SignalKind::Scalar)));
+  EXPECT_NO_THROW(master::check_wiring(config, parts(SignalKind::Wrench)));
+  EXPECT_NO_THROW(master::check_wiring(parse({}), parts(SignalKind::Kinematics)));
+  try {
+    master::check_wiring(config, parts(SignalKind::Kinematics));
+    ADD_FAILURE() << "use: average on kinematics was accepted";
+  } catch (const std::exception& e) {
+    EXPECT_STREQ(e.what(),
+                 "connections.0.use: 'average' is not allowed for a.x, a kinematics signal (a pose "
+                 "has no plain average); use: end (allowed for kinematics: end)");
+  }
+}
+
+// A participant that cannot average: one scalar output, never an average.
+class NoAverage final : public cosim::Model {
+ public:
+  explicit NoAverage(bool has_input) : has_input_(has_input) {}
+  void configure(const YAML::Node&, const cosim::RunInfo&) override {}
+  cosim::Ports inputs() const override {
+    return has_input_ ? cosim::Ports{{"x", cosim::SignalKind::Scalar}} : cosim::Ports{};
+  }
+  cosim::Ports outputs() const override {
+    return has_input_ ? cosim::Ports{} : cosim::Ports{{"x", cosim::SignalKind::Scalar}};
+  }
+  cosim::Duration inner_step() const override { return cosim::Duration(1'000'000); }
+  cosim::Signals initial_outputs() override { return outputs_now(); }
+  cosim::StepResult step(const cosim::StepInputs&, bool) override {
+    cosim::StepResult r;
+    r.outputs = outputs_now();
+    return r;
+  }
+
+ private:
+  cosim::Signals outputs_now() const {
+    if (has_input_) return {};
+    return {{"x", {cosim::SignalKind::Scalar, {1.0}}}};
+  }
+  bool has_input_;
+};
+
+TEST(master_ConnectionUse, AMissingAverageNamesTheConnectionAndTheFix) {
+  const auto config = parse({"connections.0.use=average", "startup_iterations=0"});
+  NoAverage a(false), b(true);
+  cosim::ParticipantCore ca("a", a), cb("b", b);
+  auto transport = cosim::make_in_process_transport(77, {{"a", &ca}, {"b", &cb}});
+  master::CoSimulation sim(config, *transport);
+  sim.connect();
+  try {
+    sim.run();
+    ADD_FAILURE() << "a missing average was accepted";
+  } catch (const cosim::LinkError& e) {
+    const std::string m = e.what();
+    EXPECT_EQ(e.participant(), "a");
+    EXPECT_NE(m.find("connections.0 (a.x -> b.x) has use: average, but participant 'a' step 0"), std::string::npos) << m;
+    EXPECT_NE(m.find("the interval average of its outputs was asked for but not sent"), std::string::npos) << m;
+    EXPECT_NE(m.find("set use: end on this connection"), std::string::npos) << m;
+  }
 }
 
 }  // namespace

@@ -143,3 +143,37 @@ TEST(Instability, ProcessesOverLcmAgreeWithTheComputedCriticalMacroStep) {
     else EXPECT_NEAR(measured, predicted, 0.05 * predicted);
   }
 }
+
+// The same for the averaged force connection (use: average on mass2.force -> mass1.force): the
+// critical macro step and rate of cosim_stability's ForceUse::Average map against the running
+// master, whose oscillator returns the exact interval mean of its coupling force.
+TEST(Instability, AveragedForceRunsAgreeWithTheComputedCriticalMacroStep) {
+  using cosim::stability::ForceUse;
+  using cosim::stability::Predictors;
+  using cosim::stability::Scheme;
+  const Case cases[] = {{"jacobi", 1, 0}, {"jacobi", 1, 1}, {"gauss_seidel", 1, 0}};
+  for (const Case& c : cases) {
+    const Scheme scheme = std::string(c.scheme) == "jacobi" ? Scheme::Jacobi : Scheme::GaussSeidel;
+    const Predictors pr{c.kq, c.kf, 0, 0, ForceUse::Average};
+    const auto critical = cosim::stability::critical_macro_step({}, scheme, pr);
+    ASSERT_TRUE(critical.has_value()) << c.scheme << " (" << c.kq << "," << c.kf << ")";
+    for (const double factor : {0.98, 1.02}) {
+      const double H = rounded(factor * *critical);
+      auto overrides = near_critical(c, H);
+      overrides.push_back("connections.2.use=average");
+      overrides.push_back("output.file=");
+      const harness::Series s = harness::run_in_process(harness::oscillator_config(overrides));
+      const double measured = measured_rate(s.force, s.t.back());
+      const double predicted = std::log(cosim::stability::spectral_radius({}, scheme, pr, H)) / H;
+      std::printf("%-12s (%d,%d) use average H_crit %.6e  H = %.4f H_crit: rate measured %+.4f /s, predicted %+.4f /s\n",
+                  c.scheme, c.kq, c.kf, *critical, factor, measured, predicted);
+      if (factor < 1) {
+        EXPECT_LT(measured, 0) << c.scheme << " must decay below the limit";
+        EXPECT_LT(measured, 0.95 * predicted) << c.scheme << " decays slower than rho allows";
+      } else {
+        EXPECT_GT(measured, 0) << c.scheme << " must grow above the limit";
+        EXPECT_NEAR(measured, predicted, 0.05 * predicted) << c.scheme << " H = " << H;
+      }
+    }
+  }
+}

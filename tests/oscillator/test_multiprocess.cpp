@@ -3,6 +3,7 @@
 // are refused before any step.
 #include <signal.h>
 
+#include <cmath>
 #include <cstring>
 
 #include "harness.hpp"
@@ -40,6 +41,44 @@ TEST(MultiProcess, BitIdenticalToASecondRunAndToTheInProcessSchedule) {
   EXPECT_TRUE(bit_identical(harness::read_dataset(a, "participants/mass2/outputs/force"), s.force));
   EXPECT_EQ(harness::read_string(a, "status"), "finished");
   EXPECT_NE(harness::read_string(a, "config").find("coupling_stiffness: 1000"), std::string::npos);
+}
+
+// use: average on the force connection over LCM: the same numbers as in process, bit for bit,
+// and the recorder keeps the received average and the sent polynomial's mean.
+TEST(MultiProcess, AveragedForceIsBitIdenticalToTheInProcessSchedule) {
+  const std::vector<std::string> avg = with(kShort, {"connections.2.use=average", "predictors.force.order=1"});
+  const std::string a = harness::temp_path(".h5");
+  ASSERT_EQ(harness::run_master(avg, a), 0) << harness::read_text(a + ".log");
+  const auto s = harness::run_in_process(harness::oscillator_config(with(avg, {"output.file=", "output.csv="})));
+  EXPECT_TRUE(bit_identical(harness::read_dataset(a, "participants/mass1/outputs/x"), s.x1));
+  EXPECT_TRUE(bit_identical(harness::read_dataset(a, "participants/mass1/outputs/v"), s.v1));
+  EXPECT_TRUE(bit_identical(harness::read_dataset(a, "participants/mass2/outputs/force"), s.force));
+  // and differs from use: end
+  const auto e = harness::run_in_process(harness::oscillator_config(
+      with(kShort, {"predictors.force.order=1", "output.file=", "output.csv="})));
+  EXPECT_FALSE(bit_identical(e.x1, s.x1));
+
+  const std::string g = "connections/mass1.force/";
+  const auto received = harness::read_dataset(a, g + "received");
+  const auto average = harness::read_dataset(a, g + "received_average");
+  const auto predicted = harness::read_dataset(a, g + "predicted");
+  const auto sent = harness::read_dataset(a, g + "sent");
+  const auto deviation = harness::read_dataset(a, g + "deviation");
+  ASSERT_EQ(average.size(), 101u);
+  ASSERT_EQ(sent.size(), 2 * 101u);
+  EXPECT_TRUE(bit_identical(received, s.force));  // the end sample, as for use: end
+  EXPECT_TRUE(std::isnan(average[0]));
+  EXPECT_TRUE(harness::read_dataset(a, "connections/mass2.x/received_average").empty());
+  for (std::size_t i = 1; i < 101; ++i) {
+    ASSERT_TRUE(std::isfinite(average[i])) << i;
+    EXPECT_NE(average[i], received[i]) << i;
+    // predicted: the mean of the sent polynomial c0 + c1 s over [0, 1]
+    EXPECT_DOUBLE_EQ(predicted[i], sent[2 * i] + sent[2 * i + 1] / 2) << i;
+    EXPECT_DOUBLE_EQ(deviation[i], predicted[i] - average[i]) << i;
+  }
+  // The force is smooth here: the step's mean lies near the mean of its end samples.
+  for (std::size_t i = 50; i < 101; ++i)
+    EXPECT_NEAR(average[i], 0.5 * (received[i - 1] + received[i]), 0.05 * std::abs(received[i] - received[i - 1]) + 1e-3) << i;
 }
 
 TEST(MultiProcess, LostRequestAndReplyAreRetriedAndTheResultIsUnchanged) {
@@ -122,5 +161,6 @@ INSTANTIATE_TEST_SUITE_P(
                   "connections.2.predictor: unknown predictor 'quadratic' (defined under predictors: force, kinematics)"},
         BadConfig{"predictor_order", {"predictors.force.order=4"},
                   "predictors.force.order: 4 is not allowed (allowed: 0, 1, 2, 3)"},
-        BadConfig{"scheme", {"scheme=newton"}, "scheme: 'newton' is not allowed (allowed: jacobi, gauss_seidel)"}),
+        BadConfig{"scheme", {"scheme=newton"}, "scheme: 'newton' is not allowed (allowed: jacobi, gauss_seidel)"},
+        BadConfig{"use", {"connections.2.use=mean"}, "connections.2.use: 'mean' is not allowed (allowed: end, average)"}),
     [](const auto& info) { return std::string(info.param.name); });
