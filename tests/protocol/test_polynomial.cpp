@@ -103,3 +103,70 @@ TEST(Polynomial, WireRoundTripAndValidation) {
   msg.wrenches[0].n_coefficients = 7;
   EXPECT_THROW(from_message(msg, "test"), ProtocolError);
 }
+
+// Histopolation (use: average): the means over the intervals [-1, 0], [-2, -1], ... of a
+// polynomial up to the order are reproduced exactly, so is the polynomial itself; the mean over
+// [0, 1] of the fit is InputPolynomial::mean.
+namespace {
+// Exact mean of the polynomial c over [a, b].
+double mean_of(const std::vector<double>& c, double a, double b) {
+  double m = 0;
+  for (std::size_t j = 0; j < c.size(); ++j)
+    m += c[j] * (std::pow(b, j + 1.0) - std::pow(a, j + 1.0)) / ((j + 1.0) * (b - a));
+  return m;
+}
+}  // namespace
+
+TEST(Polynomial, HistopolationReproducesPolynomialsUpToItsOrder) {
+  std::mt19937 gen(9);
+  std::uniform_real_distribution<double> coef(-3, 3);
+  for (int order = 0; order <= kMaxPolynomialOrder; ++order) {
+    for (int degree = 0; degree <= order; ++degree) {
+      std::vector<double> c(degree + 1);
+      for (auto& x : c) x = coef(gen);
+      for (int extra : {0, 3}) {  // exact, and least squares over more intervals
+        std::vector<std::pair<double, double>> iv;
+        std::vector<Value> v;
+        for (int i = order + extra; i >= 0; --i) {
+          iv.push_back({-i - 1.0, -i * 1.0});
+          v.push_back({mean_of(c, -i - 1.0, -i)});
+        }
+        const auto p = fit_polynomial_to_means(SignalKind::Scalar, iv, v, order);
+        for (double t : {0.0, 0.25, 0.5, 1.0})
+          EXPECT_NEAR(p.evaluate(t)[0], poly(c, t), 1e-11 * (1 + std::abs(poly(c, t))))
+              << "order " << order << " degree " << degree << " extra " << extra;
+        EXPECT_NEAR(p.mean()[0], mean_of(c, 0.0, 1.0), 1e-11 * (1 + std::abs(poly(c, 1.0))));
+      }
+    }
+    // the end-sample fit of the same means is a different polynomial (the check can fail)
+    std::vector<double> c(order + 1, 0.0);
+    c.back() = 1.0;
+    std::vector<std::pair<double, double>> iv;
+    std::vector<Value> v;
+    for (int i = order; i >= 0; --i) iv.push_back({-i - 1.0, -i * 1.0}), v.push_back({mean_of(c, -i - 1.0, -i)});
+    if (order > 0) {
+      std::vector<double> s;
+      for (int i = order; i >= 0; --i) s.push_back(-i);
+      const auto q = fit_polynomial(SignalKind::Scalar, s, v, order, s.size() - 1);
+      EXPECT_GT(std::abs(q.evaluate(1.0)[0] - poly(c, 1.0)), 0.1) << order;
+    }
+  }
+  // one interval, the current step (an iterated step): the constant with that mean
+  const auto p = fit_polynomial_to_means(SignalKind::Wrench, {{0.0, 1.0}},
+                                         {{1, 2, 3, 4, 5, 6, 0, 0, 0}}, 0);
+  EXPECT_EQ(p.mean(), (Value{1, 2, 3, 4, 5, 6, 0, 0, 0}));
+  EXPECT_EQ(p.evaluate(0.3), p.mean());
+}
+
+TEST(Polynomial, HistopolationRefusesKinematicsAndBadIntervals) {
+  const Value pose{0, 0, 0, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0};
+  EXPECT_THROW(fit_polynomial_to_means(SignalKind::Kinematics, {{-1.0, 0.0}}, {pose}, 0),
+               std::invalid_argument);
+  EXPECT_THROW(fit_polynomial_to_means(SignalKind::Scalar, {{-1.0, 0.0}}, {{1.0}}, 1),
+               std::invalid_argument);
+  EXPECT_THROW(fit_polynomial_to_means(SignalKind::Scalar, {{0.0, 0.0}}, {{1.0}}, 0),
+               std::invalid_argument);
+  EXPECT_THROW(fit_polynomial_to_means(SignalKind::Scalar, {{-1.0, 0.0}, {-1.0, 0.0}}, {{1.0}, {2.0}}, 1),
+               std::invalid_argument);
+  EXPECT_THROW(InputPolynomial::constant(SignalKind::Kinematics, pose).mean(), std::invalid_argument);
+}
