@@ -264,18 +264,39 @@ double lagrange_derivative(const std::vector<double>& nodes, const std::vector<d
   return v;
 }
 
-// One macro step of the averaged scheme, exact samples (m = k + 1). State: x1 v1 x2 v2, then the
+// Least-squares histopolation (mf > kf + 1) by the normal equations, the interval means of s^j
+// by 3-point Gauss-Legendre quadrature (exact up to degree 5).
+Eigen::VectorXd least_squares_means(const Eigen::VectorXd& means_newest_first, int k) {
+  const int m = static_cast<int>(means_newest_first.size());
+  const double g = std::sqrt(0.6), gx[] = {-g, 0.0, g}, gw[] = {5.0 / 18, 8.0 / 18, 5.0 / 18};
+  Eigen::MatrixXd V(m, k + 1);
+  for (int i = 0; i < m; ++i)
+    for (int j = 0; j <= k; ++j) {
+      V(i, j) = 0.0;
+      for (int q = 0; q < 3; ++q) V(i, j) += gw[q] * std::pow(-i - 0.5 + 0.5 * gx[q], j);
+    }
+  return (V.transpose() * V).ldlt().solve(V.transpose() * means_newest_first);
+}
+
+// One macro step of the averaged scheme (mq = kq + 1; mf >= kf + 1). State: x1 v1 x2 v2, then the
 // x1 history, the v1 history and the mean-force history (newest first) as in Layout.
 Eigen::VectorXd averaged_step_rk4(const OscParams& p, Scheme scheme, int kq, int kf, double H,
-                                  const Eigen::VectorXd& z, int hq) {
-  const int mf = kf + 1, mq = kq + 1, f0 = 4 + 2 * hq;
+                                  const Eigen::VectorXd& z, int hq, int mf = 0) {
+  if (mf == 0) mf = kf + 1;
+  const int mq = kq + 1, f0 = 4 + 2 * hq;
   // Histopolation via the running sums of the means, oldest first.
   std::vector<double> nodes{static_cast<double>(-mf)}, sums{0.0};
   for (int i = mf - 1; i >= 0; --i) {
     nodes.push_back(-i);
     sums.push_back(sums.back() + z(f0 + i));
   }
-  const auto force = [&](double s) { return lagrange_derivative(nodes, sums, s); };
+  const Eigen::VectorXd ls = mf > kf + 1 ? least_squares_means(z.segment(f0, mf), kf) : Eigen::VectorXd();
+  const auto force = [&](double s) {
+    if (mf == kf + 1) return lagrange_derivative(nodes, sums, s);
+    double v = 0.0;
+    for (int j = kf; j >= 0; --j) v = v * s + ls(j);
+    return v;
+  };
   const int n = 1000;
   const double h = H / n;
   Eigen::Vector2d y1 = z.segment<2>(0);
@@ -360,6 +381,16 @@ TEST(StabilityAverage, StepMapMatchesAnIndependentRk4Construction) {
     // and it is not the end-sample map
     const StepMap end = step_map(p, c.scheme, Predictors{c.kq, c.kf, 0, 0, ForceUse::End}, H);
     EXPECT_GT((end.phi * z - expected).cwiseAbs().maxCoeff(), 1e-3);
+  }
+  // least-squares histopolation: more means than order + 1
+  for (const auto& [kf, mf] : std::vector<std::pair<int, int>>{{0, 3}, {1, 4}, {2, 6}}) {
+    SCOPED_TRACE("jacobi (1," + std::to_string(kf) + ") mf=" + std::to_string(mf));
+    const StepMap map = step_map(p, Scheme::Jacobi, Predictors{1, kf, 0, mf, ForceUse::Average}, 5e-3);
+    Eigen::VectorXd z(map.layout.size());
+    for (int i = 0; i < z.size(); ++i) z(i) = u(rng);
+    z.tail(map.layout.hf) *= 100.0;
+    const Eigen::VectorXd expected = averaged_step_rk4(p, Scheme::Jacobi, 1, kf, 5e-3, z, map.layout.hq, mf);
+    EXPECT_LT((map.phi * z - expected).cwiseAbs().maxCoeff(), 1e-9);
   }
 }
 
