@@ -1,0 +1,345 @@
+#include "parameters.hpp"
+
+#include <cosim/yaml_config.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+
+namespace hauler {
+
+namespace cfg = cosim::config;
+using cfg::ConfigError;
+using cfg::join_path;
+
+namespace {
+
+double smoothstep(double s) { return s * s * (3 - 2 * s); }
+
+// Index of the segment [knots[i], knots[i+1]] holding t, or -1 outside the knots.
+int segment(const std::vector<std::array<double, 2>>& k, double t) {
+  if (k.size() < 2 || t <= k.front()[0] || t >= k.back()[0]) return -1;
+  const auto it = std::upper_bound(k.begin(), k.end(), t,
+                                   [](double v, const std::array<double, 2>& a) { return v < a[0]; });
+  return static_cast<int>(it - k.begin()) - 1;
+}
+
+std::string num(double v) {
+  std::ostringstream s;
+  s << v;
+  return s.str();
+}
+
+Vec2 get_vec2(const YAML::Node& n, const std::string& path, const std::string& key, Vec2 fallback) {
+  if (!n[key]) return fallback;
+  const auto v = cfg::get_vector(n, path, key, 2);
+  return {v[0], v[1]};
+}
+
+Vec3 get_vec3(const YAML::Node& n, const std::string& path, const std::string& key, Vec3 fallback) {
+  if (!n[key]) return fallback;
+  const auto v = cfg::get_vector(n, path, key, 3);
+  return {v[0], v[1], v[2]};
+}
+
+double non_negative(const YAML::Node& n, const std::string& path, const std::string& key,
+                    double fallback) {
+  const double v = cfg::get_double_or(n, path, key, fallback);
+  if (!(v >= 0)) throw ConfigError(join_path(path, key) + ": must be >= 0, got " + num(v));
+  return v;
+}
+
+void check_inertia(const Vec3& I, const std::string& path) {
+  for (double v : I)
+    if (!(v > 0)) throw ConfigError(join_path(path, "inertia") + ": moments must be > 0 [kg m2]");
+  if (I[0] + I[1] < I[2] || I[1] + I[2] < I[0] || I[0] + I[2] < I[1])
+    throw ConfigError(join_path(path, "inertia") +
+                      ": principal moments must satisfy the triangle inequality "
+                      "(each at most the sum of the other two)");
+}
+
+void read_body(const YAML::Node& root, const std::string& parent, const std::string& key,
+               Body& body, std::vector<std::string> extra = {}) {
+  if (!root[key]) return;
+  const YAML::Node n = root[key];
+  const std::string path = join_path(parent, key);
+  std::vector<std::string> allowed{"mass", "com", "inertia"};
+  allowed.insert(allowed.end(), extra.begin(), extra.end());
+  cfg::check_keys(n, path, allowed);
+  body.mass = cfg::get_positive_or(n, path, "mass", body.mass);
+  body.com = get_vec2(n, path, "com", body.com);
+  body.inertia = get_vec3(n, path, "inertia", body.inertia);
+  check_inertia(body.inertia, path);
+}
+
+void read_axle(const YAML::Node& root, const std::string& parent, const std::string& key, Axle& a) {
+  if (!root[key]) return;
+  const YAML::Node n = root[key];
+  const std::string path = join_path(parent, key);
+  cfg::check_keys(n, path, {"x", "mass", "inertia"});
+  a.x = cfg::get_double_or(n, path, "x", a.x);
+  a.mass = cfg::get_positive_or(n, path, "mass", a.mass);
+  a.inertia = get_vec3(n, path, "inertia", a.inertia);
+  check_inertia(a.inertia, path);
+}
+
+void read_circuit(const YAML::Node& root, const std::string& parent, const std::string& key,
+                  Circuit& c) {
+  if (!root[key]) return;
+  const YAML::Node n = root[key];
+  const std::string path = join_path(parent, key);
+  cfg::check_keys(n, path, {"piston_area", "accumulator_volume", "precharge", "polytropic",
+                            "damping_quadratic", "damping_linear", "level_rate"});
+  c.piston_area = cfg::get_positive_or(n, path, "piston_area", c.piston_area);
+  if (c.piston_area > 0.5)
+    throw ConfigError(join_path(path, "piston_area") + ": " + num(c.piston_area) +
+                      " m2 is not a strut (m2, per axle: two 100 mm bores are 0.0157)");
+  c.accumulator_volume = cfg::get_positive_or(n, path, "accumulator_volume", c.accumulator_volume);
+  if (c.accumulator_volume > 1)
+    throw ConfigError(join_path(path, "accumulator_volume") + ": " + num(c.accumulator_volume) +
+                      " m3 is too large (the unit is m3: 8 litres are 8e-3)");
+  c.precharge = cfg::get_positive_or(n, path, "precharge", c.precharge);
+  c.polytropic = cfg::get_double_or(n, path, "polytropic", c.polytropic);
+  if (!(c.polytropic >= 1.0 && c.polytropic <= 1.67))
+    throw ConfigError(join_path(path, "polytropic") + ": " + num(c.polytropic) +
+                      " is not a gas's polytropic exponent (allowed 1.0 isothermal .. 1.67; "
+                      "nitrogen in an accumulator: 1.3-1.4)");
+  c.damping_quadratic = non_negative(n, path, "damping_quadratic", c.damping_quadratic);
+  c.damping_linear = non_negative(n, path, "damping_linear", c.damping_linear);
+  c.level_rate = non_negative(n, path, "level_rate", c.level_rate);
+}
+
+Profile read_profile(const YAML::Node& n, const std::string& parent, const std::string& key) {
+  const std::string path = join_path(parent, key);
+  const YAML::Node list = n[key];
+  if (!list.IsSequence() || list.size() == 0)
+    throw ConfigError(path + ": expected a list of [time, value] keyframes, e.g. [[0, 0], [14, 68]]");
+  Profile p;
+  for (std::size_t i = 0; i < list.size(); ++i) {
+    const YAML::Node k = list[i];
+    const std::string kp = path + "." + std::to_string(i);
+    if (!k.IsSequence() || k.size() != 2) throw ConfigError(kp + ": expected a [time, value] pair");
+    std::array<double, 2> v{};
+    for (int j = 0; j < 2; ++j) {
+      try {
+        v[j] = k[j].as<double>();
+      } catch (const YAML::Exception&) {
+        throw ConfigError(kp + ": expected numbers, got '" + (k[j].IsScalar() ? k[j].Scalar() : "?") + "'");
+      }
+      if (!std::isfinite(v[j])) throw ConfigError(kp + ": values must be finite");
+    }
+    if (!p.knots.empty() && !(v[0] > p.knots.back()[0]))
+      throw ConfigError(kp + ": keyframe times must increase strictly (" + num(v[0]) + " after " +
+                        num(p.knots.back()[0]) + ")");
+    p.knots.push_back(v);
+  }
+  return p;
+}
+
+Load read_load(const YAML::Node& n, const std::string& path, Load l, bool positive) {
+  cfg::check_keys(n, path, {"mass", "com", "gyration_radius"});
+  l.mass = positive ? cfg::get_positive(n, path, "mass") : non_negative(n, path, "mass", l.mass);
+  l.com = get_vec2(n, path, "com", l.com);
+  l.gyration_radius = cfg::get_positive_or(n, path, "gyration_radius", l.gyration_radius);
+  return l;
+}
+
+}  // namespace
+
+double Profile::value(double t, bool smooth) const {
+  if (knots.empty()) return 0;
+  const int i = segment(knots, t);
+  if (i < 0) return t <= knots.front()[0] ? knots.front()[1] : knots.back()[1];
+  const auto& a = knots[i];
+  const auto& b = knots[i + 1];
+  const double s = (t - a[0]) / (b[0] - a[0]);
+  return a[1] + (b[1] - a[1]) * (smooth ? smoothstep(s) : s);
+}
+
+double Profile::rate(double t, bool smooth) const {
+  const int i = segment(knots, t);
+  if (i < 0) return 0;
+  const auto& a = knots[i];
+  const auto& b = knots[i + 1];
+  const double T = b[0] - a[0];
+  const double s = (t - a[0]) / T;
+  return (b[1] - a[1]) / T * (smooth ? 6 * s * (1 - s) : 1.0);
+}
+
+Tipping Parameters::default_tipping() {
+  Tipping t;
+  t.smooth = true;
+  t.by_length = false;
+  // lowered until 1 s, raised to 68 deg in 14 s, held 10 s, lowered in 10 s
+  t.profile.knots = {{0, 0}, {1, 0}, {15, 68}, {25, 68}, {35, 0}};
+  return t;
+}
+
+BodyShape read_shape(const YAML::Node& n, const std::string& path) {
+  BodyShape s;
+  cfg::check_keys(n, path, {"tail_x", "floor_z", "length", "width", "side_height"});
+  s.tail_x = cfg::get_double_or(n, path, "tail_x", s.tail_x);
+  s.floor_z = cfg::get_double_or(n, path, "floor_z", s.floor_z);
+  s.length = cfg::get_positive_or(n, path, "length", s.length);
+  s.width = cfg::get_positive_or(n, path, "width", s.width);
+  s.side_height = cfg::get_positive_or(n, path, "side_height", s.side_height);
+  if (s.length > 15 || s.width > 6 || s.side_height > 5)
+    throw ConfigError(path + ": length " + num(s.length) + ", width " + num(s.width) +
+                      ", side_height " + num(s.side_height) +
+                      " m is not a hauler body (at most 15, 6 and 5 m)");
+  if (!(s.front_x() > 0))
+    throw ConfigError(join_path(path, "length") +
+                      ": the front wall (tail_x + length) must lie ahead of the hinge (x > 0)");
+  if (std::abs(s.tail_x) > 2 || std::abs(s.floor_z) > 2)
+    throw ConfigError(path + ": tail_x and floor_z place the shell relative to the hinge axis and "
+                             "must be within 2 m of it");
+  return s;
+}
+
+Parameters read_parameters(const YAML::Node& root, const std::string& path) {
+  Parameters p;
+  if (!root || root.IsNull()) return p;
+  cfg::check_keys(root, path,
+                  {"inner_step", "gravity", "initial_position", "front_unit", "rear_frame", "axles",
+                   "tires", "brake", "suspension", "dump_body", "hoist", "tipping", "static_load",
+                   "test_payload", "limits"});
+  p.inner_step = cfg::get_positive_or(root, path, "inner_step", p.inner_step);
+  if (p.inner_step > 1e-3)
+    throw ConfigError(join_path(path, "inner_step") +
+                      ": at most 1e-3 s (the end stops and the hoist servo need about 2e-4 s)");
+  p.gravity = non_negative(root, path, "gravity", p.gravity);
+  p.initial_position = cfg::get_double_or(root, path, "initial_position", p.initial_position);
+
+  read_body(root, path, "front_unit", p.front_unit);
+  read_body(root, path, "rear_frame", p.rear_frame);
+  if (root["axles"]) {
+    const auto n = root["axles"];
+    const auto ap = join_path(path, "axles");
+    cfg::check_keys(n, ap, {"front", "rear1", "rear2"});
+    read_axle(n, ap, "front", p.front_axle);
+    read_axle(n, ap, "rear1", p.rear1_axle);
+    read_axle(n, ap, "rear2", p.rear2_axle);
+    if (!(p.rear1_axle.x < p.front_axle.x - 1.0))
+      throw ConfigError(join_path(ap, "rear1.x") + ": " + num(p.rear1_axle.x) +
+                        " must lie at least 1 m behind the front axle (x = " + num(p.front_axle.x) + ")");
+    if (!(p.rear2_axle.x < p.rear1_axle.x - 0.5))
+      throw ConfigError(join_path(ap, "rear2.x") + ": " + num(p.rear2_axle.x) +
+                        " must lie at least 0.5 m behind rear1 (x = " + num(p.rear1_axle.x) + ")");
+  }
+  if (root["tires"]) {
+    const auto n = root["tires"];
+    const auto tp = join_path(path, "tires");
+    cfg::check_keys(n, tp, {"unloaded_radius", "stiffness", "damping"});
+    p.tires.unloaded_radius = cfg::get_positive_or(n, tp, "unloaded_radius", p.tires.unloaded_radius);
+    if (p.tires.unloaded_radius > 2)
+      throw ConfigError(join_path(tp, "unloaded_radius") + ": " + num(p.tires.unloaded_radius) +
+                        " m is not a tire (a 29.5R25 is about 0.89 m)");
+    p.tires.stiffness = cfg::get_positive_or(n, tp, "stiffness", p.tires.stiffness);
+    p.tires.damping = non_negative(n, tp, "damping", p.tires.damping);
+  }
+  if (root["brake"]) {
+    const auto n = root["brake"];
+    const auto bp = join_path(path, "brake");
+    cfg::check_keys(n, bp, {"applied", "stiffness", "damping", "friction", "rolling_radius"});
+    p.brake.applied = cfg::get_bool_or(n, bp, "applied", p.brake.applied);
+    p.brake.stiffness = cfg::get_positive_or(n, bp, "stiffness", p.brake.stiffness);
+    p.brake.damping = non_negative(n, bp, "damping", p.brake.damping);
+    p.brake.friction = cfg::get_double_or(n, bp, "friction", p.brake.friction);
+    if (!(p.brake.friction > 0 && p.brake.friction <= 2))
+      throw ConfigError(join_path(bp, "friction") + ": must be in (0, 2], got " + num(p.brake.friction));
+    p.brake.rolling_radius = cfg::get_positive_or(n, bp, "rolling_radius", p.brake.rolling_radius);
+  }
+  if (p.brake.rolling_radius > p.tires.unloaded_radius)
+    throw ConfigError(join_path(path, "brake.rolling_radius") + ": " + num(p.brake.rolling_radius) +
+                      " m must not exceed tires.unloaded_radius (" + num(p.tires.unloaded_radius) + " m)");
+  if (root["suspension"]) {
+    const auto n = root["suspension"];
+    const auto sp = join_path(path, "suspension");
+    auto& s = p.suspension;
+    cfg::check_keys(n, sp, {"stroke", "ride_stroke", "end_stop_stiffness", "end_stop_damping",
+                            "front", "rear", "level_control"});
+    s.stroke = cfg::get_positive_or(n, sp, "stroke", s.stroke);
+    if (s.stroke > 1)
+      throw ConfigError(join_path(sp, "stroke") + ": " + num(s.stroke) + " m is beyond 1 m");
+    s.ride_stroke = cfg::get_double_or(n, sp, "ride_stroke", s.ride_stroke);
+    s.end_stop_stiffness = cfg::get_positive_or(n, sp, "end_stop_stiffness", s.end_stop_stiffness);
+    s.end_stop_damping = non_negative(n, sp, "end_stop_damping", s.end_stop_damping);
+    read_circuit(n, sp, "front", s.front);
+    read_circuit(n, sp, "rear", s.rear);
+    if (n["level_control"]) {
+      const auto l = n["level_control"];
+      const auto lp = join_path(sp, "level_control");
+      cfg::check_keys(l, lp, {"enabled", "dead_band", "time_constant"});
+      s.level_control = cfg::get_bool_or(l, lp, "enabled", s.level_control);
+      s.dead_band = non_negative(l, lp, "dead_band", s.dead_band);
+      s.time_constant = cfg::get_positive_or(l, lp, "time_constant", s.time_constant);
+    }
+  }
+  {
+    const auto& s = p.suspension;
+    const auto sp = join_path(path, "suspension");
+    if (!(s.ride_stroke - s.dead_band > 0 && s.ride_stroke + s.dead_band < s.stroke))
+      throw ConfigError(join_path(sp, "ride_stroke") + ": " + num(s.ride_stroke) +
+                        " m with level_control.dead_band " + num(s.dead_band) +
+                        " m must lie inside the stroke (0, " + num(s.stroke) + ") m");
+  }
+  read_body(root, path, "dump_body", p.dump_body, {"hinge", "shape"});
+  if (root["dump_body"]) {
+    const auto n = root["dump_body"];
+    const auto bp = join_path(path, "dump_body");
+    p.hinge = get_vec2(n, bp, "hinge", p.hinge);
+    if (n["shape"]) p.shape = read_shape(n["shape"], join_path(bp, "shape"));
+  }
+  if (!(p.hinge[0] < p.rear2_axle.x))
+    throw ConfigError(join_path(path, "dump_body.hinge") + ": x = " + num(p.hinge[0]) +
+                      " must lie behind the rear axle (axles.rear2.x = " + num(p.rear2_axle.x) + ")");
+  if (root["hoist"]) {
+    const auto n = root["hoist"];
+    const auto hp = join_path(path, "hoist");
+    cfg::check_keys(n, hp, {"frame_pin", "body_pin", "stiffness", "damping"});
+    p.hoist.frame_pin = get_vec2(n, hp, "frame_pin", p.hoist.frame_pin);
+    p.hoist.body_pin = get_vec2(n, hp, "body_pin", p.hoist.body_pin);
+    p.hoist.stiffness = cfg::get_positive_or(n, hp, "stiffness", p.hoist.stiffness);
+    p.hoist.damping = non_negative(n, hp, "damping", p.hoist.damping);
+  }
+  if (root["tipping"]) {
+    const auto n = root["tipping"];
+    const auto tp = join_path(path, "tipping");
+    cfg::check_keys(n, tp, {"interpolation", "angle", "length"});
+    p.tipping.smooth = cfg::get_choice(n, tp, "interpolation", {"smooth", "linear"}, "smooth") == "smooth";
+    if (n["angle"] && n["length"])
+      throw ConfigError(tp + ": give either angle (keyframes of the body angle, deg) or length "
+                             "(keyframes of the hoist cylinder length, m), not both");
+    if (n["angle"]) {
+      p.tipping.by_length = false;
+      p.tipping.profile = read_profile(n, tp, "angle");
+      for (std::size_t i = 0; i < p.tipping.profile.knots.size(); ++i) {
+        const double a = p.tipping.profile.knots[i][1];
+        if (!(a >= 0 && a <= 80))
+          throw ConfigError(join_path(tp, "angle") + "." + std::to_string(i) + ": body angle " +
+                            num(a) + " deg must be in [0, 80] (degrees, 0 = lowered)");
+      }
+    } else if (n["length"]) {
+      p.tipping.by_length = true;
+      p.tipping.profile = read_profile(n, tp, "length");
+      for (std::size_t i = 0; i < p.tipping.profile.knots.size(); ++i)
+        if (!(p.tipping.profile.knots[i][1] > 0))
+          throw ConfigError(join_path(tp, "length") + "." + std::to_string(i) +
+                            ": cylinder lengths must be > 0 m");
+    }
+  }
+  if (root["static_load"])
+    p.static_load = read_load(root["static_load"], join_path(path, "static_load"), p.static_load, false);
+  if (root["test_payload"] && !root["test_payload"].IsNull())
+    p.test_payload = read_load(root["test_payload"], join_path(path, "test_payload"), Load{}, true);
+  if (root["limits"]) {
+    const auto n = root["limits"];
+    const auto lp = join_path(path, "limits");
+    cfg::check_keys(n, lp, {"max_force", "max_torque"});
+    p.max_force = cfg::get_positive_or(n, lp, "max_force", p.max_force);
+    p.max_torque = cfg::get_positive_or(n, lp, "max_torque", p.max_torque);
+  }
+  return p;
+}
+
+}  // namespace hauler
