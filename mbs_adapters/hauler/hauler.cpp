@@ -643,12 +643,13 @@ StrutRig::StrutRig(const Suspension& suspension, const Circuit& circuit, double 
   Force::Custom(R.forces, new RigLoad(R));
   State& s = R.state;
   s = R.system.realizeTopology();
+  R.system.realize(s, Stage::Position);
   strut->set_oil(s, 0, oil);
   // equilibrium under the weight: the static strut force falls with the stroke; bisect
   const double W = mass * gravity;
   auto excess = [&](double stroke) {
     R.mass.setOneQ(s, 0, stroke - suspension.ride_stroke);
-    R.system.realize(s, Stage::Position);
+    R.system.realize(s, Stage::Velocity);
     return strut->evaluate(s, 0).struts[0].force - W;
   };
   double lo = -0.5, hi = suspension.stroke + 0.5;

@@ -305,27 +305,31 @@ Parameters read_parameters(const YAML::Node& root, const std::string& path) {
   if (root["tipping"]) {
     const auto n = root["tipping"];
     const auto tp = join_path(path, "tipping");
-    cfg::check_keys(n, tp, {"interpolation", "angle", "length"});
+    cfg::check_keys(n, tp, {"interpolation", "mode", "angle", "length"});
     p.tipping.smooth = cfg::get_choice(n, tp, "interpolation", {"smooth", "linear"}, "smooth") == "smooth";
-    if (n["angle"] && n["length"])
-      throw ConfigError(tp + ": give either angle (keyframes of the body angle, deg) or length "
-                             "(keyframes of the hoist cylinder length, m), not both");
+    p.tipping.by_length = cfg::get_choice(n, tp, "mode", {"angle", "length"}, "angle") == "length";
+    // both lists may be present (a --set cannot remove the file's list); mode picks one, and
+    // each present list is checked
     if (n["angle"]) {
-      p.tipping.by_length = false;
-      p.tipping.profile = read_profile(n, tp, "angle");
-      for (std::size_t i = 0; i < p.tipping.profile.knots.size(); ++i) {
-        const double a = p.tipping.profile.knots[i][1];
-        if (!(a >= 0 && a <= 80))
+      const Profile a = read_profile(n, tp, "angle");
+      for (std::size_t i = 0; i < a.knots.size(); ++i) {
+        const double v = a.knots[i][1];
+        if (!(v >= 0 && v <= 80))
           throw ConfigError(join_path(tp, "angle") + "." + std::to_string(i) + ": body angle " +
-                            num(a) + " deg must be in [0, 80] (degrees, 0 = lowered)");
+                            num(v) + " deg must be in [0, 80] (degrees, 0 = lowered)");
       }
-    } else if (n["length"]) {
-      p.tipping.by_length = true;
-      p.tipping.profile = read_profile(n, tp, "length");
-      for (std::size_t i = 0; i < p.tipping.profile.knots.size(); ++i)
-        if (!(p.tipping.profile.knots[i][1] > 0))
+      if (!p.tipping.by_length) p.tipping.profile = a;
+    }
+    if (n["length"]) {
+      const Profile l = read_profile(n, tp, "length");
+      for (std::size_t i = 0; i < l.knots.size(); ++i)
+        if (!(l.knots[i][1] > 0))
           throw ConfigError(join_path(tp, "length") + "." + std::to_string(i) +
                             ": cylinder lengths must be > 0 m");
+      if (p.tipping.by_length) p.tipping.profile = l;
+    } else if (p.tipping.by_length) {
+      throw ConfigError(join_path(tp, "length") +
+                        ": missing (mode: length needs keyframes [[t, hoist length m], ...])");
     }
   }
   if (root["static_load"])
