@@ -188,6 +188,7 @@ struct Hauler::Impl {
   SimTK::Vec3 hoist_frame, hoist_body;  // rear frame (chassis coordinates), body frame
   double total_mass = 0;
   bool static_solve = false;
+  bool with_static_load = false;  // during the solve: static_load on the body
   double anchor_x[3] = {0, 0, 0}, anchor_pitch = 0;
   std::unique_ptr<RungeKutta3Integrator> integrator;
   State state, snapshot;
@@ -201,7 +202,7 @@ struct Hauler::Impl {
     double hoist_length = 0, hoist_rate = 0, hoist_target = 0, hoist_target_rate = 0, hoist_force = 0;
   };
   ForceState force_state(const Parameters& p, const Hauler& h, const State& s) const;
-  void solve_static(const Parameters& p, const Hauler& h, State& s);
+  void solve_static(const Parameters& p, const Hauler& h, State& s, bool static_load);
 };
 
 namespace {
@@ -229,7 +230,7 @@ class MachineForces : public Force::Custom::Implementation {
     m_.body.applyForceToBodyPoint(s, m_.hoist_body, F, body);
     m_.rear.applyForceToBodyPoint(s, m_.hoist_frame, -F, body);
     // the static start's assumed soil load: its weight on a body point
-    if (m_.static_solve && p_.static_load.mass > 0)
+    if (m_.static_solve && m_.with_static_load && p_.static_load.mass > 0)
       m_.body.applyForceToBodyPoint(s, xz(p_.static_load.com),
                                     SimTK::Vec3(0, 0, -p_.static_load.mass * p_.gravity), body);
   }
@@ -392,7 +393,7 @@ Hauler::Hauler(const Parameters& p, double t_start) : p_(p), impl_(new Impl) {
   State& s = P.state;
   s = P.system.realizeTopology();
   s.setTime(t_start);
-  P.solve_static(p_, *this, s);
+  P.solve_static(p_, *this, s, true);
 
   P.integrator = std::make_unique<RungeKutta3Integrator>(P.system);
   P.integrator->setFixedStepSize(p.inner_step);
@@ -406,15 +407,16 @@ Hauler::~Hauler() = default;
 // the six generalized accelerations vanish and each circuit's ride height is at ride_stroke
 // (the front strut's slide is 0, the rear struts' mean slide is 0). Finite-difference
 // Jacobian with a trust region and backtracking.
-void Hauler::Impl::solve_static(const Parameters& p, const Hauler& h, State& s) {
+void Hauler::Impl::solve_static(const Parameters& p, const Hauler& h, State& s, bool static_load) {
   static_solve = true;
+  with_static_load = static_load;
   const auto& sus = p.suspension;
   const double t = s.getTime();
   s.updU() = 0;
   system.realize(s, Stage::Position);
   // a start: tires deflected under a third of the machine each, struts at ride height, the
   // oil for that load by the gas law
-  const double W = (total_mass + p.static_load.mass) * p.gravity;
+  const double W = (total_mass + (static_load ? p.static_load.mass : 0.0)) * p.gravity;
   const double deflection = W / (3 * p.tires.stiffness);
   auto oil_for = [&](const Circuit& c, int n, double force) {
     return StrutRig::oil_for(c, force, sus.ride_stroke) + (n - 1) * c.piston_area * sus.ride_stroke;
@@ -491,7 +493,7 @@ void Hauler::set_body_wrench(WrenchInput input) {
   impl_->state.invalidateAllCacheAtOrAbove(Stage::Dynamics);
 }
 
-void Hauler::resolve_static() { impl_->solve_static(p_, *this, impl_->state); }
+void Hauler::resolve_static() { impl_->solve_static(p_, *this, impl_->state, false); }
 
 void Hauler::save_snapshot() { impl_->snapshot = impl_->state; }
 void Hauler::restore_snapshot() { impl_->state = impl_->snapshot; }

@@ -105,8 +105,9 @@ class Hauler {
   double target_angle(double t) const;
   double hoist_length_at(double body_angle) const;
 
-  // Static equilibrium again at the current time (with the current wrench input and, like the
-  // constructor, the level control's oil solved for ride height).
+  // Static equilibrium again at the current time, with the current wrench input instead of
+  // static_load, and, like the constructor, each circuit's oil solved for ride height and the
+  // brake anchored where the wheels then stand.
   void resolve_static();
 
   // One snapshot slot: the whole Simbody state (bodies and the circuits' oil).

@@ -146,3 +146,38 @@ TEST(hauler_model, ParkingBrakeHoldsAHorizontalPush) {
   for (const auto& a : r.axle) EXPECT_GT(a.fx, 0);
   EXPECT_LT(std::abs(r.x_machine), 3 * std::abs(push) / (3 * p.brake.stiffness));
 }
+
+// Three ways to put 39 t at (2.6, 1.1) in the body give one static state: the rigid payload,
+// the static start's assumed soil load (static_load), and the soil's weight as a body wrench
+// with resolve_static (the DEM side's ways to start levelled and at rest under its payload).
+TEST(hauler_model, StaticLoadWrenchAndRigidPayloadAgree) {
+  const Parameters rigid = with_payload(0);
+  Parameters assumed = rigid;
+  assumed.test_payload.reset();
+  assumed.static_load = Load{39000, {2.6, 1.1}, 1.0};
+  Parameters empty = assumed;
+  empty.static_load = Load{};
+  Hauler a(rigid), b(assumed), c(empty);
+  // the wrench's point is a ground point: the body settles lower and less nose-down under the
+  // load, so the point is moved with the body and the statics solved again until it stays
+  V3 point = c.body_point({2.6, 0, 1.1});
+  c.set_body_wrench([&](double) { return Wrench{{0, 0, -39000 * 9.81}, {0, 0, 0}, point}; });
+  for (int i = 0; i < 4; ++i) {
+    c.resolve_static();
+    point = c.body_point({2.6, 0, 1.1});
+  }
+  const Reports ra = a.reports(), rb = b.reports(), rc = c.reports();
+  for (int i = 0; i < 3; ++i) {
+    std::printf("%-5s Fz: rigid %.1f, static_load %.1f, wrench %.1f N; stroke %.4f %.4f %.4f m\n",
+                kAxleNames[i], ra.axle[i].fz, rb.axle[i].fz, rc.axle[i].fz, ra.axle[i].stroke,
+                rb.axle[i].stroke, rc.axle[i].stroke);
+    EXPECT_NEAR(rb.axle[i].fz / ra.axle[i].fz, 1.0, 1e-9) << kAxleNames[i];
+    EXPECT_NEAR(rc.axle[i].fz / ra.axle[i].fz, 1.0, 1e-6) << kAxleNames[i];
+    EXPECT_NEAR(rc.axle[i].stroke, ra.axle[i].stroke, 1e-6) << kAxleNames[i];
+  }
+  EXPECT_NEAR(rb.rear.oil, ra.rear.oil, 1e-12);
+  EXPECT_LT(c.max_acceleration(), 1e-6);
+  // at rest it stays (brake anchored where it stands, level control inside its band)
+  c.advance(0.5);
+  EXPECT_LT(c.max_acceleration(), 1e-4);
+}
