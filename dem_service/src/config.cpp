@@ -432,7 +432,13 @@ State load_bed(const ParticleSources& src, const std::string& base_dir) {
   }
   // A prepared bed starts a new scene at t = 0 (tool keyframes count from there); keep the
   // checkpoint's time only to continue the same run.
-  if (!src.keep_time) s.step = 0;
+  // A new scene also starts its own count of particles removed from its region of interest
+  // (a preparation's removals are not this run's).
+  if (!src.keep_time) {
+    s.step = 0;
+    s.removed_count = 0;
+    s.removed_mass = 0;
+  }
   return s;
 }
 

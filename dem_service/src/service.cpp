@@ -260,6 +260,7 @@ cosim::StepResult ServiceModel::step(const cosim::StepInputs& in, bool want_aver
       {"broad_phases", static_cast<double>(s.rebuilds - rebuilds0)},
       {"early_rebuilds", static_cast<double>(s.early_rebuilds - early0)},
       {"sleeping", static_cast<double>(engine.sleeping())},
+      {"particles", static_cast<double>(s.size())},
       {"removed", static_cast<double>(s.removed_count)},
       {"removed_mass", s.removed_mass},
   };

@@ -1,0 +1,125 @@
+#!/usr/bin/python3
+"""Charts of one hauler discharge from its HDF5 file (docs/output.md, docs/hauler.md):
+
+    /usr/bin/python3 master/studies/plot_hauler.py results/hauler.h5 [--participant hauler]
+        [--soil soil] [--out results/hauler] [--filter 0.05]
+
+writes OUT_front_axle.png (longitudinal and vertical tire force at the front axle, TYDEX C, like
+the paper's Figure 10), OUT_rear_axles.png (both rear axles on one chart, like Figure 11),
+OUT_discharge.png (body angle, payload left in the body, soil in the scene and removed,
+suspension strokes and pressures, hoist force) and prints the soil mass balance.
+Forces are shown after a centred moving average of --filter seconds (0: raw) over the raw
+curve drawn faintly: the DEM's contact noise is in every force.
+"""
+import argparse
+import os
+
+import h5py
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+
+def smooth(t, y, seconds):
+    if seconds <= 0 or len(t) < 3:
+        return y
+    n = max(1, int(round(seconds / ((t[-1] - t[0]) / (len(t) - 1)))))
+    pad = np.pad(y, (n // 2, n - 1 - n // 2), mode="edge")
+    return np.convolve(pad, np.ones(n) / n, mode="valid")
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("h5")
+    ap.add_argument("--participant", default="hauler")
+    ap.add_argument("--soil", default="soil")
+    ap.add_argument("--out", default=None)
+    ap.add_argument("--filter", type=float, default=0.05, help="moving average of the forces, s")
+    a = ap.parse_args()
+    out = a.out or os.path.splitext(a.h5)[0]
+    with h5py.File(a.h5, "r") as f:
+        t = f["time"][:]
+        base = f"participants/{a.participant}/outputs/"
+        if base + "front_fz" not in f:
+            raise SystemExit(f"plot_hauler: {a.h5} has no {base}front_fz; is --participant right?")
+        g = {k: f[base + k][:].reshape(len(t), -1)[:, 0] for k in
+             ("front_fx", "front_fz", "rear1_fx", "rear1_fz", "rear2_fx", "rear2_fz", "front_stroke",
+              "rear1_stroke", "rear2_stroke", "front_pressure", "rear_pressure", "hoist_force", "body_angle")}
+        d = f"participants/{a.soil}/diagnostics/"
+        soil = {k: f[d + k][:] for k in ("payload_body", "particles", "removed", "removed_mass") if d + k in f}
+        status = f["status"][()].decode() if "status" in f else ""
+
+    def forces(ax, keys, title, ylabel):
+        for key, label in keys:
+            line, = ax.plot(t, g[key] / 1e3, lw=0.4, alpha=0.35)
+            ax.plot(t, smooth(t, g[key], a.filter) / 1e3, lw=1.0, color=line.get_color(), label=label)
+        ax.set_title(title, fontsize=10)
+        ax.set_ylabel(ylabel)
+        ax.set_xlabel("time [s]")
+        ax.grid(alpha=0.3)
+
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4))
+    forces(axes[0], [("front_fx", "front axle")], "Front axle, longitudinal F_x (TYDEX C)", "kN")
+    forces(axes[1], [("front_fz", "front axle")], "Front axle, vertical F_z (TYDEX C)", "kN")
+    fig.suptitle(f"Tire forces at the front axle during the discharge: {os.path.basename(a.h5)}", fontsize=11)
+    fig.tight_layout()
+    fig.savefig(out + "_front_axle.png", dpi=120)
+    plt.close(fig)
+
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4))
+    forces(axes[0], [("rear1_fx", "rear axle 1 (2nd)"), ("rear2_fx", "rear axle 2 (3rd)")],
+           "Rear axles, longitudinal F_x (TYDEX C)", "kN")
+    forces(axes[1], [("rear1_fz", "rear axle 1 (2nd)"), ("rear2_fz", "rear axle 2 (3rd)")],
+           "Rear axles, vertical F_z (TYDEX C)", "kN")
+    axes[0].legend(fontsize=8)
+    axes[1].legend(fontsize=8)
+    fig.suptitle(f"Tire forces at both rear axles during the discharge: {os.path.basename(a.h5)}", fontsize=11)
+    fig.tight_layout()
+    fig.savefig(out + "_rear_axles.png", dpi=120)
+    plt.close(fig)
+
+    fig, axes = plt.subplots(2, 2, figsize=(11, 7), sharex=True)
+    axes[0][0].plot(t, np.degrees(g["body_angle"]), lw=1.0)
+    axes[0][0].set_ylabel("body angle [deg]")
+    ax = axes[0][1]
+    if "payload_body" in soil:
+        ax.plot(t, soil["payload_body"] / 1e3, lw=1.0, label="in the body (payload)")
+    if "removed_mass" in soil:
+        ax.plot(t, soil["removed_mass"] / 1e3, lw=1.0, label="removed (left the region)")
+    ax.set_ylabel("soil [t]")
+    ax.legend(fontsize=8)
+    ax = axes[1][0]
+    for key, label in (("front_stroke", "front"), ("rear1_stroke", "rear 1"), ("rear2_stroke", "rear 2")):
+        ax.plot(t, g[key] * 1e3, lw=1.0, label=label)
+    ax.set_ylabel("suspension stroke [mm]")
+    ax.legend(fontsize=8)
+    ax = axes[1][1]
+    ax.plot(t, g["front_pressure"] / 1e6, lw=1.0, label="front circuit")
+    ax.plot(t, g["rear_pressure"] / 1e6, lw=1.0, label="rear circuit (bogie)")
+    ax.plot(t, g["hoist_force"] / 1e7, lw=1.0, ls="--", label="hoist force [10 MN]")
+    ax.set_ylabel("pressure [MPa]")
+    ax.legend(fontsize=8)
+    for row in axes:
+        for ax in row:
+            ax.grid(alpha=0.3)
+    for ax in axes[1]:
+        ax.set_xlabel("time [s]")
+    fig.suptitle(f"Discharge: body, payload, suspension ({status})", fontsize=11)
+    fig.tight_layout()
+    fig.savefig(out + "_discharge.png", dpi=120)
+    plt.close(fig)
+
+    if {"particles", "removed"} <= set(soil):
+        n0 = soil["particles"][1] + soil["removed"][1]
+        bal = soil["particles"] + soil["removed"]
+        print(f"plot_hauler: soil count balance: {int(n0)} grains at the start; in the scene + removed "
+              f"{'equals it at every step' if np.all(bal[1:] == n0) else 'DIFFERS at some step'}; at the end "
+              f"{int(soil['particles'][-1])} in the scene (of which {soil['payload_body'][-1] / 1e3:.2f} t in the "
+              f"body), {int(soil['removed'][-1])} removed ({soil['removed_mass'][-1] / 1e3:.2f} t)")
+    print(f"plot_hauler: wrote {out}_front_axle.png, {out}_rear_axles.png and {out}_discharge.png")
+
+
+if __name__ == "__main__":
+    main()
