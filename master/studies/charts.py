@@ -17,6 +17,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from ensemble import smooth  # noqa: E402  (the one moving average of the studies)
+
 
 def overlap(run):
     """Largest and median per-step deepest overlap over the smaller radius, from a DEM
@@ -40,16 +42,6 @@ def read(run, signals):
             out[s["path"]] = np.asarray(f[s["path"]][:], dtype=float).reshape(len(t), -1)[:, s.get("column", 0)]
         wall = float(np.sum(f["timing/step_wall"][:])) if "timing/step_wall" in f else run["wall_seconds"]
     return t, out, wall
-
-
-def smooth(t, y, seconds):
-    if len(t) < 3 or seconds <= 0:
-        return y
-    dt = (t[-1] - t[0]) / (len(t) - 1)
-    n = max(1, int(round(seconds / dt)))
-    kernel = np.ones(n) / n
-    pad = np.pad(y, (n // 2, n - 1 - n // 2), mode="edge")
-    return np.convolve(pad, kernel, mode="valid")
 
 
 def errors(ref, var, signals, seconds):

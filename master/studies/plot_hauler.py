@@ -13,6 +13,7 @@ curve drawn faintly: the DEM's contact noise is in every force.
 """
 import argparse
 import os
+import sys
 
 import h5py
 import matplotlib
@@ -21,13 +22,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-
-def smooth(t, y, seconds):
-    if seconds <= 0 or len(t) < 3:
-        return y
-    n = max(1, int(round(seconds / ((t[-1] - t[0]) / (len(t) - 1)))))
-    pad = np.pad(y, (n // 2, n - 1 - n // 2), mode="edge")
-    return np.convolve(pad, np.ones(n) / n, mode="valid")
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from ensemble import smooth  # noqa: E402  (the studies' centred moving average)
 
 
 def main():
