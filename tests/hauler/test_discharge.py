@@ -62,13 +62,26 @@ class Discharge(unittest.TestCase):
             gyr = np.sqrt(((local[:, 0] - com[0]) ** 2 + (local[:, 2] - com[2]) ** 2) @ mass / mass.sum())
             static = f"{{mass: {mass.sum():.3f}, com: [{com[0]:.4f}, {com[2]:.4f}], gyration_radius: {gyr:.3f}}}"
 
+            # dem_service reads its config file when it starts, before the master's parameters
+            # arrive: a copy of configs/soil/hauler_load.yaml that loads this load (a clean
+            # clone has no results/hauler_load.h5) and the mesh of this build.
+            soil_cfg = os.path.join(tmp, "hauler_load.yaml")
+            text = open(f"{ROOT}/configs/soil/hauler_load.yaml").read()
+            mesh = os.path.normpath(os.path.join(BIN, "..", "meshes", "hauler_body.stl"))
+            self.assertIn("checkpoint: ../../results/hauler_load.h5", text)
+            self.assertIn("mesh: ../../build/meshes/hauler_body.stl", text)
+            text = text.replace("checkpoint: ../../results/hauler_load.h5", f"checkpoint: {load}")
+            text = text.replace("mesh: ../../build/meshes/hauler_body.stl", f"mesh: {mesh}")
+            with open(soil_cfg, "w") as f:
+                f.write(text)
+
             def run(name, port):
                 h5 = os.path.join(tmp, name)
                 cmd = [os.path.join(BIN, "cosim_master"), f"{ROOT}/configs/hauler.yaml", "--output", h5,
                        "--set", "output.csv=", "--set", "output.progress=off", "--set", "time.end=10.5",
                        "--set", f"bus.url=udpm://239.255.76.67:{port}?ttl=0",
                        "--set", f"participants.hauler.parameters.static_load={static}",
-                       "--set", f"participants.soil.parameters.particles.checkpoint={load}",
+                       "--set", f"participants.soil.launch=[dem_service, {soil_cfg}]",
                        # a region of interest that cuts into the pile behind the tail, so grains
                        # are removed within the test's 10.5 s and the balance counts them
                        "--set", "participants.soil.parameters.scene.region={min: [-9.0, -4.0, -1.0], max: [2.0, 4.0, 10.0]}",
