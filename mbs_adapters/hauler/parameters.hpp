@@ -15,6 +15,8 @@
 #include <string>
 #include <vector>
 
+#include "profile.hpp"
+
 namespace hauler {
 
 // hauler.cpp is C++17 (Simbody's headers); the comparisons are for C++20 code (tests).
@@ -108,14 +110,8 @@ struct Hoist {
   HL_DEFAULT_EQ(Hoist)
 };
 
-// A signal of time through keyframes (t_i, v_i): constant outside; between keyframes linear
-// or "smooth" (cubic smoothstep, zero rate at every keyframe).
-struct Profile {
-  std::vector<std::array<double, 2>> knots;
-  double value(double t, bool smooth) const;
-  double rate(double t, bool smooth) const;
-  HL_DEFAULT_EQ(Profile)
-};
+// Keyframed signals of time (mbs_adapters/common/profile.hpp).
+using Profile = mbs::Profile;
 
 struct Tipping {
   bool smooth = true;

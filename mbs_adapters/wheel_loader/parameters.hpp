@@ -12,6 +12,8 @@
 #include <string>
 #include <vector>
 
+#include "profile.hpp"
+
 namespace wheel_loader {
 
 // wheel_loader.cpp is C++17 (Simbody's headers); the comparisons are for C++20 code (tests).
@@ -46,15 +48,8 @@ struct BucketShape {
   WL_DEFAULT_EQ(BucketShape)
 };
 
-// A signal of time through knots (t_i, v_i): constant before the first and after the last
-// knot; between knots either linear or "smooth" (cubic smoothstep, C1 with zero rate at every
-// knot, so each segment is a pulse that starts and ends at rest).
-struct Profile {
-  std::vector<std::array<double, 2>> knots;
-  double value(double t, bool smooth) const;
-  double rate(double t, bool smooth) const;
-  WL_DEFAULT_EQ(Profile)
-};
+// Keyframed signals of time (mbs_adapters/common/profile.hpp).
+using Profile = mbs::Profile;
 
 struct Maneuver {
   bool smooth = true;
