@@ -1,8 +1,9 @@
 #include "body_mesh.hpp"
 
+#include "stl.hpp"
+
 #include <cmath>
 #include <cstdint>
-#include <fstream>
 #include <map>
 #include <stdexcept>
 #include <tuple>
@@ -72,29 +73,7 @@ BodyMesh make_body_mesh(const BodyShape& s, double element) {
 }
 
 void write_stl(const BodyMesh& m, const std::string& path) {
-  std::ofstream out(path, std::ios::binary);
-  if (!out) throw std::runtime_error("cannot write '" + path + "'");
-  char header[80] = "soilcosim body_mesh: hauler body frame, origin hinge axis, metres";
-  out.write(header, 80);
-  const auto n = static_cast<std::uint32_t>(m.triangles.size());
-  out.write(reinterpret_cast<const char*>(&n), 4);
-  for (const auto& t : m.triangles) {
-    const Point& a = m.vertices[t[0]];
-    const Point& b = m.vertices[t[1]];
-    const Point& c = m.vertices[t[2]];
-    const double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
-    const double v[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
-    double nrm[3] = {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]};
-    const double l = std::sqrt(nrm[0] * nrm[0] + nrm[1] * nrm[1] + nrm[2] * nrm[2]);
-    float f[12];
-    for (int i = 0; i < 3; ++i) f[i] = static_cast<float>(l > 0 ? nrm[i] / l : 0);
-    for (int k = 0; k < 3; ++k)
-      for (int i = 0; i < 3; ++i) f[3 + 3 * k + i] = static_cast<float>(m.vertices[t[k]][i]);
-    out.write(reinterpret_cast<const char*>(f), sizeof f);
-    const std::uint16_t attr = 0;
-    out.write(reinterpret_cast<const char*>(&attr), 2);
-  }
-  if (!out) throw std::runtime_error("writing '" + path + "' failed");
+  mbs::write_binary_stl(m.vertices, m.triangles, "soilcosim body_mesh: hauler body frame, origin hinge axis, metres", path);
 }
 
 }  // namespace hauler
