@@ -208,6 +208,8 @@ int run(int argc, char** argv) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  // Several processes share one log: a line must reach it in one write, not one per <<.
+  std::setvbuf(stderr, nullptr, _IOLBF, 1 << 14);
   try {
     return run(argc, argv);
   } catch (const cosim::config::ConfigError& e) {

@@ -3,6 +3,7 @@
 // The DEM soil as a co-simulation participant: one kinematic input and one wrench output per
 // tool of CONFIG.yaml (the dem_run schema plus `service`, docs/dem_service.md). The master's
 // `parameters` for this participant amend the config as --set does.
+#include <cstdio>
 #include <iostream>
 #include <string>
 
@@ -39,6 +40,8 @@ int run(int argc, char** argv) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  // Several processes share one log: a line must reach it in one write, not one per <<.
+  std::setvbuf(stderr, nullptr, _IOLBF, 1 << 14);
   try {
     return run(argc, argv);
   } catch (const cosim::config::ConfigError& e) {

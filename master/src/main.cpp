@@ -1,6 +1,7 @@
 // cosim_master CONFIG.yaml [--set dotted.key=value ...] [--output FILE.h5] [--csv FILE.csv]
 // Exit codes: 0 finished, 1 the run failed (participant lost, refused or failed a step),
 // 2 the configuration was refused before any step.
+#include <cstdio>
 #include <unistd.h>
 
 #include <csignal>
@@ -27,6 +28,8 @@ void usage() {
 }  // namespace
 
 int main(int argc, char** argv) {
+  // Several processes share one log: a line must reach it in one write, not one per <<.
+  std::setvbuf(stderr, nullptr, _IOLBF, 1 << 14);
   std::string config_path, output, csv;
   std::vector<std::string> overrides;
   for (int i = 1; i < argc; ++i) {

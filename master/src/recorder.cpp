@@ -288,6 +288,7 @@ void Progress::on_step(const StepRecord& r) {
                cosim::to_seconds(t_done_), cosim::to_seconds(setup_->config->t_end), 100 * sim / total,
                static_cast<long long>(steps_done_), static_cast<long long>(setup_->steps),
                wall / sim, eta);
+  std::fflush(stderr);  // stderr is line-buffered and this line ends in \r
 }
 
 void Progress::on_finish(bool ok, const std::string& message) {

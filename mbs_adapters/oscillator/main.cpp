@@ -1,10 +1,13 @@
 // oscillator_participant --side mass1|mass2 [--name NAME] [--bus URL] ...
+#include <cstdio>
 #include <cstring>
 #include <iostream>
 
 #include "oscillator_model.hpp"
 
 int main(int argc, char** argv) {
+  // Several processes share one log: a line must reach it in one write, not one per <<.
+  std::setvbuf(stderr, nullptr, _IOLBF, 1 << 14);
   std::string side;
   std::vector<char*> rest{argv[0]};
   for (int i = 1; i < argc; ++i) {

@@ -1,12 +1,15 @@
 // prescribed_participant [CONFIG.yaml] [--set dotted.key=value ...] [--name NAME] [--bus URL] ...
 // Plays tool trajectories (keyframes or CSV) as kinematic outputs and records the wrenches it
 // receives; docs/prescribed.md.
+#include <cstdio>
 #include <iostream>
 
 #include "cosim/yaml_config.hpp"
 #include "prescribed_model.hpp"
 
 int main(int argc, char** argv) {
+  // Several processes share one log: a line must reach it in one write, not one per <<.
+  std::setvbuf(stderr, nullptr, _IOLBF, 1 << 14);
   try {
     auto args = cosim::parse_participant_args(argc, argv, false);
     prescribed::PrescribedModel model(args.config, args.config_dir);

@@ -2,6 +2,7 @@
 // Serves the wheel-loader model on the bus. CONFIG.yaml is the machine config
 // (configs/wheel_loader/machine.yaml; without it the built-in defaults, which equal that
 // file); --set amends it; the master's participants.<name>.parameters amend it again.
+#include <cstdio>
 #include <cosim/yaml_config.hpp>
 
 #include <iostream>
@@ -9,6 +10,8 @@
 #include "wheel_loader_model.hpp"
 
 int main(int argc, char** argv) {
+  // Several processes share one log: a line must reach it in one write, not one per <<.
+  std::setvbuf(stderr, nullptr, _IOLBF, 1 << 14);
   cosim::ParticipantArgs args;
   try {
     args = cosim::parse_participant_args(argc, argv, false);
