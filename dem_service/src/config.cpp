@@ -112,8 +112,13 @@ ThreadWait parse_thread_wait(const YAML::Node& s, ThreadWait fallback) {
 void parse_sleep(const YAML::Node& sl, const Scene& sc, SleepOptions& o) {
   const std::string p = "scene.sleep";
   if (!sl.IsMap())
-    throw ConfigError(p + ": expected a map {enabled, speed, steps, tool_distance}");
-  cfg::check_keys(sl, p, {"enabled", "speed", "steps", "tool_distance"});
+    throw ConfigError(p + ": expected a map {enabled, speed, steps, tool_distance, neighbourhood}");
+  cfg::check_keys(sl, p, {"enabled", "speed", "steps", "tool_distance", "neighbourhood"});
+  o.neighbourhood =
+      cfg::get_choice(sl, p, "neighbourhood", {"sphere", "box"},
+                      o.neighbourhood == SleepNeighbourhood::box ? "box" : "sphere") == "box"
+          ? SleepNeighbourhood::box
+          : SleepNeighbourhood::sphere;
   o.enabled = cfg::get_bool_or(sl, p, "enabled", o.enabled);
   o.speed = cfg::get_double_or(sl, p, "speed", o.speed);
   if (!(o.speed > 0) || !std::isfinite(o.speed))

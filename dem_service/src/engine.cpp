@@ -115,6 +115,16 @@ Engine::Engine(const Scene& scene) : scene_(scene) {
   wall_force_.resize(scene.walls.size());
   tool_vertices_.resize(scene.tools.size());
   tool_rotation_.resize(scene.tools.size());
+  for (const auto& tool : scene.tools) {
+    Vec3 lo{0, 0, 0}, hi{0, 0, 0};
+    if (!tool.mesh.vertices.empty()) lo = hi = tool.mesh.vertices[0];
+    for (const Vec3& v : tool.mesh.vertices) {
+      lo = {std::min(lo.x, v.x), std::min(lo.y, v.y), std::min(lo.z, v.z)};
+      hi = {std::max(hi.x, v.x), std::max(hi.y, v.y), std::max(hi.z, v.z)};
+    }
+    tool_box_min_.push_back(lo);
+    tool_box_max_.push_back(hi);
+  }
 }
 
 void Engine::update_tool_geometry(const State& s) {
@@ -542,15 +552,18 @@ void Engine::integrate(State& s) {
 template <bool Sleep>
 void Engine::integrate_impl(State& s) {
   const std::size_t n = s.size();
-  // Sleeping: a tool's neighbourhood is the sphere around its reference point with the mesh's
-  // bounding radius plus scene.sleep.tool_distance (plus the particle radius below).
+  // Sleeping: a tool's neighbourhood is, with neighbourhood: sphere, the sphere around its
+  // reference point with the mesh's bounding radius plus scene.sleep.tool_distance (plus the
+  // particle radius below); with neighbourhood: box, the points within tool_distance (plus the
+  // particle radius) of the mesh's box in the tool frame.
   const std::size_t ntools = scene_.tools.size();
+  const bool box = scene_.sleep.neighbourhood == SleepNeighbourhood::box;
   std::vector<Vec3> tool_centre(Sleep ? ntools : 0);
   std::vector<double> tool_reach(Sleep ? ntools : 0);
   if (Sleep)
     for (std::size_t m = 0; m < ntools; ++m) {
       tool_centre[m] = s.tool_pose[m].position;
-      tool_reach[m] = scene_.tools[m].mesh.bounding_radius + scene_.sleep.tool_distance;
+      tool_reach[m] = (box ? 0.0 : scene_.tools[m].mesh.bounding_radius) + scene_.sleep.tool_distance;
     }
   const std::int32_t S = scene_.sleep.steps;
   const double rest_speed2 = scene_.sleep.speed * scene_.sleep.speed;
@@ -570,7 +583,20 @@ void Engine::integrate_impl(State& s) {
     auto near_tool = [&](std::size_t i) {
       for (std::size_t m = 0; m < tool_centre.size(); ++m) {
         const double reach = tool_reach[m] + s.radius[i];
-        if (norm2(s.x[i] - tool_centre[m]) < reach * reach) return true;
+        const Vec3 d = s.x[i] - tool_centre[m];
+        if (!box) {
+          if (norm2(d) < reach * reach) return true;
+          continue;
+        }
+        // d in the tool frame (R^T d), then its distance to the mesh's box
+        const Mat3& R = tool_rotation_[m];
+        const Vec3 q{R.m[0][0] * d.x + R.m[1][0] * d.y + R.m[2][0] * d.z,
+                     R.m[0][1] * d.x + R.m[1][1] * d.y + R.m[2][1] * d.z,
+                     R.m[0][2] * d.x + R.m[1][2] * d.y + R.m[2][2] * d.z};
+        const Vec3 lo = tool_box_min_[m], hi = tool_box_max_[m];
+        const Vec3 out{std::max({lo.x - q.x, 0.0, q.x - hi.x}), std::max({lo.y - q.y, 0.0, q.y - hi.y}),
+                       std::max({lo.z - q.z, 0.0, q.z - hi.z})};
+        if (norm2(out) < reach * reach) return true;
       }
       return false;
     };

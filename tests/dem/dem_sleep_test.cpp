@@ -165,6 +165,38 @@ TEST(dem_Sleep, ToolNeighbourhoodWakesOnlyTheParticlesNearIt) {
   EXPECT_EQ(e.sleeping(), 5);
 }
 
+// neighbourhood: box measures the gap to the mesh's box in the tool frame. A thin plate, 20 mm
+// long from its reference point along its own x, is turned 90 degrees about y (its x points
+// down) and parked 15 mm beside the settled column (centres 10 mm apart) at the height of
+// sphere 3: it spans spheres 1-3. With tool_distance 11.5 mm (reach 16.5 mm with the radius)
+// spheres 1-3 (15 mm from the plate) wake, 0 and 4 (18.0 mm from its ends) sleep on. The
+// bounding sphere (radius 20.6 mm about the reference point) wakes all five. Ignoring the rotation would wake only
+// sphere 3, rotating the wrong way spheres 3 and 4.
+TEST(dem_Sleep, BoxNeighbourhoodFollowsTheToolsOrientation) {
+  for (const auto shape : {dem::SleepNeighbourhood::box, dem::SleepNeighbourhood::sphere}) {
+    const bool box = shape == dem::SleepNeighbourhood::box;
+    Column c = make_column(5, 1e-5);
+    c.scene.sleep.tool_distance = 0.0115;
+    c.scene.sleep.neighbourhood = shape;
+    std::vector<Vec3> plate;
+    quad(plate, {0, -0.005, 0}, {0.020, -0.005, 0}, {0.020, 0.005, 0}, {0, 0.005, 0});
+    c.scene.tools.push_back(static_tool("plate", plate));
+    c.st.tool_pose.resize(1);
+    c.st.tool_pose[0].position = {1, 0, 1};
+    dem::Engine e(c.scene);
+    while (c.st.step * c.scene.dt < 1.0) e.step(c.st);
+    ASSERT_EQ(e.sleeping(), 5);
+    const Vec3 x3 = c.st.x[index_of(c.st, 3)];
+    c.st.tool_pose[0].position = {x3.x + 0.015, x3.y, x3.z};
+    c.st.tool_pose[0].orientation = {std::cos(M_PI / 4), 0, std::sin(M_PI / 4), 0};
+    // One step: the tool's neighbourhood wakes particles when they are integrated; nothing
+    // moved yet, so no contact wakes another.
+    e.step(c.st);
+    for (int id : {1, 2, 3}) EXPECT_FALSE(is_asleep(c.scene, c.st, id)) << id << (box ? " box" : " sphere");
+    for (int id : {0, 4}) EXPECT_EQ(is_asleep(c.scene, c.st, id), box) << id << (box ? " box" : " sphere");
+  }
+}
+
 // The 150-sphere pile of dem_pile_test, frictional, on a plane.
 struct Pile {
   dem::Scene scene;
@@ -381,6 +413,7 @@ TEST(dem_Sleep, BadValuesRefusedNamingTheKey) {
       {"scene.sleep.steps=0", "scene.sleep.steps"},
       {"scene.sleep.steps=2.5", "scene.sleep.steps"},
       {"scene.sleep.tool_distance=-0.1", "scene.sleep.tool_distance"},
+      {"scene.sleep.neighbourhood=cube", "scene.sleep.neighbourhood"},
       {"scene.sleep.enabled=maybe", "scene.sleep.enabled"},
       {"scene.sleep.sped=0.1", "speed"},  // did you mean
       {"scene.sleep=3", "scene.sleep"},

@@ -62,11 +62,18 @@ struct StabilityOptions {
 // one. It wakes when an awake contact partner moves faster than `speed` relative to it, when
 // a contact with an awake particle ends, or when a tool's bounding sphere comes within
 // `tool_distance`.
+// What counts as "near a tool" for sleeping: within tool_distance of the tool's bounding sphere
+// (centred on its reference point, radius = the farthest vertex), or of the mesh's own
+// axis-aligned box in the tool frame (tighter: a bucket's box is about 1.5 x 3.0 x 1.6 m where its
+// bounding sphere about the A-pin has a 2.3 m radius).
+enum class SleepNeighbourhood { sphere, box };
+
 struct SleepOptions {
   bool enabled = false;
   double speed = 0.01;        // m/s
   int steps = 500;            // consecutive steps at rest before sleeping
-  double tool_distance = 0.5; // m, gap to a tool's bounding sphere (reference point + radius)
+  double tool_distance = 0.5; // m, gap to the tool's neighbourhood shape (below)
+  SleepNeighbourhood neighbourhood = SleepNeighbourhood::sphere;
 };
 
 // Region of interest: particles whose centre leaves the box are removed at the next broad
