@@ -8,6 +8,7 @@ packages=(
   libeigen3-dev libassimp-dev libhdf5-dev libyaml-cpp-dev
   libgtest-dev libgmock-dev libomp-dev
   libsimbody-dev
+  libsodium-dev
   python3-matplotlib python3-h5py python3-numpy python3-yaml
   iproute2 util-linux
 )
