@@ -135,9 +135,11 @@ def make(study, variants, metas, out_dir):
         plt.close(fig)
 
     # Speed against accuracy.
-    fig, ax = plt.subplots(figsize=(7, 4.8))
     pts = [r for r in usable if "comparison" in r]
-    for r in pts:
+    # Many variants: numbers at the points and a key beside the plot, or the labels overlap.
+    many = len(pts) > 8
+    fig, ax = plt.subplots(figsize=(11.5, 5.5) if many else (7, 4.8))
+    for k, r in enumerate(pts, 1):
         c = r["comparison"]
         x, xs = r["cpu_seconds"]
         y = 100 * c["distance"]
@@ -146,7 +148,8 @@ def make(study, variants, metas, out_dir):
         xe = xs if np.isfinite(xs) else 0.0
         ax.errorbar([x], [y], xerr=[[xe], [xe]], yerr=[[max(0.0, y - lo)], [max(0.0, hi - y)]], fmt="o", ms=7, capsize=3,
                     color=color[r["name"]], mfc=color[r["name"]] if sig else "white")
-        ax.annotate(r["label"], (x, y), fontsize=7, xytext=(5, 4), textcoords="offset points")
+        ax.annotate(str(k) if many else r["label"], (x, y), fontsize=7, xytext=(5, 4),
+                    textcoords="offset points")
     ref = ctx["ref"] if ctx else None
     if ref is not None and pts:
         scat = 100 * pts[0]["comparison"]["scatter_reference"]
@@ -163,8 +166,13 @@ def make(study, variants, metas, out_dir):
     ax.set_ylim(bottom=0)
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=7)
-    ax.set_title(f"{study['name']}: speed against accuracy ({n_members} members; 95 % intervals)", fontsize=10)
-    fig.tight_layout()
+    ax.set_title(f"{study['name']}: speed against accuracy (up to {n_members} members each; 95 % intervals)", fontsize=10)
+    if many:
+        key = "\n".join(f"{k}: {r['label']}" for k, r in enumerate(pts, 1))
+        fig.text(0.63, 0.5, key, fontsize=7, va="center", ha="left")
+        fig.tight_layout(rect=(0, 0, 0.62, 1))
+    else:
+        fig.tight_layout()
     fig.savefig(os.path.join(out_dir, "work_precision.png"), dpi=120)
     plt.close(fig)
 
