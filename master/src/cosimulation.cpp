@@ -58,6 +58,7 @@ void CoSimulation::connect() {
   }
   setup_.config = &config_;
   setup_.session = transport_.session();
+  setup_.bus = &transport_.stats();
   setup_.participants = transport_.connect(configs, config_.connect_timeout);
   check_wiring(config_, setup_.participants);
   setup_.steps = (config_.t_end - config_.t_start) / config_.macro_step;

@@ -52,6 +52,7 @@ struct RunSetup {
   std::map<std::string, cosim::ParticipantInfo> participants;
   int64_t session = 0;
   int64_t steps = 0;
+  const cosim::ExchangeStats* bus = nullptr;  // the transport's counters, final at on_finish
 };
 
 class Observer {

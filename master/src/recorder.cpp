@@ -29,6 +29,33 @@ std::string join(const std::vector<std::string>& v) {
   return s;
 }
 
+// One number as a 1-element dataset under an existing or new group.
+void write_number(hid_t file, const std::string& group, const std::string& name, double value) {
+  if (H5Lexists(file, group.c_str(), H5P_DEFAULT) <= 0) {
+    const hid_t g = H5Gcreate2(file, group.c_str(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+    if (g >= 0) H5Gclose(g);
+  }
+  const hid_t g = H5Gopen2(file, group.c_str(), H5P_DEFAULT);
+  if (g < 0) return;
+  cosim::h5::write(g, name, std::vector<double>{value});
+  H5Gclose(g);
+}
+
+// The bus counters (docs/output.md): totals under /bus, per participant under its group.
+void write_bus_stats(hid_t file, const RunSetup& setup) {
+  const cosim::ExchangeStats& st = *setup.bus;
+  write_number(file, "bus", "resends", static_cast<double>(st.resends));
+  write_number(file, "bus", "dropped_by_plan", static_cast<double>(st.dropped_by_plan));
+  write_number(file, "bus", "ignored_replies", static_cast<double>(st.ignored_replies));
+  for (const auto& [name, info] : setup.participants) {
+    const std::string g = "participants/" + name + "/bus";
+    auto value = [&](const auto& m) { auto it = m.find(name); return it == m.end() ? 0.0 : static_cast<double>(it->second); };
+    write_number(file, g, "resends", value(st.resends_to));
+    write_number(file, g, "resend_timeout", value(st.resend_timeout_s));
+    write_number(file, g, "round_trip_smoothed", value(st.srtt_s));
+  }
+}
+
 }  // namespace
 
 struct H5Recorder::Impl {
@@ -206,6 +233,7 @@ void H5Recorder::on_finish(bool ok, const std::string& message) {
   if (I.time) {
     I.flush_all();
     cosim::h5::write_string(I.file, "status", ok ? "finished" : "stopped: " + message);
+    if (I.setup && I.setup->bus) write_bus_stats(I.file, *I.setup);
   }
   I.outputs.clear();
   I.diagnostics.clear();
@@ -316,6 +344,18 @@ void Progress::on_finish(bool ok, const std::string& message) {
        "master: predictors and records; other: outside the steps (handshake, start-up).",
        "Participants that step in parallel share the wall time: the shares may add to more "
        "than 100 %."});
+  if (setup_->bus) {  // per participant; the totals follow from cosim_master (docs/protocol.md)
+    std::string line = "cosim_master: bus:";
+    char buf[200];
+    for (const auto& [name, info] : setup_->participants) {
+      auto get = [&](const auto& m) { auto it = m.find(name); return it == m.end() ? 0.0 : static_cast<double>(it->second); };
+      std::snprintf(buf, sizeof buf, " %s %.0f resent (resend timeout %.1f ms, network round trip %.3f ms);",
+                    name.c_str(), get(setup_->bus->resends_to), 1e3 * get(setup_->bus->resend_timeout_s),
+                    1e3 * get(setup_->bus->srtt_s));
+      line += buf;
+    }
+    std::fprintf(stderr, "%s\n", line.c_str());
+  }
 }
 
 }  // namespace master

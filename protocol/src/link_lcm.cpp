@@ -1,16 +1,21 @@
-// Master side over LCM: configure with repeats until ready, then request/reply per step with
-// a per-participant timeout, resends of a lost request (the participant answers a repeat from
-// its cache) and a clear error when a participant stops answering.
+// Master side over LCM: configure with repeats until ready, then request/reply per step.
+// A request without reply is resent after the participant's adaptive resend timeout
+// (ResendTimer: measured round trips, backoff; not while its heartbeat says it works on the
+// request); the participant answers a repeat from its cache. Whether a participant is alive is
+// decided apart from that, by its heartbeats and replies (participants.<name>.timeout).
 #include <cosim/announce_t.hpp>
 #include <cosim/heartbeat_t.hpp>
 #include <cosim/terminate_t.hpp>
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <lcm/lcm-cpp.hpp>
 #include <sstream>
 
 #include "cosim/bus.hpp"
 #include "cosim/link.hpp"
+#include "cosim/resend_timer.hpp"
 #include "cosim/stopwatch.hpp"
 
 namespace cosim {
@@ -79,37 +84,38 @@ class LcmTransport final : public Transport {
 
   std::vector<StepAnswer> exchange(const std::vector<step_request_t>& requests) override {
     pending_.clear();
+    exchange_start_ = Clock::now();
     for (const auto& q : requests) {
       Pending& p = pending_[q.participant];
       p.request = q;
-      p.sent = Clock::now();
+      p.first_sent = p.sent = p.progress = Clock::now();
       send(p);
     }
     std::size_t done = 0;
     while (done < requests.size()) {
-      pump(20);
+      // Wait for the next message, or until the earliest resend is due (at least 1 ms).
+      double next = 0.02;
+      for (auto& [name, p] : pending_)
+        if (!p.reply) next = std::min(next, seconds_between(Clock::now(), resend_due(name, p)));
+      pump(std::clamp(static_cast<int>(std::ceil(next * 1000)), 1, 20));
       done = 0;
+      const auto now = Clock::now();
       for (auto& [name, p] : pending_) {
         if (p.reply) { ++done; continue; }
         const LinkSettings& s = links_.at(name);
-        const double quiet = std::min(seconds_since(p.sent), seconds_since(peers_[name].busy));
-        if (quiet <= s.timeout_s) continue;
-        if (p.request.attempt >= s.retries) {
-          std::ostringstream msg;
-          msg.precision(3);
-          msg << "participant '" << name << "' stopped answering: no reply to step "
-              << p.request.step_index << " (t = " << to_seconds(time_point_ns(p.request.t_start_ns))
-              << " s) after " << p.request.attempt + 1 << " attempts " << s.timeout_s
-              << " s apart; last heartbeat ";
-          if (peers_[name].heard) msg << seconds_since(*peers_[name].heard) << " s ago";
-          else msg << "never";
-          msg << ". Check that the process runs and reaches bus " << url_
-              << "; raise participants." << name << ".timeout if its steps are slow";
-          throw LinkError(name, msg.str());
-        }
+        Peer& peer = peers_[name];
+        // Liveness: silence counts from the exchange's start at the earliest, so time the
+        // master spent elsewhere (recording) is not blamed on the participant.
+        const auto heard = peer.heard ? std::max(*peer.heard, exchange_start_) : exchange_start_;
+        if (seconds_between(heard, now) > s.timeout_s) throw stopped_answering(name, p, s);
+        if (seconds_between(p.progress, now) > (s.retries + 1) * s.timeout_s)
+          throw not_answering(name, p, s);
+        if (!p.reply_lost && now < resend_due(name, p)) continue;
+        p.reply_lost = false;
         ++p.request.attempt;
         ++stats_.resends;
-        p.sent = Clock::now();
+        ++stats_.resends_to[name];
+        p.sent = now;
         send(p);
       }
     }
@@ -119,6 +125,10 @@ class LcmTransport final : public Transport {
       out.push_back(accept(q, *p.reply, infos_.at(q.participant), p.round_trip));
     }
     pending_.clear();
+    for (const auto& [name, peer] : peers_) {
+      stats_.resend_timeout_s[name] = peer.timer.base();
+      stats_.srtt_s[name] = peer.timer.srtt();
+    }
     return out;
   }
 
@@ -131,21 +141,78 @@ class LcmTransport final : public Transport {
   }
 
  private:
+  static constexpr double kBeat = 0.25;  // s between a participant's heartbeats
+
   struct Peer {
-    std::optional<Clock::time_point> heard;
-    Clock::time_point busy = Clock::now() - std::chrono::hours(1);
+    std::optional<Clock::time_point> heard;  // last message of any kind from it (this session)
+    std::optional<heartbeat_t> beat;         // its last heartbeat
+    Clock::time_point beat_at;
+    ResendTimer timer;
   };
   struct Pending {
     step_request_t request;
-    Clock::time_point sent;
     Clock::time_point first_sent;
-    bool first = true;
+    Clock::time_point sent;      // the last copy
+    Clock::time_point progress;  // first send, or the last busy heartbeat for this request
+    std::optional<Clock::time_point> busy;  // last busy heartbeat for this request
+    bool reply_lost = false;     // an idle heartbeat says the step is done: resend at once
     std::optional<step_reply_t> reply;
     double round_trip = 0;
   };
 
+  // When the next copy of p's request is due: the adaptive timeout after the last copy, or
+  // after the next heartbeat expected from a participant that said it works on the request.
+  Clock::time_point resend_due(const std::string& name, const Pending& p) const {
+    auto from = p.sent;
+    if (p.busy) from = std::max(from, *p.busy + std::chrono::duration_cast<Clock::duration>(
+                                                    std::chrono::duration<double>(kBeat)));
+    const double wait = peers_.at(name).timer.timeout(p.request.attempt);
+    return from + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(wait));
+  }
+
+  std::string step_text(const Pending& p) const {
+    std::ostringstream o;
+    o.precision(6);
+    o << "step " << p.request.step_index << " (t = " << to_seconds(time_point_ns(p.request.t_start_ns))
+      << " s)";
+    return o.str();
+  }
+
+  std::string last_beat_text(const Peer& peer) const {
+    std::ostringstream o;
+    o.precision(3);
+    if (!peer.beat) return "no heartbeat ever";
+    o << "last heartbeat " << seconds_since(peer.beat_at) << " s ago ("
+      << (peer.beat->state == heartbeat_t::BUSY ? "busy with step " : "idle after step ")
+      << peer.beat->step_index << ")";
+    return o.str();
+  }
+
+  LinkError stopped_answering(const std::string& name, const Pending& p, const LinkSettings& s) const {
+    std::ostringstream msg;
+    msg.precision(3);
+    msg << "participant '" << name << "' stopped answering: nothing heard from it (no heartbeat, no "
+        << "reply) for " << s.timeout_s << " s, its liveness timeout, while waiting for "
+        << step_text(p) << " (sent " << p.request.attempt + 1 << " times); "
+        << last_beat_text(peers_.at(name)) << ". Check that the process runs and reaches bus " << url_
+        << "; raise participants." << name << ".timeout if it can be unreachable for longer";
+    return LinkError(name, msg.str());
+  }
+
+  LinkError not_answering(const std::string& name, const Pending& p, const LinkSettings& s) const {
+    std::ostringstream msg;
+    msg.precision(3);
+    msg << "participant '" << name << "' stopped answering: it is alive ("
+        << last_beat_text(peers_.at(name)) << ") but neither answered " << step_text(p)
+        << " nor reported working on it for " << (s.retries + 1) * s.timeout_s
+        << " s ((retries + 1) x timeout), although the request was sent " << p.request.attempt + 1
+        << " times. Its replies may not get through (a reply larger than one datagram is lost "
+        << "when any of its fragments is: raise recv_buf_size in the bus URL and "
+        << "net.core.rmem_max); raise participants." << name << ".retries to wait longer";
+    return LinkError(name, msg.str());
+  }
+
   void send(Pending& p) {
-    if (p.first) p.first_sent = p.sent, p.first = false;
     const auto key = std::make_pair(p.request.participant, p.request.step_index);
     if (faults_.drop_request.count(key)) {
       faults_.drop_request.erase(key);  // lost once, like a dropped datagram
@@ -175,19 +242,32 @@ class LcmTransport final : public Transport {
   }
   void on_ready(const lcm::ReceiveBuffer*, const std::string&, const ready_t* r) {
     if (r->session_id != session_ || !peers_.count(r->participant)) return;
+    peers_[r->participant].heard = Clock::now();
     ready_.emplace(r->participant, *r);
   }
   void on_heartbeat(const lcm::ReceiveBuffer*, const std::string&, const heartbeat_t* h) {
     if (h->session_id != session_) return;
     auto it = peers_.find(h->sender);
     if (it == peers_.end()) return;
-    it->second.heard = Clock::now();
+    const auto now = Clock::now();
+    Peer& peer = it->second;
+    peer.heard = now;
+    peer.beat = *h;
+    peer.beat_at = now;
     auto p = pending_.find(h->sender);
-    if (h->state == heartbeat_t::BUSY && p != pending_.end() &&
-        h->step_index == p->second.request.step_index)
-      it->second.busy = Clock::now();  // working on our step: no resend needed
+    if (p == pending_.end() || p->second.reply) return;
+    Pending& q = p->second;
+    const bool ours = h->step_index == q.request.step_index && h->iteration == q.request.iteration;
+    if (!ours) return;
+    if (h->state == heartbeat_t::BUSY) {
+      q.busy = q.progress = now;  // it has the request and works on it: no resend needed
+    } else if (seconds_between(q.sent, now) > peer.timer.base()) {
+      q.reply_lost = true;  // done, but its reply did not arrive: ask again for the cached one
+    }
   }
   void on_reply(const lcm::ReceiveBuffer*, const std::string&, const step_reply_t* r) {
+    if (r->session_id == session_ && peers_.count(r->participant))
+      peers_[r->participant].heard = Clock::now();
     auto it = pending_.find(r->participant);
     if (r->session_id != session_ || it == pending_.end() || it->second.reply ||
         r->step_index != it->second.request.step_index ||
@@ -201,8 +281,12 @@ class LcmTransport final : public Transport {
       ++stats_.dropped_by_plan;
       return;
     }
-    it->second.round_trip = seconds_since(it->second.sent);
-    it->second.reply = *r;
+    Pending& p = it->second;
+    p.round_trip = seconds_since(p.sent);
+    // Karn's rule: a reply to a request sent more than once may answer any copy.
+    if (p.request.attempt == 0)
+      peers_[r->participant].timer.sample(p.round_trip, std::isfinite(r->compute_seconds) ? r->compute_seconds : 0);
+    p.reply = *r;
   }
 
   std::string url_;
@@ -214,6 +298,7 @@ class LcmTransport final : public Transport {
   std::map<std::string, ParticipantInfo> infos_;
   std::map<std::string, Pending> pending_;
   std::set<std::string> announced_;
+  Clock::time_point exchange_start_ = Clock::now();
   Clock::time_point last_beat_ = Clock::now() - std::chrono::hours(1);
 };
 

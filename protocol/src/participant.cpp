@@ -147,6 +147,7 @@ step_reply_t ParticipantCore::run_step(const step_request_t& q) {
     return refuse(q, step_reply_t::REJECTED, e.what());
   }
   const bool redo = q.step_index == last_step_;
+  busy_iteration_ = q.iteration;
   busy_step_ = q.step_index;
   const Stopwatch started;
   StepResult result;
@@ -186,6 +187,8 @@ step_reply_t ParticipantCore::run_step(const step_request_t& q) {
   last_step_ = q.step_index;
   last_iteration_ = q.iteration;
   cached_ = r;
+  done_iteration_ = last_iteration_;
+  done_step_ = last_step_;
   busy_step_ = -1;
   return r;
 }

@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cerrno>
 #include <csignal>
 #include <cstring>
 #include <iostream>
@@ -143,6 +144,7 @@ int run_participant(Model& model, const std::string& default_name, int argc, cha
         const int64_t busy = core.busy_step();
         h.state = busy >= 0 ? heartbeat_t::BUSY : heartbeat_t::IDLE;
         h.step_index = busy >= 0 ? busy : core.last_step();
+        h.iteration = busy >= 0 ? core.busy_iteration() : core.last_iteration();
         h.sim_time_ns = to_ns(core.time());
         lcm.publish(channel::heartbeat(core.session()), &h);
       } else {
@@ -162,7 +164,9 @@ int run_participant(Model& model, const std::string& default_name, int argc, cha
   while (!server.finished && !g_stop) {
     const int r = lcm.handleTimeout(100);
     if (r < 0) {
-      std::cerr << name << ": the bus failed (lcm handle returned " << r << ")\n";
+      if (g_stop || errno == EINTR) continue;  // a signal: the loop condition decides
+      std::cerr << name << ": the bus failed (lcm handle returned " << r << ": "
+                << std::strerror(errno) << ")\n";
       code = 1;
       break;
     }
@@ -184,6 +188,10 @@ int run_participant(Model& model, const std::string& default_name, int argc, cha
   }
   running = false;
   beat.join();
+  if (g_stop && !server.finished) {
+    std::cerr << name << ": stopped by a signal\n";
+    return 0;
+  }
   if (server.finished && server.error) code = 1;
   return code;
 }

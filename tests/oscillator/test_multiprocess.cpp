@@ -89,7 +89,18 @@ TEST(MultiProcess, LostRequestAndReplyAreRetriedAndTheResultIsUnchanged) {
       "faults={drop_request: [{participant: mass1, step: 10}], drop_reply: [{participant: mass2, step: 20}, {participant: mass1, step: 30}]}"};
   ASSERT_EQ(harness::run_master(with(kShort, faults), lossy), 0) << harness::read_text(lossy + ".log");
   const std::string log = harness::read_text(lossy + ".log");
-  EXPECT_NE(log.find("3 request(s) resent, 3 dropped by the fault plan"), std::string::npos) << log;
+  // Each of the 3 lost messages costs one resend; the adaptive timeout (10 ms floor here) may
+  // add a spurious one on a loaded host, which the participant answers from its cache.
+  unsigned long resent = 0, dropped = 0;
+  const auto at = log.find(" request(s) resent, ");
+  ASSERT_NE(at, std::string::npos) << log;
+  ASSERT_EQ(std::sscanf(log.c_str() + log.rfind("cosim_master: ", at), "cosim_master: %lu request(s) resent, %lu dropped",
+                        &resent, &dropped), 2) << log;
+  EXPECT_EQ(dropped, 3u) << log;
+  EXPECT_GE(resent, 3u) << log;
+  EXPECT_EQ(harness::read_dataset(lossy, "bus/dropped_by_plan"), std::vector<double>{3.0});
+  EXPECT_EQ(harness::read_dataset(lossy, "bus/resends"), std::vector<double>{static_cast<double>(resent)});
+  EXPECT_EQ(harness::read_dataset(lossy, "participants/mass1/bus/resends").size(), 1u);
   for (const std::string name : {"participants/mass1/outputs/x", "participants/mass2/outputs/force"})
     EXPECT_TRUE(bit_identical(harness::read_dataset(clean, name), harness::read_dataset(lossy, name))) << name;
 }

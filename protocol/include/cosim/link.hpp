@@ -43,9 +43,15 @@ class MissingAverageError : public LinkError {
   using LinkError::LinkError;
 };
 
+// Per participant (config: participants.<name>.timeout, .retries; docs/protocol.md).
+// Resends are not timed by these: each participant has an adaptive resend timeout
+// (ResendTimer) measured from its round trips.
 struct LinkSettings {
-  double timeout_s = 2.0;  // silence (no reply, no busy heartbeat) before a resend
-  int retries = 3;         // resends before giving up
+  // Liveness: a participant silent this long (no heartbeat, no reply) is declared gone.
+  double timeout_s = 2.0;
+  // A participant that is heard from but has neither answered a request nor reported working
+  // on it (busy heartbeat) for (retries + 1) x timeout_s is reported (its replies never arrive).
+  int retries = 3;
 };
 
 // Messages a test asks the transport to lose, once each: (participant, step_index).
@@ -65,6 +71,10 @@ struct ExchangeStats {
   uint64_t resends = 0;
   uint64_t dropped_by_plan = 0;
   uint64_t ignored_replies = 0;  // duplicates, other steps, other sessions
+  // Per participant: resends, and the resend timeout base (s) and smoothed network round
+  // trip (s) at the end.
+  std::map<std::string, uint64_t> resends_to;
+  std::map<std::string, double> resend_timeout_s, srtt_s;
 };
 
 // A reply as the master uses it, validated against the participant's declaration.

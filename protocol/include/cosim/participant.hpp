@@ -83,7 +83,10 @@ class ParticipantCore {
   bool bound() const { return session_ != 0; }
   int64_t session() const { return session_; }
   int64_t busy_step() const { return busy_step_.load(); }   // -1 when idle
-  int64_t last_step() const { return last_step_; }
+  int32_t busy_iteration() const { return busy_iteration_.load(); }
+  // The last completed step and its iteration; safe to read from another thread (heartbeats).
+  int64_t last_step() const { return done_step_.load(); }
+  int32_t last_iteration() const { return done_iteration_.load(); }
   TimePoint time() const { return t_now_; }
   uint64_t ignored_messages() const { return ignored_; }
 
@@ -109,6 +112,9 @@ class ParticipantCore {
   TimePoint t_before_last_{};  // its start, for repeats
   std::optional<step_reply_t> cached_;
   std::atomic<int64_t> busy_step_{-1};
+  std::atomic<int32_t> busy_iteration_{-1};
+  std::atomic<int64_t> done_step_{-1};      // copies of last_step_, last_iteration_ for
+  std::atomic<int32_t> done_iteration_{-1};  // the heartbeat thread
   uint64_t ignored_ = 0;
 };
 
