@@ -1,5 +1,5 @@
 // dem_service CONFIG.yaml [--set dotted.key=value ...] [--name NAME] [--bus URL]
-//             [--idle-timeout SECONDS] [--wait SECONDS]
+//             [--session HEX] [--idle-timeout SECONDS] [--wait SECONDS]
 // The DEM soil as a co-simulation participant: one kinematic input and one wrench output per
 // tool of CONFIG.yaml (the dem_run schema plus `service`, docs/dem_service.md). The master's
 // `parameters` for this participant amend the config as --set does.
@@ -16,7 +16,7 @@ namespace {
 
 void usage() {
   std::cerr << "usage: dem_service CONFIG.yaml [--set dotted.key=value ...] [--name NAME] [--bus URL]\n"
-               "                   [--idle-timeout SECONDS] [--wait SECONDS]\n"
+               "                   [--session HEX] [--idle-timeout SECONDS] [--wait SECONDS]\n"
                "  Serves the DEM scene of CONFIG.yaml to a co-simulation master (docs/dem_service.md).\n";
 }
 

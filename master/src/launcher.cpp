@@ -12,6 +12,7 @@
 #include <iostream>
 #include <thread>
 
+#include "cosim/bus.hpp"
 #include "cosim/stopwatch.hpp"
 
 namespace master {
@@ -57,14 +58,14 @@ std::string find_program(const std::string& program) {
 
 Launcher::~Launcher() { stop(0.5); }
 
-void Launcher::start(const ParticipantSpec& spec, const std::string& bus_url) {
+void Launcher::start(const ParticipantSpec& spec, const std::string& bus_url, int64_t session) {
   const std::string program = find_program(spec.launch[0]);
   if (program.empty())
     throw cosim::config::ConfigError("participants." + spec.name + ".launch: program '" + spec.launch[0] +
                                      "' not found beside cosim_master or on PATH; build it or give its path");
   std::vector<std::string> args = spec.launch;
   args[0] = program;
-  args.insert(args.end(), {"--name", spec.name, "--bus", bus_url});
+  args.insert(args.end(), {"--name", spec.name, "--bus", bus_url, "--session", cosim::id_hex(session)});
   std::vector<char*> argv;
   for (auto& a : args) argv.push_back(a.data());
   argv.push_back(nullptr);

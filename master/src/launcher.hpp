@@ -15,8 +15,9 @@ namespace master {
 class Launcher {
  public:
   ~Launcher();
-  // Starts `spec.launch` with --name and --bus appended; raises ConfigError if not found.
-  void start(const ParticipantSpec& spec, const std::string& bus_url);
+  // Starts `spec.launch` with --name, --bus and --session appended (it joins only that
+  // session); raises ConfigError if the program is not found.
+  void start(const ParticipantSpec& spec, const std::string& bus_url, int64_t session);
   // Raises cosim::LinkError naming a launched participant that has exited.
   void check() ;
   // Waits up to `grace` seconds for the participants to exit, then terminates them.

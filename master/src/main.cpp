@@ -1,8 +1,12 @@
 // cosim_master CONFIG.yaml [--set dotted.key=value ...] [--output FILE.h5] [--csv FILE.csv]
 // Exit codes: 0 finished, 1 the run failed (participant lost, refused or failed a step),
-// 2 the configuration was refused before any step.
+// 2 the configuration was refused before any step, 130 / 143 interrupted by SIGINT / SIGTERM
+// (the step under way is abandoned, /status says "stopped: interrupted", participants are
+// told to stop).
 #include <cstdio>
 #include <unistd.h>
+
+#include <signal.h>
 
 #include <csignal>
 #include <cstring>
@@ -16,6 +20,9 @@
 #include "recorder.hpp"
 
 namespace {
+
+volatile std::sig_atomic_t g_stop_signal = 0;
+void on_stop_signal(int signal) { g_stop_signal = signal; }
 
 void usage() {
   std::cerr << "usage: cosim_master CONFIG.yaml [--set dotted.key=value ...] [--output FILE.h5] [--csv FILE.csv]\n"
@@ -64,17 +71,30 @@ int main(int argc, char** argv) {
   const std::string url = cosim::resolve_bus_url(config.bus_url);
 
   std::signal(SIGPIPE, SIG_IGN);
+  {  // no SA_RESTART: a wait on the bus returns at once and the run stops (exit 128 + signal)
+    struct sigaction sa {};
+    sa.sa_handler = on_stop_signal;
+    sigemptyset(&sa.sa_mask);
+    sigaction(SIGINT, &sa, nullptr);
+    sigaction(SIGTERM, &sa, nullptr);
+  }
   master::Launcher launcher;
   try {
     auto transport = cosim::make_lcm_transport(url, cosim::new_session_id(), [&] {
       std::map<std::string, cosim::LinkSettings> links;
-      for (const auto& p : config.participants) links[p.name] = p.link;
+      for (const auto& p : config.participants) {
+        links[p.name] = p.link;
+        links[p.name].launched = !p.launch.empty();
+      }
       return links;
     }());
     transport->set_fault_plan(config.faults);
-    transport->set_liveness_check([&] { launcher.check(); });
+    transport->set_liveness_check([&] {
+      if (g_stop_signal) throw cosim::Interrupted(g_stop_signal);
+      launcher.check();
+    });
     for (const auto& p : config.participants)
-      if (!p.launch.empty()) launcher.start(p, url);
+      if (!p.launch.empty()) launcher.start(p, url, transport->session());
 
     master::CoSimulation sim(config, *transport);
     std::cerr << "cosim_master: session " << std::hex << transport->session() << std::dec << " on " << url
@@ -89,6 +109,9 @@ int main(int argc, char** argv) {
       transport->terminate(true, e.what());
       std::cerr << "cosim_master: config refused: " << e.what() << "\n";
       return 2;
+    } catch (const cosim::LinkError& e) {
+      transport->terminate(true, e.what());  // participants that joined leave at once
+      throw;
     }
 
     std::unique_ptr<master::H5Recorder> recorder;
@@ -108,6 +131,14 @@ int main(int argc, char** argv) {
     if (recorder) std::cerr << "cosim_master: recorded to " << config.output.file << "\n";
     launcher.stop(5.0);
     return 0;
+  } catch (const cosim::Interrupted& e) {
+    std::cerr << "cosim_master: interrupted by " << (e.signal() == SIGINT ? "SIGINT" : "SIGTERM")
+              << ": the step under way was abandoned and the participants told to stop\n";
+    if (!config.output.file.empty())
+      std::cerr << "cosim_master: the steps completed so far are in " << config.output.file
+                << " (/status: stopped: interrupted)\n";
+    launcher.stop(2.0);
+    return 128 + e.signal();
   } catch (const cosim::LinkError& e) {
     std::cerr << "cosim_master: run failed: " << e.what() << "\n";
     if (!config.output.file.empty()) std::cerr << "cosim_master: the steps completed so far are in " << config.output.file << "\n";

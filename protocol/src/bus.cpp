@@ -3,6 +3,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <random>
+#include <stdexcept>
 
 namespace cosim {
 
@@ -23,7 +24,8 @@ std::string session_prefix(int64_t session) {
 namespace channel {
 // Channel names stay below LCM's 63 characters: names are at most 32 characters.
 std::string announce() { return "COSIM_ANNOUNCE"; }
-std::string configure(const std::string& p) { return "COSIM_CFG_" + p; }
+std::string configure(int64_t instance) { return "COSIM_CFG_" + id_hex(instance); }
+std::string configure(int64_t s, const std::string& p) { return session_prefix(s) + p + "_CFG"; }
 std::string ready(int64_t s, const std::string& p) { return session_prefix(s) + p + "_RDY"; }
 std::string request(int64_t s, const std::string& p) { return session_prefix(s) + p + "_REQ"; }
 std::string reply(int64_t s, const std::string& p) { return session_prefix(s) + p + "_REP"; }
@@ -37,6 +39,22 @@ int64_t new_session_id() {
   int64_t id = 0;
   while (id == 0) id = static_cast<int64_t>(gen() >> 1);
   return id;
+}
+
+std::string id_hex(int64_t id) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(id));
+  return buf;
+}
+
+int64_t parse_id_hex(const std::string& text) {
+  if (text.empty() || text.size() > 16 ||
+      text.find_first_not_of("0123456789abcdefABCDEF") != std::string::npos)
+    throw std::invalid_argument("'" + text + "' is not a session id (1 to 16 hex digits)");
+  const auto v = std::stoull(text, nullptr, 16);
+  if (v == 0 || v > 0x7fffffffffffffffULL)
+    throw std::invalid_argument("'" + text + "' is not a session id (non-zero, at most 7fffffffffffffff)");
+  return static_cast<int64_t>(v);
 }
 
 }  // namespace cosim

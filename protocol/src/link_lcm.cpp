@@ -8,7 +8,10 @@
 #include <cosim/terminate_t.hpp>
 
 #include <algorithm>
+#include <cerrno>
 #include <chrono>
+#include <cstring>
+#include <iostream>
 #include <cmath>
 #include <lcm/lcm-cpp.hpp>
 #include <sstream>
@@ -48,9 +51,19 @@ class LcmTransport final : public Transport {
     auto last_send = start - std::chrono::hours(1);
     std::map<std::string, ParticipantInfo> out;
     while (out.size() < configs.size()) {
+      for (const auto& c : configs)
+        if (!links_.at(c.participant).launched && !chosen_.count(c.participant)) choose(c.participant);
       if (seconds_since(last_send) > 0.5) {  // repeat: a configure may be lost, or early
-        for (const auto& c : configs)
-          if (!ready_.count(c.participant)) lcm_.publish(channel::configure(c.participant), &c);
+        for (auto c : configs) {
+          if (ready_.count(c.participant)) continue;
+          if (links_.at(c.participant).launched) {  // started with --session: its own channel
+            c.instance_id = 0;
+            lcm_.publish(channel::configure(session_, c.participant), &c);
+          } else if (auto it = chosen_.find(c.participant); it != chosen_.end()) {
+            c.instance_id = it->second;
+            lcm_.publish(channel::configure(it->second), &c);
+          }
+        }
         last_send = Clock::now();
       }
       pump(50);
@@ -69,12 +82,17 @@ class LcmTransport final : public Transport {
         msg << "no answer from participant(s) " << missing << " within " << timeout_s
             << " s on bus " << url_ << ": start them with --name <name> --bus '" << url_
             << "', or give participants.<name>.launch in the config";
-        if (!announced_.empty()) {
-          msg << " (heard from free participants: ";
-          bool first = true;
-          for (const auto& a : announced_) msg << (first ? "" : ", ") << a, first = false;
-          msg << ")";
-        }
+        std::string heard;
+        for (const auto& [name, instances] : seen_)
+          for (const auto& [id, a] : instances)
+            heard += (heard.empty() ? "" : ", ") + describe_instance(a.announce) +
+                     (taken_.count(id) ? " (taken by another run)"
+                      : a.announce.reserved_session_id != 0 && a.announce.reserved_session_id != session_
+                          ? " (started for session " + id_hex(a.announce.reserved_session_id) + ")"
+                      : a.announce.protocol_version != kProtocolVersion
+                          ? " (protocol version " + std::to_string(a.announce.protocol_version) + ")"
+                          : "");
+        if (!heard.empty()) msg << " (heard from: " << heard << ")";
         std::string first_missing = missing.substr(0, missing.find(','));
         throw LinkError(first_missing, msg.str());
       }
@@ -233,15 +251,81 @@ class LcmTransport final : public Transport {
       last_beat_ = Clock::now();
     }
     const int r = lcm_.handleTimeout(ms);
-    if (r < 0) throw LinkError("", "the bus failed (lcm handle returned " + std::to_string(r) + ")");
+    if (r < 0 && errno != EINTR)
+      throw LinkError("", "the bus failed (lcm handle returned " + std::to_string(r) + ": " +
+                              std::strerror(errno) + ")");
+    if (fatal_) throw *fatal_;
     if (liveness_) liveness_();
   }
 
-  void on_announce(const lcm::ReceiveBuffer*, const std::string&, const announce_t* a) {
-    if (a->bound_session_id == 0) announced_.insert(a->participant);
+  static std::string describe_instance(const std::string& name, const std::string& host,
+                                       int32_t pid) {
+    return "'" + name + "' pid " + std::to_string(pid) + " on " + (host.empty() ? "?" : host);
   }
+  static std::string describe_instance(const announce_t& a) {
+    return describe_instance(a.participant, a.host, a.pid);
+  }
+
+  // Picks the free instance of a participant started by hand, once the announces have had
+  // time to show every free instance; two of them is an error naming both.
+  void choose(const std::string& name) {
+    auto it = seen_.find(name);
+    if (it == seen_.end()) return;
+    const auto now = Clock::now();
+    std::vector<const Seen*> free;
+    for (const auto& [id, a] : it->second) {
+      if (taken_.count(id) || a.announce.protocol_version != kProtocolVersion ||
+          a.announce.bound_session_id != 0 || seconds_between(a.last, now) > 1.0 ||
+          (a.announce.reserved_session_id != 0 && a.announce.reserved_session_id != session_))
+        continue;
+      free.push_back(&a);
+    }
+    if (free.empty()) return;
+    Clock::time_point first = free.front()->first;
+    for (const Seen* a : free) first = std::min(first, a->first);
+    if (seconds_between(first, now) < kSettle) return;  // let a second instance show itself
+    if (free.size() > 1) {
+      std::string all;
+      for (std::size_t i = 0; i < free.size(); ++i)
+        all += (i == 0 ? "" : i + 1 == free.size() ? " and " : ", ") + describe_instance(free[i]->announce);
+      throw LinkError(name, "two free participants answer to the name '" + name + "' on bus " + url_ +
+                                ": " + all + "; the master cannot tell which one this run is for. "
+                                "Stop all but one, give them distinct --name values, or start each "
+                                "with --session for its run");
+    }
+    chosen_[name] = free.front()->announce.instance_id;
+  }
+
+  void on_announce(const lcm::ReceiveBuffer*, const std::string&, const announce_t* a) {
+    if (!links_.count(a->participant) || a->instance_id == 0) return;
+    const auto now = Clock::now();
+    auto [it, added] = seen_[a->participant].try_emplace(a->instance_id);
+    if (added) it->second.first = now;
+    it->second.last = now;
+    it->second.announce = *a;
+  }
+
+  // The instance that answers to `name` in this session; a second one is an error.
+  void check_instance(const std::string& name, int64_t instance, const std::string& host, int32_t pid) {
+    auto [it, added] = bound_.try_emplace(name, Bound{instance, host, pid});
+    if (added || it->second.instance == instance || fatal_) return;
+    fatal_ = LinkError(name, "two participants answer to the name '" + name + "' in session " +
+                                 id_hex(session_) + ": " +
+                                 describe_instance(name, it->second.host, it->second.pid) + " and " +
+                                 describe_instance(name, host, pid) +
+                                 "; stop the one that does not belong to this run");
+  }
+
   void on_ready(const lcm::ReceiveBuffer*, const std::string&, const ready_t* r) {
     if (r->session_id != session_ || !peers_.count(r->participant)) return;
+    if (!r->ok && r->bound_session_id != 0) {  // another run took it first: choose again
+      taken_.insert(r->instance_id);
+      if (chosen_.count(r->participant) && chosen_[r->participant] == r->instance_id)
+        chosen_.erase(r->participant);
+      std::cerr << "cosim_master: " << r->error << "\n";
+      return;
+    }
+    if (r->ok) check_instance(r->participant, r->instance_id, r->host, r->pid);
     peers_[r->participant].heard = Clock::now();
     ready_.emplace(r->participant, *r);
   }
@@ -249,6 +333,7 @@ class LcmTransport final : public Transport {
     if (h->session_id != session_) return;
     auto it = peers_.find(h->sender);
     if (it == peers_.end()) return;
+    check_instance(h->sender, h->instance_id, h->host, h->pid);
     const auto now = Clock::now();
     Peer& peer = it->second;
     peer.heard = now;
@@ -266,8 +351,12 @@ class LcmTransport final : public Transport {
     }
   }
   void on_reply(const lcm::ReceiveBuffer*, const std::string&, const step_reply_t* r) {
-    if (r->session_id == session_ && peers_.count(r->participant))
+    if (r->session_id == session_ && peers_.count(r->participant)) {
       peers_[r->participant].heard = Clock::now();
+      auto b = bound_.find(r->participant);
+      if (b != bound_.end() && b->second.instance != r->instance_id)
+        check_instance(r->participant, r->instance_id, "?", 0);
+    }
     auto it = pending_.find(r->participant);
     if (r->session_id != session_ || it == pending_.end() || it->second.reply ||
         r->step_index != it->second.request.step_index ||
@@ -297,7 +386,21 @@ class LcmTransport final : public Transport {
   std::map<std::string, ready_t> ready_;
   std::map<std::string, ParticipantInfo> infos_;
   std::map<std::string, Pending> pending_;
-  std::set<std::string> announced_;
+  static constexpr double kSettle = 0.6;  // s of announces heard before a free instance is taken
+  struct Seen {
+    announce_t announce;
+    Clock::time_point first, last;
+  };
+  struct Bound {
+    int64_t instance;
+    std::string host;
+    int32_t pid;
+  };
+  std::map<std::string, std::map<int64_t, Seen>> seen_;  // announced instances per name
+  std::map<std::string, int64_t> chosen_;                // name -> instance configured
+  std::set<int64_t> taken_;                              // instances another run took
+  std::map<std::string, Bound> bound_;                   // name -> instance in this session
+  std::optional<LinkError> fatal_;                       // found in a handler, thrown by pump
   Clock::time_point exchange_start_ = Clock::now();
   Clock::time_point last_beat_ = Clock::now() - std::chrono::hours(1);
 };

@@ -27,18 +27,44 @@ ParticipantCore::ParticipantCore(std::string name, Model& model)
   require_valid_name(name_, "participant name");
 }
 
-std::optional<ready_t> ParticipantCore::configure(const configure_t& m) {
-  if (m.participant != name_) return std::nullopt;
-  if (bound()) {
-    if (m.session_id == session_ && ready_) return ready_;  // the master resent: same answer
-    ++ignored_;
-    return std::nullopt;
-  }
+void ParticipantCore::set_identity(int64_t instance, std::string host, int32_t pid) {
+  instance_ = instance;
+  host_ = std::move(host);
+  pid_ = pid;
+}
+
+ready_t ParticipantCore::refusal(const configure_t& m, const std::string& error) const {
   ready_t r{};
   r.protocol_version = kProtocolVersion;
   r.session_id = m.session_id;
   r.participant = name_;
+  r.instance_id = instance_;
+  r.host = host_;
+  r.pid = pid_;
   r.ok = false;
+  r.error = error;
+  return r;
+}
+
+std::optional<ready_t> ParticipantCore::configure(const configure_t& m) {
+  if (m.participant != name_) return std::nullopt;
+  if (m.instance_id != 0 && instance_ != 0 && m.instance_id != instance_) return std::nullopt;
+  const std::string who = "participant '" + name_ + "' (pid " + std::to_string(pid_) + " on " +
+                          (host_.empty() ? std::string("?") : host_) + ")";
+  if (bound()) {
+    if (m.session_id == session_ && ready_) return ready_;  // the master resent: same answer
+    ++ignored_;
+    ready_t r = refusal(m, who + " is already in session " + id_hex(session_) +
+                               " of another master; start another instance for this run");
+    r.bound_session_id = session_;
+    return r;
+  }
+  if (reserved_ != 0 && m.session_id != reserved_) {
+    ++ignored_;
+    return refusal(m, who + " was started for session " + id_hex(reserved_) +
+                          " (--session) and takes no other");
+  }
+  ready_t r = refusal(m, "");
   try {
     if (m.protocol_version != kProtocolVersion)
       throw ProtocolError("protocol version " + std::to_string(m.protocol_version) +
@@ -87,6 +113,7 @@ step_reply_t ParticipantCore::refuse(const step_request_t& q, int8_t status,
   step_reply_t r{};
   r.session_id = session_;
   r.participant = name_;
+  r.instance_id = instance_;
   r.step_index = q.step_index;
   r.iteration = q.iteration;
   r.attempt = q.attempt;
@@ -202,7 +229,8 @@ ParticipantArgs parse_participant_args(int argc, char** argv, bool require_confi
     if (arg == "--set") {
       if (i + 1 >= argc) throw config::ConfigError("--set needs dotted.key=value");
       sets.push_back(argv[++i]);
-    } else if (arg == "--name" || arg == "--bus" || arg == "--idle-timeout" || arg == "--wait") {
+    } else if (arg == "--name" || arg == "--bus" || arg == "--session" || arg == "--idle-timeout" ||
+               arg == "--wait") {
       a.rest.push_back(argv[i]);
       if (i + 1 < argc) a.rest.push_back(argv[++i]);  // run_participant checks the value
     } else if (!arg.empty() && arg[0] == '-') {

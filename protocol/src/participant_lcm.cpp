@@ -40,7 +40,8 @@ struct Server {
     if (!ready) return;
     lcm.publish(channel::ready(m->session_id, core.name()), &*ready);
     if (!ready->ok) {
-      std::cerr << core.name() << ": configuration refused: " << ready->error << "\n";
+      std::cerr << core.name() << ": configuration from session " << id_hex(m->session_id)
+                << " refused: " << ready->error << "\n";
       return;
     }
     last_master = Clock::now();
@@ -48,8 +49,7 @@ struct Server {
       req_sub = lcm.subscribe(channel::request(core.session(), core.name()), &Server::on_request, this);
       lcm.subscribe(channel::heartbeat(core.session()), &Server::on_heartbeat, this);
       lcm.subscribe(channel::terminate(core.session()), &Server::on_terminate, this);
-      std::cerr << core.name() << ": joined session " << std::hex << core.session() << std::dec
-                << "\n";
+      std::cerr << core.name() << ": joined session " << id_hex(core.session()) << "\n";
     }
   }
   void on_request(const lcm::ReceiveBuffer*, const std::string&, const step_request_t* q) {
@@ -73,13 +73,15 @@ struct Server {
 
 void usage(const std::string& name) {
   std::cerr << "usage: " << name
-            << " [--name NAME] [--bus URL] [--idle-timeout SECONDS] [--wait SECONDS]\n"
+            << " [--name NAME] [--bus URL] [--session HEX] [--idle-timeout SECONDS] [--wait SECONDS]\n"
                "  --name          participant name the master's config uses (default "
             << name
             << ")\n"
                "  --bus           LCM URL (default: $LCM_DEFAULT_URL, else "
             << kDefaultBusUrl
             << ")\n"
+               "  --session       join only this session (16 hex digits; the master passes it to the\n"
+               "                  participants it launches); without it, any one master may take it\n"
                "  --idle-timeout  exit if the master is silent this long once joined (60)\n"
                "  --wait          exit if no master configures us within this time (0: never)\n";
 }
@@ -89,6 +91,7 @@ void usage(const std::string& name) {
 int run_participant(Model& model, const std::string& default_name, int argc, char** argv) {
   std::string name = default_name, url;
   double idle_timeout = 60.0, wait = 0.0;
+  int64_t session = 0;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto value = [&](const char* flag) -> std::string {
@@ -98,6 +101,7 @@ int run_participant(Model& model, const std::string& default_name, int argc, cha
     try {
       if (a == "--name") name = value("--name");
       else if (a == "--bus") url = value("--bus");
+      else if (a == "--session") session = parse_id_hex(value("--session"));
       else if (a == "--idle-timeout") idle_timeout = std::stod(value("--idle-timeout"));
       else if (a == "--wait") wait = std::stod(value("--wait"));
       else if (a == "--help" || a == "-h") { usage(default_name); return 0; }
@@ -127,12 +131,15 @@ int run_participant(Model& model, const std::string& default_name, int argc, cha
   std::signal(SIGTERM, on_signal);
   std::signal(SIGINT, on_signal);
 
-  ParticipantCore core(name, model);
-  Server server{lcm, core};
-  lcm.subscribe(channel::configure(name), &Server::on_configure, &server);
-
   char host[256] = {0};
   gethostname(host, sizeof host - 1);
+  ParticipantCore core(name, model);
+  core.set_identity(new_session_id(), host, static_cast<int32_t>(getpid()));
+  core.reserve_for(session);
+  Server server{lcm, core};
+  // Configuration comes on channels of this process (its instance) or of its session only.
+  lcm.subscribe(channel::configure(core.instance()), &Server::on_configure, &server);
+  if (session != 0) lcm.subscribe(channel::configure(session, name), &Server::on_configure, &server);
   std::atomic<bool> running{true};
   std::thread beat([&] {
     // LCM's publish is thread-safe; this thread never calls handle().
@@ -141,6 +148,9 @@ int run_participant(Model& model, const std::string& default_name, int argc, cha
         heartbeat_t h{};
         h.session_id = core.session();
         h.sender = core.name();
+        h.instance_id = core.instance();
+        h.host = core.host();
+        h.pid = core.pid();
         const int64_t busy = core.busy_step();
         h.state = busy >= 0 ? heartbeat_t::BUSY : heartbeat_t::IDLE;
         h.step_index = busy >= 0 ? busy : core.last_step();
@@ -152,7 +162,9 @@ int run_participant(Model& model, const std::string& default_name, int argc, cha
         a.protocol_version = kProtocolVersion;
         a.participant = core.name();
         a.host = host;
-        a.pid = static_cast<int32_t>(getpid());
+        a.pid = core.pid();
+        a.instance_id = core.instance();
+        a.reserved_session_id = core.reserved_session();
         lcm.publish(channel::announce(), &a);
       }
       std::this_thread::sleep_for(std::chrono::milliseconds(250));

@@ -175,3 +175,93 @@ INSTANTIATE_TEST_SUITE_P(
         BadConfig{"scheme", {"scheme=newton"}, "scheme: 'newton' is not allowed (allowed: jacobi, gauss_seidel)"},
         BadConfig{"use", {"connections.2.use=mean"}, "connections.2.use: 'mean' is not allowed (allowed: end, average)"}),
     [](const auto& info) { return std::string(info.param.name); });
+
+// Sessions are isolated by construction: two runs started at once on one URL (each launching
+// its participants with --session) both finish, each bit-identical to a run alone.
+TEST(MultiProcess, TwoRunsAtOnceOnOneUrlDoNotInterfere) {
+  const std::string solo = harness::temp_path("_solo.h5");
+  ASSERT_EQ(harness::run_master(kShort, solo), 0) << harness::read_text(solo + ".log");
+  for (int trial = 0; trial < 3; ++trial) {
+    std::vector<harness::Process> masters;
+    std::vector<std::string> files;
+    for (int k = 0; k < 2; ++k) {
+      files.push_back(harness::temp_path("_" + std::to_string(trial) + "_" + std::to_string(k) + ".h5"));
+      std::vector<std::string> args{harness::bin("cosim_master"), harness::source("configs/oscillator.yaml"),
+                                    "--output", files.back(), "--set", "bus.url=" + harness::bus_url(),
+                                    "--set", "output.csv=", "--set", "output.progress=off"};
+      for (const auto& o : kShort) args.insert(args.end(), {"--set", o});
+      masters.push_back(harness::spawn(args, files.back() + ".log"));
+    }
+    for (int k = 0; k < 2; ++k) {
+      ASSERT_EQ(harness::wait_for(masters[k], 120), 0) << "trial " << trial << " run " << k << "\n"
+                                                       << harness::read_text(files[k] + ".log");
+      for (const std::string name : {"participants/mass1/outputs/x", "participants/mass2/outputs/force"})
+        EXPECT_TRUE(bit_identical(harness::read_dataset(solo, name), harness::read_dataset(files[k], name)))
+            << "trial " << trial << " run " << k << " " << name;
+    }
+  }
+}
+
+// Two free participants started by hand under one name: the master names both and stops
+// before any step instead of taking one at random.
+TEST(MultiProcess, TwoFreeParticipantsWithOneNameAreAnErrorNamingBoth) {
+  const std::string url = harness::bus_url();
+  const std::string h5 = harness::temp_path(".h5");
+  std::remove(h5.c_str());
+  std::vector<harness::Process> parts;
+  for (const char* side : {"mass1", "mass1", "mass2"})
+    parts.push_back(harness::spawn({harness::bin("oscillator_participant"), "--side", side, "--bus", url,
+                                    "--wait", "20"},
+                                   h5 + "." + side + std::to_string(parts.size()) + ".log"));
+  auto master = harness::spawn({harness::bin("cosim_master"), harness::source("configs/oscillator.yaml"), "--output",
+                                h5, "--set", "bus.url=" + url, "--set", "participants.mass1.launch=null",
+                                "--set", "participants.mass2.launch=null", "--set", "output.csv=",
+                                "--set", "output.progress=off", "--set", "time.end=0.05"},
+                               h5 + ".log");
+  const pid_t first = parts[0].pid, second = parts[1].pid;
+  const int code = harness::wait_for(master, 30);
+  for (auto& p : parts) kill(p.pid, SIGTERM), harness::wait_for(p, 5);
+  const std::string log = harness::read_text(h5 + ".log");
+  EXPECT_EQ(code, 1) << log;
+  EXPECT_NE(log.find("two free participants answer to the name 'mass1' on bus " + url), std::string::npos) << log;
+  EXPECT_NE(log.find("'mass1' pid " + std::to_string(first) + " on "), std::string::npos) << log;
+  EXPECT_NE(log.find("'mass1' pid " + std::to_string(second) + " on "), std::string::npos) << log;
+  EXPECT_TRUE(harness::read_dataset(h5, "time").empty()) << "a step was recorded";
+}
+
+// SIGINT on the master mid-run: /status says so, the completed steps are kept, the
+// participants (started by hand, so nobody else would stop them) are told to stop and leave
+// long before their 60 s idle timeout, and the master exits 130.
+TEST(MultiProcess, InterruptedMasterWritesItsStatusAndStopsTheParticipants) {
+  const std::string url = harness::bus_url();
+  const std::string h5 = harness::temp_path(".h5");
+  auto m1 = harness::spawn({harness::bin("oscillator_participant"), "--side", "mass1", "--bus", url, "--wait", "60"},
+                           h5 + ".mass1.log");
+  auto m2 = harness::spawn({harness::bin("oscillator_participant"), "--side", "mass2", "--bus", url, "--wait", "60"},
+                           h5 + ".mass2.log");
+  auto master = harness::spawn(
+      {harness::bin("cosim_master"), harness::source("configs/oscillator.yaml"), "--output", h5, "--set",
+       "bus.url=" + url, "--set", "participants.mass1.launch=null", "--set", "participants.mass2.launch=null",
+       "--set", "time.end=200", "--set", "output.csv=", "--set", "output.progress=off"},
+      h5 + ".log");
+  // let the run record steps (about 2000 per second here; the file cannot be read while the
+  // master writes it), then interrupt
+  std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+  kill(master.pid, SIGINT);
+  const cosim::Stopwatch since;
+  const int code = harness::wait_for(master, 20);
+  const int c1 = harness::wait_for(m1, 20), c2 = harness::wait_for(m2, 20);
+  std::printf("participants gone %.2f s after SIGINT on the master\n", since.seconds());
+  const std::string log = harness::read_text(h5 + ".log");
+  EXPECT_EQ(code, 130) << log;
+  EXPECT_NE(log.find("interrupted by SIGINT"), std::string::npos) << log;
+  EXPECT_EQ(harness::read_string(h5, "status"), "stopped: interrupted");
+  const auto t = harness::read_dataset(h5, "time");
+  EXPECT_GT(t.size(), 50u);
+  EXPECT_EQ(t.size(), harness::read_dataset(h5, "participants/mass2/outputs/force").size());
+  // They left because the master told them (exit 1, its reason), not by a timeout or a kill.
+  EXPECT_EQ(c1, 1) << harness::read_text(h5 + ".mass1.log");
+  EXPECT_EQ(c2, 1) << harness::read_text(h5 + ".mass2.log");
+  EXPECT_NE(harness::read_text(h5 + ".mass1.log").find("master ended the session: interrupted"), std::string::npos);
+  EXPECT_NE(harness::read_text(h5 + ".mass2.log").find("master ended the session: interrupted"), std::string::npos);
+}

@@ -137,3 +137,45 @@ TEST(ParticipantCore, RedoOfAStepStartsFromItsSnapshot) {
   EXPECT_EQ(same->outputs.scalars[0].value, redo->outputs.scalars[0].value);
   EXPECT_EQ(m.steps_taken, 3);
 }
+
+TEST(ParticipantCore, JoinsOneSessionAndRefusesAnotherNamingItself) {
+  Counter m;
+  ParticipantCore core("p", m);
+  core.set_identity(77, "hostA", 1234);
+  ASSERT_TRUE(core.configure(configure_message())->ok);
+  auto other = configure_message();
+  other.session_id = 43;
+  auto r = core.configure(other);
+  ASSERT_TRUE(r);
+  EXPECT_FALSE(r->ok);
+  EXPECT_EQ(r->bound_session_id, 42);
+  EXPECT_EQ(r->session_id, 43);  // goes back to the master that asked
+  EXPECT_NE(r->error.find("participant 'p' (pid 1234 on hostA) is already in session 000000000000002a"),
+            std::string::npos) << r->error;
+  EXPECT_EQ(core.session(), 42);
+  auto again = core.configure(configure_message());  // its own master resent: same answer
+  ASSERT_TRUE(again && again->ok);
+  EXPECT_EQ(again->instance_id, 77);
+}
+
+TEST(ParticipantCore, StartedForASessionTakesNoOtherAndIgnoresOtherInstances) {
+  Counter m;
+  ParticipantCore core("p", m);
+  core.set_identity(77, "hostA", 1234);
+  core.reserve_for(42);
+  auto c = configure_message();
+  c.session_id = 43;
+  auto r = core.configure(c);
+  ASSERT_TRUE(r);
+  EXPECT_FALSE(r->ok);
+  EXPECT_NE(r->error.find("was started for session 000000000000002a (--session) and takes no other"),
+            std::string::npos) << r->error;
+  EXPECT_FALSE(core.bound());
+  auto elsewhere = configure_message();
+  elsewhere.instance_id = 78;  // meant for another process
+  EXPECT_FALSE(core.configure(elsewhere));
+  auto mine = configure_message();
+  mine.instance_id = 77;
+  ASSERT_TRUE(core.configure(mine)->ok);
+  EXPECT_EQ(core.session(), 42);
+}

@@ -14,7 +14,9 @@ std::string resolve_bus_url(const std::string& configured);
 
 namespace channel {
 std::string announce();                                   // participants -> all
-std::string configure(const std::string& participant);    // master -> one free participant
+std::string configure(int64_t instance);                  // master -> one announced instance
+std::string configure(int64_t session, const std::string& participant);  // -> one started
+                                                                          // with --session
 std::string ready(int64_t session, const std::string& participant);
 std::string request(int64_t session, const std::string& participant);
 std::string reply(int64_t session, const std::string& participant);
@@ -22,7 +24,11 @@ std::string heartbeat(int64_t session);                   // everyone in the ses
 std::string terminate(int64_t session);
 }  // namespace channel
 
-// A random non-zero 63-bit session id.
+// A random non-zero 63-bit id (sessions, participant instances).
 int64_t new_session_id();
+// 16 hex digits, as in channel names and on the command line (--session).
+std::string id_hex(int64_t id);
+// Parses id_hex's form (1 to 16 hex digits, non-zero); raises std::invalid_argument.
+int64_t parse_id_hex(const std::string& text);
 
 }  // namespace cosim

@@ -30,6 +30,17 @@ class LinkError : public std::runtime_error {
   std::string participant_;
 };
 
+// The run was interrupted (SIGINT, SIGTERM): raised by the master's liveness check while it
+// waits; the message is "interrupted" (the recorder writes /status "stopped: interrupted").
+class Interrupted : public LinkError {
+ public:
+  explicit Interrupted(int signal) : LinkError("", "interrupted"), signal_(signal) {}
+  int signal() const { return signal_; }
+
+ private:
+  int signal_;
+};
+
 // A participant refused its configuration: the message names its parameter.
 class ParticipantConfigError : public LinkError {
  public:
@@ -52,6 +63,9 @@ struct LinkSettings {
   // A participant that is heard from but has neither answered a request nor reported working
   // on it (busy heartbeat) for (retries + 1) x timeout_s is reported (its replies never arrive).
   int retries = 3;
+  // Launched by the master with --session: configured on the session's channel. Otherwise
+  // the master configures the one free instance that announces this name.
+  bool launched = false;
 };
 
 // Messages a test asks the transport to lose, once each: (participant, step_index).

@@ -90,8 +90,19 @@ class ParticipantCore {
   TimePoint time() const { return t_now_; }
   uint64_t ignored_messages() const { return ignored_; }
 
-  // Binds to the session on success. A repeated configure of the bound session gets the
-  // same answer; a configure from another session while bound is ignored (nullopt).
+  // Who this process is (announce_t, ready_t, replies); the instance id 0 takes any configure.
+  void set_identity(int64_t instance, std::string host, int32_t pid);
+  // Started for one session (--session): a configure of any other session is refused.
+  void reserve_for(int64_t session) { reserved_ = session; }
+  int64_t instance() const { return instance_; }
+  int64_t reserved_session() const { return reserved_; }
+  const std::string& host() const { return host_; }
+  int32_t pid() const { return pid_; }
+
+  // Binds to the session on success. A repeated configure of the bound session gets the same
+  // answer; a configure of another session while bound, or of a session other than the one
+  // reserved, is refused (ok = false, bound_session_id set while bound). A configure for
+  // another participant or instance is not for us (nullopt).
   std::optional<ready_t> configure(const configure_t& message);
   // nullopt for messages that are not for us (other session or participant) or stale.
   std::optional<step_reply_t> handle(const step_request_t& request);
@@ -100,8 +111,13 @@ class ParticipantCore {
   step_reply_t run_step(const step_request_t& request);
   step_reply_t refuse(const step_request_t& request, int8_t status, const std::string& message);
 
+  ready_t refusal(const configure_t& m, const std::string& error) const;
+
   std::string name_;
   Model& model_;
+  int64_t instance_ = 0, reserved_ = 0;
+  std::string host_;
+  int32_t pid_ = 0;
   int64_t session_ = 0;
   RunInfo run_;
   Ports inputs_, outputs_;
@@ -119,7 +135,7 @@ class ParticipantCore {
 };
 
 // Serves `model` on the bus until the master terminates the session. Command line:
-//   NAME [--name NAME] [--bus URL] [--idle-timeout SECONDS] [--wait SECONDS]
+//   NAME [--name NAME] [--bus URL] [--session HEX] [--idle-timeout SECONDS] [--wait SECONDS]
 // Returns the process exit code.
 int run_participant(Model& model, const std::string& default_name, int argc, char** argv);
 
