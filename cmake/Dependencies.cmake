@@ -24,7 +24,8 @@ set_target_properties(hdf5::c PROPERTIES
 
 # Warnings for the project's own targets.
 function(soil_warnings target)
-  target_compile_options(${target} PRIVATE -Wall -Wextra -Wno-unused-parameter -Wno-maybe-uninitialized)
+  target_compile_options(${target} PRIVATE -Wall -Wextra -Wno-unused-parameter
+    $<$<CXX_COMPILER_ID:GNU>:-Wno-maybe-uninitialized>)
 endfunction()
 
 # A GoogleTest executable registered with ctest; tests are discovered one by one.

@@ -121,6 +121,8 @@ int run(int argc, char** argv) {
   const std::string base = std::filesystem::path(config_path).parent_path().string();
   dem::RunConfig rc = dem::load_config(root, base);
   if (!output_override.empty()) rc.output.file = output_override;
+  // Before settling or writing anything: no output onto an input or onto another output.
+  dem::check_files(rc, config_path, output_override.empty() ? "output.file" : "--output");
   dem::Scene& scene = rc.scene;
   dem::State& s = rc.state;
   dem::check_dt(scene, std::cerr);

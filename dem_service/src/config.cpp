@@ -414,11 +414,16 @@ OutputOptions parse_output(const YAML::Node& o) {
 
 // --- File loading: meshes, keyframe CSVs, checkpoints (paths relative to base_dir).
 
-Tool load_tool(const ToolSource& src, const std::string& base_dir) {
+Tool load_tool(const ToolSource& src, const std::string& base_dir,
+               std::vector<cosim::NamedFile>& inputs) {
   Tool tool;
   tool.name = src.name;
+  const std::string mesh = cosim::input_path(base_dir, src.mesh);
+  inputs.push_back({src.path + ".mesh", mesh});
+  if (!src.csv.empty())
+    inputs.push_back({src.path + ".motion.csv", cosim::input_path(base_dir, src.csv)});
   try {
-    tool.mesh = load_mesh(cosim::input_path(base_dir, src.mesh), src.scale, src.reference_point);
+    tool.mesh = load_mesh(mesh, src.scale, src.reference_point);
   } catch (const std::runtime_error& e) {
     throw ConfigError(src.path + ".mesh: " + e.what());
   }
@@ -427,11 +432,13 @@ Tool load_tool(const ToolSource& src, const std::string& base_dir) {
   return tool;
 }
 
-State load_bed(const ParticleSources& src, const std::string& base_dir) {
+State load_bed(const ParticleSources& src, const std::string& base_dir,
+               std::vector<cosim::NamedFile>& inputs) {
   if (src.checkpoint.empty()) return State{};
   State s;
+  inputs.push_back({"particles.checkpoint", cosim::input_path(base_dir, src.checkpoint)});
   try {
-    s = load_checkpoint(cosim::input_path(base_dir, src.checkpoint));
+    s = load_checkpoint(inputs.back().path);
   } catch (const std::exception& e) {
     throw ConfigError(std::string("particles.checkpoint: ") + e.what());
   }
@@ -467,6 +474,11 @@ std::uint64_t mix64(std::uint64_t x) {
   return x ^ (x >> 31);
 }
 
+bool parts_listed_empty(const YAML::Node& root) {
+  const YAML::Node l = root["particles"]["list"];
+  return l && l.IsSequence() && l.size() == 0;
+}
+
 // Checkpointed beds may come from another scene: the tool count is this scene's.
 void pose_tools(const Scene& sc, State& s) {
   s.tool_pose.resize(sc.tools.size());
@@ -491,6 +503,7 @@ void perturb_positions(State& s, const Perturbation& p) {
 }
 
 ThreadWait read_thread_wait(const YAML::Node& root) {
+  if (!root.IsMap()) return Scene{}.thread_wait;  // load_config names the problem
   const YAML::Node s = root["scene"];
   if (!s || !s.IsMap()) return Scene{}.thread_wait;  // load_config names the problem
   return parse_thread_wait(s, Scene{}.thread_wait);
@@ -510,22 +523,53 @@ RunConfig load_config(const YAML::Node& root, const std::string& base_dir) {
   sc.species = parse_species(root["materials"], root["species"]);
   parse_contact(root["contact"], sc);
   sc.walls = parse_walls(root["walls"]);
-  for (const ToolSource& t : parse_tools(root["tools"])) sc.tools.push_back(load_tool(t, base_dir));
+  for (const ToolSource& t : parse_tools(root["tools"]))
+    sc.tools.push_back(load_tool(t, base_dir, rc.inputs));
   const ParticleSources particles = parse_particles(root["particles"], sc);
   rc.fill = particles.fill;
   rc.settle = parse_settle(root["settle"]);
   rc.duration = parse_run(root["run"], rc.duration);
   rc.output = parse_output(root["output"]);
 
-  rc.state = load_bed(particles, base_dir);
+  rc.state = load_bed(particles, base_dir, rc.inputs);
   rc.continues = !particles.checkpoint.empty() && particles.keep_time && particles.list.empty() &&
                  rc.fill.empty();
   place_listed(sc, particles.list, rc.state);
   for (const FillRegion& r : rc.fill) fill_region(sc, r, rc.state);
+  if (rc.state.size() == 0) {
+    std::string why;
+    auto add = [&](const char* r) { why += (why.empty() ? "" : "; ") + std::string(r); };
+    if (!particles.checkpoint.empty()) add("particles.checkpoint holds none");
+    if (parts_listed_empty(root)) add("particles.list is empty");
+    if (!rc.fill.empty()) add("particles.fill places none (count 0)");
+    if (why.empty()) add("none given");
+    throw ConfigError("particles: the scene has no particles (" + why +
+                      "): give at least one in particles.list, a particles.fill count > 0 or a "
+                      "particles.checkpoint with particles");
+  }
   perturb_positions(rc.state, particles.perturb);
   rc.perturb = particles.perturb;
   pose_tools(sc, rc.state);
   return rc;
+}
+
+std::vector<cosim::NamedFile> output_files(const RunConfig& rc, const std::string& output_key) {
+  std::vector<cosim::NamedFile> out{{output_key, rc.output.file}};
+  if (!rc.output.file.empty())
+    out.push_back({"the XDMF file beside " + output_key,
+                   std::filesystem::path(rc.output.file).replace_extension(".xdmf").string()});
+  out.push_back({"output.checkpoint", rc.output.checkpoint});
+  if (rc.settle.enabled) out.push_back({"settle.checkpoint", rc.settle.checkpoint});
+  return out;
+}
+
+void check_files(const RunConfig& rc, const std::string& config_path, const std::string& output_key,
+                 const std::vector<cosim::NamedFile>& extra_outputs) {
+  std::vector<cosim::NamedFile> outputs = output_files(rc, output_key);
+  outputs.insert(outputs.end(), extra_outputs.begin(), extra_outputs.end());
+  std::vector<cosim::NamedFile> inputs{{"the config file", config_path}};
+  inputs.insert(inputs.end(), rc.inputs.begin(), rc.inputs.end());
+  cosim::check_output_files(outputs, inputs);
 }
 
 }  // namespace dem

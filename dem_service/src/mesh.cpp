@@ -1,4 +1,5 @@
 #include "dem/mesh.hpp"
+#include "dem/stl.hpp"
 
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
@@ -7,7 +8,10 @@
 #include <assimp/Importer.hpp>
 #include <cmath>
 #include <cstring>
+#include <cstdio>
 #include <filesystem>
+#include <fstream>
+#include <sstream>
 #include <map>
 #include <stdexcept>
 #include <tuple>
@@ -32,6 +36,18 @@ Mesh build_mesh(const std::vector<Vec3>& corners, const std::string& source) {
   if (corners.empty() || corners.size() % 3 != 0)
     throw std::runtime_error("mesh '" + source + "': no triangles; export the tool as a closed "
                              "or open triangle surface (STL, OBJ, PLY)");
+  for (std::size_t k = 0; k < corners.size(); ++k) {
+    const Vec3& p = corners[k];
+    if (!(std::abs(p.x) <= kMaxMeshCoordinate && std::abs(p.y) <= kMaxMeshCoordinate &&
+          std::abs(p.z) <= kMaxMeshCoordinate)) {
+      char buf[200];
+      std::snprintf(buf, sizeof buf, "triangle %zu corner %zu is at (%.9g, %.9g, %.9g)", k / 3,
+                    k % 3, p.x, p.y, p.z);
+      throw std::runtime_error("mesh '" + source + "': " + buf +
+                               ": not a finite point within 1e6 m of the reference point; fix "
+                               "the mesh or its units");
+    }
+  }
   Mesh m;
   m.source = source;
   // STL stores every triangle's corners separately, and exporters round: weld corners closer
@@ -93,17 +109,12 @@ Mesh build_mesh(const std::vector<Vec3>& corners, const std::string& source) {
   return m;
 }
 
-Mesh load_mesh(const std::string& path, double scale, Vec3 reference_point) {
-  if (!std::filesystem::exists(path))
-    throw std::runtime_error("mesh file '" + path + "' not found: check tools[].mesh (relative "
-                             "paths are resolved against the config file's folder)");
-  Assimp::Importer importer;
-  const aiScene* scene = importer.ReadFile(path, aiProcess_Triangulate |
-                                                     aiProcess_PreTransformVertices);
-  if (!scene || !scene->mRootNode || (scene->mFlags & AI_SCENE_FLAGS_INCOMPLETE))
-    throw std::runtime_error("mesh file '" + path + "' could not be read (" +
-                             importer.GetErrorString() +
-                             "): re-export it as STL, OBJ or PLY with triangle faces");
+namespace {
+
+// Corners of every triangle of an assimp scene, scaled and relative to reference_point; a
+// corner that is not finite or lies absurdly far is named (triangle, corner, value).
+std::vector<Vec3> scene_corners(const aiScene* scene, const std::string& path, double scale,
+                                Vec3 reference_point) {
   std::vector<Vec3> corners;
   for (unsigned mi = 0; mi < scene->mNumMeshes; ++mi) {
     const aiMesh* mesh = scene->mMeshes[mi];
@@ -112,10 +123,59 @@ Mesh load_mesh(const std::string& path, double scale, Vec3 reference_point) {
       if (face.mNumIndices != 3) continue;  // points and lines are not surfaces
       for (int k = 0; k < 3; ++k) {
         const aiVector3D& p = mesh->mVertices[face.mIndices[k]];
-        corners.push_back(Vec3{scale * p.x, scale * p.y, scale * p.z} - reference_point);
+        const Vec3 v = Vec3{scale * p.x, scale * p.y, scale * p.z} - reference_point;
+        if (!(std::abs(v.x) <= kMaxMeshCoordinate && std::abs(v.y) <= kMaxMeshCoordinate &&
+              std::abs(v.z) <= kMaxMeshCoordinate)) {
+          char buf[256];
+          std::snprintf(buf, sizeof buf,
+                        "mesh file '%s': triangle %zu corner %d is at (%.9g, %.9g, %.9g) in the "
+                        "file", path.c_str(), corners.size() / 3, k, static_cast<double>(p.x),
+                        static_cast<double>(p.y), static_cast<double>(p.z));
+          const bool finite = std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z);
+          throw std::runtime_error(std::string(buf) +
+                                   (finite ? ", more than 1e6 m from the reference point after "
+                                             "tools[].scale: check the export units and the scale"
+                                           : ": not a finite number; fix or re-export the mesh"));
+        }
+        corners.push_back(v);
       }
     }
   }
+  return corners;
+}
+
+}  // namespace
+
+Mesh load_mesh(const std::string& path, double scale, Vec3 reference_point) {
+  if (!std::filesystem::exists(path))
+    throw std::runtime_error("mesh file '" + path + "' not found: check tools[].mesh (relative "
+                             "paths are resolved against the config file's folder)");
+  if (std::filesystem::is_directory(path))
+    throw std::runtime_error("mesh file '" + path + "' is a folder: name the mesh file in it");
+  std::string bytes;
+  if (is_stl_path(path)) {
+    std::ifstream in(path, std::ios::binary);
+    std::ostringstream s;
+    s << in.rdbuf();
+    bytes = s.str();
+  }
+  return load_mesh_data(bytes, path, scale, reference_point);
+}
+
+Mesh load_mesh_data(const std::string& stl_bytes, const std::string& path, double scale,
+                    Vec3 reference_point) {
+  Assimp::Importer importer;
+  const unsigned flags = aiProcess_Triangulate | aiProcess_PreTransformVertices;
+  const bool stl = is_stl_path(path);
+  if (stl) read_stl(stl_bytes, path);  // names what assimp would read silently or wrongly
+  const aiScene* scene =
+      stl ? importer.ReadFileFromMemory(stl_bytes.data(), stl_bytes.size(), flags, "stl")
+          : importer.ReadFile(path, flags);
+  if (!scene || !scene->mRootNode || (scene->mFlags & AI_SCENE_FLAGS_INCOMPLETE))
+    throw std::runtime_error("mesh file '" + path + "' could not be read (" +
+                             importer.GetErrorString() +
+                             "): re-export it as STL, OBJ or PLY with triangle faces");
+  const std::vector<Vec3> corners = scene_corners(scene, path, scale, reference_point);
   if (corners.empty())
     throw std::runtime_error("mesh file '" + path + "' has no triangles: re-export it as a "
                              "triangulated surface (STL, OBJ or PLY)");

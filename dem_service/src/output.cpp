@@ -24,9 +24,9 @@ constexpr std::size_t kChunkRows = 1024;
 }  // namespace
 
 RunOutput::RunOutput(const std::string& path, const Scene& scene, const std::string& config_text)
-    : path_(path), scene_(scene) {
+    : path_(path), scene_(scene), staged_(std::make_unique<cosim::StagedFile>(path)) {
   xdmf_ = std::filesystem::path(path).replace_extension(".xdmf").string();
-  file_ = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
+  file_ = H5Fcreate(staged_->current().c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
   if (file_ < 0)
     throw std::runtime_error("cannot create output '" + path +
                              "': check that the folder exists and is writable (--output FILE.h5)");
@@ -119,6 +119,7 @@ void RunOutput::flush() {
   buffered_ = 0;
   since_flush_.restart();
   H5Fflush(file_, H5F_SCOPE_LOCAL);
+  staged_->commit();  // the first flush puts the file in place (docs/output.md#file-safety)
   write_xdmf();
 }
 

@@ -56,8 +56,8 @@ ToolPose tool_pose_from(const cosim::Kinematics& k) {
   return p;
 }
 
-ServiceModel::ServiceModel(YAML::Node root, std::string base_dir)
-    : root_(YAML::Clone(root)), base_dir_(std::move(base_dir)) {
+ServiceModel::ServiceModel(YAML::Node root, std::string base_dir, std::string config_path)
+    : root_(YAML::Clone(root)), base_dir_(std::move(base_dir)), config_path_(std::move(config_path)) {
   build(YAML::Clone(root_), "config");  // fail at start-up, not when the master connects
 }
 
@@ -73,6 +73,7 @@ void ServiceModel::build(YAML::Node root, const std::string& what) {
   check_dt(rc->scene, warn);
   if (!warn.str().empty()) std::cerr << "dem_service: " << warn.str();
   validate_state(rc->scene, rc->state, !rc->continues);
+  check_files(*rc, config_path_, "output.file", {{"service.checkpoint", options_.checkpoint}});
   inner_step_ = cosim::seconds_to_duration(rc->scene.dt, "scene.dt");
   if (std::abs(cosim::to_seconds(inner_step_) - rc->scene.dt) > 1e-12 * rc->scene.dt)
     throw cfg::ConfigError("scene.dt: " + std::to_string(rc->scene.dt) +

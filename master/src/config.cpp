@@ -292,11 +292,10 @@ void substitute_config_dir(YAML::Node node, const std::string& dir) {
 }  // namespace
 
 Config load_config(const std::string& path, const std::vector<std::string>& overrides) {
-  std::ifstream in(path);
-  if (!in) throw ConfigError("cannot read config file '" + path + "': check the path");
+  YAML::Node root = cfg::load_file(path);  // refuses folders, scalars, duplicate keys
+  std::ifstream in(path, std::ios::binary);
   std::stringstream text;
   text << in.rdbuf();
-  YAML::Node root = cfg::load_file(path);
   for (const auto& o : overrides) cfg::apply_override(root, o);
   if (YAML::Node parts = root["participants"]; parts && parts.IsMap()) {
     const std::string dir = std::filesystem::absolute(path).parent_path().lexically_normal().string();

@@ -10,9 +10,11 @@
 
 #include <csignal>
 #include <cstring>
+#include <filesystem>
 #include <iostream>
 
 #include <cosim/bus.hpp>
+#include <cosim/files.hpp>
 
 #include "config.hpp"
 #include "cosimulation.hpp"
@@ -30,6 +32,23 @@ void usage() {
                "  --output  HDF5 file to record to (overrides output.file)\n"
                "  --csv     CSV export of every participant output (overrides output.csv)\n"
                "See docs/config.md for the config keys and docs/output.md for the recorded layout.\n";
+}
+
+// Outputs that are the same file as each other or as an input are refused before anything
+// starts (docs/output.md#file-safety). The inputs: the config file and every launch argument
+// that names an existing file (a participant's config, its program).
+void check_files(const master::Config& c, const std::string& config_path, bool output_option,
+                 bool csv_option) {
+  std::vector<cosim::NamedFile> inputs{{"the config file", config_path}};
+  for (const auto& p : c.participants)
+    for (std::size_t i = 0; i < p.launch.size(); ++i) {
+      std::error_code ec;
+      if (std::filesystem::is_regular_file(p.launch[i], ec))
+        inputs.push_back({"participants." + p.name + ".launch[" + std::to_string(i) + "]", p.launch[i]});
+    }
+  cosim::check_output_files({{output_option ? "--output" : "output.file", c.output.file},
+                             {csv_option ? "--csv" : "output.csv", c.output.csv_file}},
+                            inputs);
 }
 
 }  // namespace
@@ -62,12 +81,13 @@ int main(int argc, char** argv) {
   master::Config config;
   try {
     config = master::load_config(config_path, overrides);
-  } catch (const cosim::config::ConfigError& e) {
+    if (!output.empty()) config.output.file = output;
+    if (!csv.empty()) config.output.csv_file = csv;
+    check_files(config, config_path, !output.empty(), !csv.empty());
+  } catch (const std::exception& e) {  // ConfigError, and anything a malformed file raises
     std::cerr << "cosim_master: config refused: " << e.what() << "\n";
     return 2;
   }
-  if (!output.empty()) config.output.file = output;
-  if (!csv.empty()) config.output.csv_file = csv;
   const std::string url = cosim::resolve_bus_url(config.bus_url);
 
   std::signal(SIGPIPE, SIG_IGN);
@@ -79,6 +99,10 @@ int main(int argc, char** argv) {
     sigaction(SIGTERM, &sa, nullptr);
   }
   master::Launcher launcher;
+  // Created once the participants are connected; each replaces a file of its name only when
+  // the run starts writing it.
+  std::unique_ptr<master::H5Recorder> recorder;
+  std::unique_ptr<master::CsvWriter> csv_writer;
   try {
     auto transport = cosim::make_lcm_transport(url, cosim::new_session_id(), [&] {
       std::map<std::string, cosim::LinkSettings> links;
@@ -114,8 +138,6 @@ int main(int argc, char** argv) {
       throw;
     }
 
-    std::unique_ptr<master::H5Recorder> recorder;
-    std::unique_ptr<master::CsvWriter> csv_writer;
     if (!config.output.file.empty()) recorder = std::make_unique<master::H5Recorder>(config.output.file);
     if (!config.output.csv_file.empty()) csv_writer = std::make_unique<master::CsvWriter>(config.output.csv_file);
     const bool live = config.output.progress == "on" || (config.output.progress == "auto" && isatty(STDERR_FILENO));
@@ -141,7 +163,10 @@ int main(int argc, char** argv) {
     return 128 + e.signal();
   } catch (const cosim::LinkError& e) {
     std::cerr << "cosim_master: run failed: " << e.what() << "\n";
-    if (!config.output.file.empty()) std::cerr << "cosim_master: the steps completed so far are in " << config.output.file << "\n";
+    if (recorder && recorder->started())
+      std::cerr << "cosim_master: the steps completed so far are in " << config.output.file << "\n";
+    else if (!config.output.file.empty())
+      std::cerr << "cosim_master: no step was recorded; " << config.output.file << " was not written\n";
     return 1;
   } catch (const cosim::config::ConfigError& e) {
     std::cerr << "cosim_master: config refused: " << e.what() << "\n";

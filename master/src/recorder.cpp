@@ -1,5 +1,6 @@
 #include "recorder.hpp"
 
+#include "cosim/files.hpp"
 #include "cosim/h5.hpp"
 #include "cosim/timer.hpp"
 
@@ -60,6 +61,7 @@ void write_bus_stats(hid_t file, const RunSetup& setup) {
 
 struct H5Recorder::Impl {
   std::string path;
+  std::unique_ptr<cosim::StagedFile> staged;  // renamed onto `path` when the run starts
   hid_t file = -1;
   const RunSetup* setup = nullptr;
   std::unique_ptr<Table> time;
@@ -90,8 +92,9 @@ struct H5Recorder::Impl {
 
 H5Recorder::H5Recorder(const std::string& path) : impl_(std::make_unique<Impl>()) {
   impl_->path = path;
+  impl_->staged = std::make_unique<cosim::StagedFile>(path);
   H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
-  impl_->file = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
+  impl_->file = H5Fcreate(impl_->staged->current().c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
   if (impl_->file < 0)
     throw std::runtime_error("cannot create output file '" + path +
                              "': check that its folder exists and is writable (output.file / --output)");
@@ -177,7 +180,10 @@ void H5Recorder::on_start(const RunSetup& s) {
     I.pows.push_back(std::move(pw));
   }
   I.flush_all();
+  I.staged->commit();  // the run has started: now the file replaces one of its name
 }
+
+bool H5Recorder::started() const { return impl_->staged->committed(); }
 
 void H5Recorder::on_step(const StepRecord& r) {
   auto& I = *impl_;
@@ -251,8 +257,9 @@ void H5Recorder::on_finish(bool ok, const std::string& message) {
 
 // ---------------------------------------------------------------------------------------------
 
-CsvWriter::CsvWriter(const std::string& path) : path_(path) {
-  file_ = std::fopen(path.c_str(), "w");
+CsvWriter::CsvWriter(const std::string& path)
+    : path_(path), staged_(std::make_unique<cosim::StagedFile>(path)) {
+  file_ = std::fopen(staged_->current().c_str(), "w");
   if (!file_)
     throw std::runtime_error("cannot create CSV file '" + path + "': check that its folder exists (output.csv / --csv)");
 }
@@ -275,6 +282,8 @@ void CsvWriter::on_start(const RunSetup& s) {
   std::map<std::string, cosim::Signals> initial;
   for (const auto& [name, info] : s.participants) initial[name] = info.initial_outputs;
   row(s.config->t_start, initial);
+  std::fflush(file_);
+  staged_->commit();
 }
 
 void CsvWriter::row(TimePoint t, const std::map<std::string, cosim::Signals>& outputs) {

@@ -6,6 +6,7 @@
 #include <memory>
 #include <string>
 
+#include "cosim/files.hpp"
 #include "cosim/stopwatch.hpp"
 #include "cosimulation.hpp"
 
@@ -13,18 +14,22 @@ namespace master {
 
 class H5Recorder final : public Observer {
  public:
-  // Creates (truncates) the file; raises std::runtime_error naming the path if it cannot.
+  // Creates the file under a temporary name beside `path` (cosim::StagedFile) and renames it
+  // onto `path` in on_start, so an existing file is replaced only when the run starts; raises
+  // std::runtime_error naming the path if it cannot.
   explicit H5Recorder(const std::string& path);
   ~H5Recorder() override;
   void on_start(const RunSetup& setup) override;
   void on_step(const StepRecord& record) override;
   void on_finish(bool ok, const std::string& message) override;
+  bool started() const;  // the file is at its path (on_start ran)
 
  private:
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };
 
+// Written under a temporary name and renamed onto `path` in on_start, as the H5Recorder.
 class CsvWriter final : public Observer {
  public:
   explicit CsvWriter(const std::string& path);
@@ -36,6 +41,7 @@ class CsvWriter final : public Observer {
  private:
   void row(TimePoint t, const std::map<std::string, cosim::Signals>& outputs);
   std::string path_;
+  std::unique_ptr<cosim::StagedFile> staged_;
   std::FILE* file_ = nullptr;
   std::vector<std::pair<std::string, std::string>> columns_;  // participant, signal
 };

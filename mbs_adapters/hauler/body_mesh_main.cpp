@@ -1,5 +1,7 @@
 // body_mesh --output FILE.stl [--config machine.yaml] [--element H]
 // Writes the dump body's inner shell as a binary STL in the body frame (docs/hauler.md).
+#include <cosim/files.hpp>
+#include <cosim/number_arg.hpp>
 #include <cosim/yaml_config.hpp>
 
 #include <cstdio>
@@ -29,11 +31,13 @@ int main(int argc, char** argv) {
       };
       if (a == "--output") output = value();
       else if (a == "--config") config = value();
-      else if (a == "--element") element = std::stod(value());
+      else if (a == "--element")
+        element = cosim::parse_number_arg(a, value(), "an edge length in m, 0.02..1 (e.g. 0.2)", 0.02, 1.0);
       else if (a == "--help" || a == "-h") { usage(); return 0; }
       else throw std::invalid_argument("unknown argument '" + a + "'");
     }
     if (output.empty()) throw std::invalid_argument("--output is required");
+    cosim::check_output_files({{"--output", output}}, {{"--config", config}});
     hauler::BodyShape shape;
     if (!config.empty()) shape = hauler::read_parameters(cosim::config::load_file(config)).shape;
     const auto mesh = hauler::make_body_mesh(shape, element);

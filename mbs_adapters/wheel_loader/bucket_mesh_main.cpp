@@ -1,5 +1,7 @@
 // bucket_mesh --output FILE.stl [--refine 1..4] [--config machine.yaml] [--width W]
 // Writes the bucket shell as a binary STL in the bucket frame (docs/wheel_loader.md).
+#include <cosim/files.hpp>
+#include <cosim/number_arg.hpp>
 #include <cosim/yaml_config.hpp>
 
 #include <cstdio>
@@ -34,13 +36,17 @@ int main(int argc, char** argv) {
         return argv[++i];
       };
       if (a == "--output") output = value();
-      else if (a == "--refine") refine = std::stoi(value());
+      else if (a == "--refine")
+        refine = static_cast<int>(cosim::parse_integer_arg(
+            a, value(), "a whole number 1.." + std::to_string(wheel_loader::kMaxRefine), 1,
+            wheel_loader::kMaxRefine));
       else if (a == "--config") config = value();
-      else if (a == "--width") width = std::stod(value());
+      else if (a == "--width") width = cosim::parse_number_arg(a, value(), "a width in m > 0 (e.g. 2.5)");
       else if (a == "--help" || a == "-h") { usage(); return 0; }
       else throw std::invalid_argument("unknown argument '" + a + "'");
     }
     if (output.empty()) throw std::invalid_argument("--output is required");
+    cosim::check_output_files({{"--output", output}}, {{"--config", config}});
     if (refine < 1 || refine > wheel_loader::kMaxRefine)
       throw std::invalid_argument("--refine must be 1.." + std::to_string(wheel_loader::kMaxRefine));
     wheel_loader::BucketShape shape;

@@ -16,6 +16,7 @@
 
 #include "cosim/bus.hpp"
 #include "cosim/participant.hpp"
+#include "cosim/number_arg.hpp"
 #include "cosim/stopwatch.hpp"
 
 namespace cosim {
@@ -102,8 +103,10 @@ int run_participant(Model& model, const std::string& default_name, int argc, cha
       if (a == "--name") name = value("--name");
       else if (a == "--bus") url = value("--bus");
       else if (a == "--session") session = parse_id_hex(value("--session"));
-      else if (a == "--idle-timeout") idle_timeout = std::stod(value("--idle-timeout"));
-      else if (a == "--wait") wait = std::stod(value("--wait"));
+      else if (a == "--idle-timeout")
+        idle_timeout = parse_number_arg(a, value("--idle-timeout"), "seconds > 0 (e.g. 60)");
+      else if (a == "--wait")
+        wait = parse_number_arg(a, value("--wait"), "seconds >= 0 (0: wait forever)");
       else if (a == "--help" || a == "-h") { usage(default_name); return 0; }
       else throw std::invalid_argument("unknown argument '" + a + "'");
     } catch (const std::exception& e) {

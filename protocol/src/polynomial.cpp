@@ -180,7 +180,9 @@ void check_finite(const InputPolynomial& p, const std::string& what) {
 
 polynomial_set_t to_message(const Polynomials& polynomials) {
   polynomial_set_t m{};
-  for (const auto& [name, p] : polynomials) {
+  for (const auto& entry : polynomials) {
+    const std::string& name = entry.first;
+    const InputPolynomial& p = entry.second;  // a plain reference: lambdas below capture it
     switch (p.kind) {
       case SignalKind::Scalar:
         m.scalars.push_back({name, p.n_coefficients, p.coefficients});

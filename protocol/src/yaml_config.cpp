@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cstdlib>
+#include <filesystem>
+#include <fstream>
 #include <functional>
 #include <sstream>
 
@@ -56,17 +58,84 @@ std::string join_path(std::string_view parent, std::string_view key) {
   return std::string(parent) + "." + std::string(key);
 }
 
-YAML::Node load_file(const std::string& path) {
+namespace {
+
+std::string at(const std::string& name, const YAML::Mark& m) {
+  return name + ":" + std::to_string(m.line + 1) + ":" + std::to_string(m.column + 1);
+}
+
+// Refuses what yaml-cpp accepts but a config never means: the same key twice in one map (yaml-cpp
+// keeps both and a lookup sees only the first) and keys that are lists or maps. Counts nodes so
+// aliases that multiply a document cannot make the walk run away.
+void check_document(const YAML::Node& node, const std::string& name, std::size_t& budget) {
+  if (budget == 0)
+    throw ConfigError(name + ": more than 1,000,000 values (aliases that repeat each other?): "
+                             "write the config out without nested aliases");
+  --budget;
+  if (node.IsSequence()) {
+    for (const auto& item : node) check_document(item, name, budget);
+  } else if (node.IsMap()) {
+    std::vector<std::pair<std::string, YAML::Mark>> seen;
+    for (const auto& kv : node) {
+      if (!kv.first.IsScalar())
+        throw ConfigError(at(name, kv.first.Mark()) + ": a key must be a plain name, got " +
+                          describe(kv.first) + ": write 'name: value'");
+      const std::string& key = kv.first.Scalar();
+      for (const auto& [k, mark] : seen)
+        if (k == key)
+          throw ConfigError(at(name, kv.first.Mark()) + ": duplicate key '" + key +
+                            "' (first at line " + std::to_string(mark.line + 1) +
+                            "): a key may appear once in a map; remove or merge one of them");
+      seen.emplace_back(key, kv.first.Mark());
+      check_document(kv.second, name, budget);
+    }
+  }
+}
+
+YAML::Node checked_root(YAML::Node root, const std::string& name) {
+  std::size_t budget = 1000000;
+  check_document(root, name, budget);
+  if (root.IsNull()) return root;  // an empty file: every key takes its default
+  if (!root.IsMap())
+    throw ConfigError(name + ": expected a map of 'key: value' lines at the top level, got " +
+                      (root.IsScalar() ? "the single value '" + root.Scalar() + "'" : describe(root)) +
+                      ": is this the right file? (docs/config.md, docs/dem.md)");
+  return root;
+}
+
+YAML::Node parse(const std::string& text, const std::string& name) {
   try {
-    return YAML::LoadFile(path);
-  } catch (const YAML::BadFile&) {
-    throw ConfigError("cannot read config file '" + path + "': check the path");
+    return YAML::Load(text);
   } catch (const YAML::ParserException& e) {
     std::ostringstream msg;
-    msg << path << ":" << e.mark.line + 1 << ":" << e.mark.column + 1
+    msg << name << ":" << e.mark.line + 1 << ":" << e.mark.column + 1
         << ": not valid YAML: " << e.msg;
     throw ConfigError(msg.str());
+  } catch (const YAML::Exception& e) {  // e.g. nesting too deep
+    throw ConfigError(name + ": not valid YAML: " + e.msg);
   }
+}
+
+}  // namespace
+
+YAML::Node load_file(const std::string& path) {
+  std::error_code ec;
+  const auto status = std::filesystem::status(path, ec);
+  if (status.type() == std::filesystem::file_type::directory)
+    throw ConfigError("config file '" + path + "' is a folder, not a file: give the YAML file "
+                      "itself (e.g. " + (std::filesystem::path(path) / "config.yaml").string() + ")");
+  if (status.type() == std::filesystem::file_type::not_found)
+    throw ConfigError("cannot read config file '" + path + "': it does not exist; check the path");
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw ConfigError("cannot read config file '" + path + "': check the path and its permissions");
+  std::ostringstream text;
+  text << in.rdbuf();
+  if (in.bad()) throw ConfigError("cannot read config file '" + path + "': read error");
+  return checked_root(parse(text.str(), path), path);
+}
+
+YAML::Node load_string(const std::string& text, const std::string& name) {
+  return checked_root(parse(text, name), name);
 }
 
 void apply_overrides(YAML::Node& root, const YAML::Node& overrides, std::string_view what) {

@@ -3,10 +3,13 @@
 
 #include <filesystem>
 #include <fstream>
+#include <limits>
+#include <sstream>
 
 #include "cosim/yaml_config.hpp"
 #include "dem/checkpoint.hpp"
 #include "dem/config.hpp"
+#include "dem/output.hpp"
 #include "dem/stability.hpp"
 #include "dem_test_util.hpp"
 
@@ -179,6 +182,168 @@ TEST(dem_BadInput, BadValuesNameTheKey) {
   expect_has(error_of({"contact.particle_particle.normal_damping=3"}), "exactly one of");
   expect_has(error_of({"particles.list[0].species=gravel"}), "");
   expect_has(error_of({"particles.list=[{species: gravel, position: [0,0,0]}]"}), "gravel");
+}
+
+// --- Meshes: a truncated or damaged STL and a vertex that is not a finite point are named. ----
+
+const char* kSquare =
+    "solid square\n"
+    " facet normal 0 0 1\n  outer loop\n   vertex 0 0 0\n   vertex 0.1 0 0\n   vertex 0 0.1 0\n"
+    "  endloop\n endfacet\n"
+    " facet normal 0 0 1\n  outer loop\n   vertex 0.1 0 0\n   vertex 0.1 0.1 0\n   vertex 0 0.1 0\n"
+    "  endloop\n endfacet\n"
+    "endsolid square\n";
+
+// The error for a tool whose mesh file holds `text` ("" if accepted).
+std::string mesh_error(const std::string& file, const std::string& text) {
+  {
+    std::ofstream f(fs::path(dir()) / file, std::ios::binary);
+    f << text;
+  }
+  return error_of({"tools=[{name: blade, mesh: " + file + "}]"});
+}
+
+std::string replaced(std::string s, const std::string& from, const std::string& to) {
+  s.replace(s.find(from), from.size(), to);
+  return s;
+}
+
+std::string binary_stl(const std::vector<float>& xyz, std::size_t drop_bytes = 0) {
+  std::string b(80, ' ');
+  const std::uint32_t n = static_cast<std::uint32_t>(xyz.size() / 9);
+  b.append(reinterpret_cast<const char*>(&n), 4);
+  for (std::uint32_t t = 0; t < n; ++t) {
+    const float normal[3] = {0, 0, 1};
+    b.append(reinterpret_cast<const char*>(normal), 12);
+    b.append(reinterpret_cast<const char*>(&xyz[9 * t]), 36);
+    b.append(2, '\0');
+  }
+  return b.substr(0, b.size() - drop_bytes);
+}
+
+TEST(dem_BadInput, WellFormedStlIsAccepted) {
+  EXPECT_EQ(mesh_error("square.stl", kSquare), "");
+  EXPECT_EQ(mesh_error("square_bin.stl", binary_stl({0, 0, 0, 0.1f, 0, 0, 0, 0.1f, 0})), "");
+}
+
+TEST(dem_BadInput, TruncatedAsciiStlIsRefused) {
+  const std::string s = kSquare;
+  const auto msg = mesh_error("truncated.stl", s.substr(0, s.rfind("endloop")));
+  expect_has(msg, "tools[0].mesh: mesh file '");
+  expect_has(msg, "truncated.stl': the ASCII STL ends at line 14 inside solid 'at line 1' after 1 complete "
+                  "triangles, where 'endloop' should follow: the file is truncated; re-export it");
+  expect_has(mesh_error("no_endsolid.stl", s.substr(0, s.find("endsolid"))), "where 'endsolid' should follow");
+  expect_has(mesh_error("junk.stl", replaced(s, "endloop", "endlop")), "line 7: expected 'endloop', got 'endlop'");
+}
+
+TEST(dem_BadInput, TruncatedBinaryStlIsRefused) {
+  const auto msg = mesh_error("cut.stl", binary_stl({0, 0, 0, 0.1f, 0, 0, 0, 0.1f, 0}, 10));
+  expect_has(msg, "a binary STL of 124 bytes, but its header says 1 triangles, which take 84 + 50 x 1 = 134 bytes");
+  expect_has(msg, "re-export");
+}
+
+TEST(dem_BadInput, NonFiniteOrHugeVertexIsNamedNotCalledZeroArea) {
+  const std::string s = kSquare;
+  for (const char* bad : {"nan", "-nan", "inf", "-inf"}) {
+    const auto msg = mesh_error("bad_vertex.stl", replaced(s, "vertex 0.1 0.1 0", std::string("vertex 0.1 ") + bad + " 0"));
+    expect_has(msg, std::string("line 12: vertex 4 (triangle 1, corner 1) y is '") + bad + "': not a finite number");
+    EXPECT_EQ(msg.find("zero area"), std::string::npos) << msg;
+  }
+  auto msg = mesh_error("huge_vertex.stl", replaced(s, "vertex 0 0.1 0", "vertex 0 0.1 1e300"));
+  expect_has(msg, "vertex 2 (triangle 0, corner 2) z is 1e300, beyond the 32-bit floats an STL stores");
+  // In binary: a float that is not finite, named with its value.
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  msg = mesh_error("nan_bin.stl", binary_stl({0, 0, 0, 0.1f, 0, 0, 0, 0.1f, nan}));
+  expect_has(msg, "vertex 2 (triangle 0, corner 2) is (0, 0.100000001, nan): not a finite number");
+  // Finite but absurd after scaling: named too.
+  msg = mesh_error("far.stl", replaced(s, "vertex 0 0.1 0", "vertex 0 0.1 3e30"));
+  expect_has(msg, "triangle 0 corner 2 is at (0, 0.100000001, 3.0000002e+30) in the file, more than 1e6 m");
+  // OBJ (through assimp): the triangle and corner with the value.
+  msg = mesh_error("nan.obj", "v 0 0 0\nv 1 0 0\nv 0 nan 0\nf 1 2 3\n");
+  if (msg.find("could not be read") == std::string::npos)  // assimp may refuse "nan" itself
+    expect_has(msg, "not a finite number");
+  EXPECT_EQ(msg.find("zero area"), std::string::npos) << msg;
+}
+
+// --- Particles, YAML, files. --------------------------------------------------------------------
+
+TEST(dem_BadInput, EmptyParticleSetIsRefused) {
+  expect_has(error_of({"particles.list=[]"}),
+             "particles: the scene has no particles (particles.list is empty): give at least one in "
+             "particles.list, a particles.fill count > 0 or a particles.checkpoint with particles");
+  expect_has(error_of({"particles={fill: [{species: grain, min: [0, 0, 0], max: [0.1, 0.1, 0.1], count: 0}]}"}),
+             "(particles.fill places none (count 0))");
+  expect_has(error_of({"particles={}"}), "(none given)");
+}
+
+TEST(dem_BadInput, FillRegionInTheWrongUnitsIsRefused) {
+  expect_has(error_of({"particles={fill: [{species: grain, min: [0, 0, 0], max: [1.0e6, 1.0e6, 1], count: 10}]}"}),
+             "lattice cells (pitch 0.0115 m) across: give min and max in metres");
+}
+
+TEST(dem_BadInput, DuplicateKeyInADemConfigIsRefused) {
+  try {
+    cosim::config::load_string(std::string(kBase) + "scene: {dt: 1.0e-4}\n", "scene.yaml");
+    FAIL() << "accepted";
+  } catch (const cosim::config::ConfigError& e) {
+    expect_has(e.what(), "scene.yaml:11:1: duplicate key 'scene' (first at line 2)");
+  }
+}
+
+TEST(dem_BadInput, OutputOntoAnInputOrAnotherOutputIsRefused) {
+  YAML::Node root = YAML::Load(kBase);
+  {
+    std::ofstream f(fs::path(dir()) / "plate.stl");
+    f << kSquare;
+  }
+  cosim::config::apply_override(root, "tools=[{name: blade, mesh: plate.stl}]");
+  dem::RunConfig rc = dem::load_config(root, dir());
+  const std::string cfg = (fs::path(dir()) / "scene.yaml").string();
+  {
+    std::ofstream f(cfg);
+    f << kBase;
+  }
+  const std::string mesh = (fs::path(dir()) / "plate.stl").string();
+  auto refusal = [&](const dem::RunConfig& r) {
+    try {
+      dem::check_files(r, cfg, "--output");
+      return std::string();
+    } catch (const cosim::config::ConfigError& e) {
+      return std::string(e.what());
+    }
+  };
+  rc.output.file = (fs::path(dir()) / "out.h5").string();
+  EXPECT_EQ(refusal(rc), "");
+  rc.output.file = mesh;
+  expect_has(refusal(rc), "--output '" + mesh + "' is the same file as tools[0].mesh '" + mesh + "'");
+  rc.output.file = cfg;
+  expect_has(refusal(rc), "is the same file as the config file");
+  rc.output.file = (fs::path(dir()) / "out.h5").string();
+  rc.output.checkpoint = (fs::path(dir()) / "out.xdmf").string();
+  expect_has(refusal(rc), "the XDMF file beside --output '" + (fs::path(dir()) / "out.xdmf").string() +
+                              "' and output.checkpoint");
+}
+
+// The DEM's output file replaces an existing one only at its first flush.
+TEST(dem_BadInput, ExistingOutputIsReplacedOnlyWhenTheRunWrites) {
+  const fs::path out = fs::path(dir()) / "replace_me.h5";
+  {
+    std::ofstream f(out);
+    f << "old";
+  }
+  YAML::Node root = YAML::Load(kBase);
+  dem::RunConfig rc = dem::load_config(root, dir());
+  auto text = [&] {
+    std::ifstream f(out);
+    std::stringstream s;
+    s << f.rdbuf();
+    return s.str();
+  };
+  {
+    dem::RunOutput o(out.string(), rc.scene, rc.config_text);
+    EXPECT_EQ(text(), "old");
+  }  // destroyed: flushes, so the file is replaced
+  EXPECT_EQ(text().rfind("\x89HDF", 0), 0u);
 }
 
 }  // namespace

@@ -7,7 +7,9 @@
 #include <fstream>
 #include <sstream>
 
+#include "cosim/files.hpp"
 #include "cosim/h5.hpp"
+#include "cosim/number_arg.hpp"
 #include "cosim/paths.hpp"
 #include "cosim/timer.hpp"
 #include "cosim/trajectory.hpp"
@@ -116,4 +118,115 @@ TEST(ReadTrajectory, OneOfKeyframesOrCsvWithTheKeyNamedInTheCallersStyle) {
   refused("{keyframes: [{time: 1, position: [0, 0, 0]}, {time: 1, position: [0, 0, 0]}]}",
           "tools.0", "increase strictly");
   refused("{csv: /nonexistent/motion.csv}", "tools.0", "tools.0.csv: motion file");
+}
+
+// --- Output files (cosim/files.hpp) and command-line numbers (cosim/number_arg.hpp). ---------
+
+namespace {
+
+fs::path fresh(const std::string& name) {
+  const fs::path d = fs::temp_directory_path() / ("support_files_" + name);
+  fs::remove_all(d);
+  fs::create_directories(d);
+  return d;
+}
+
+std::string refusal(const std::vector<cosim::NamedFile>& out, const std::vector<cosim::NamedFile>& in) {
+  try {
+    cosim::check_output_files(out, in);
+    return "";
+  } catch (const cosim::config::ConfigError& e) {
+    return e.what();
+  }
+}
+
+std::string slurp(const fs::path& p) {
+  std::ifstream f(p);
+  std::stringstream s;
+  s << f.rdbuf();
+  return s.str();
+}
+
+}  // namespace
+
+TEST(Files, SameFileByInodeOrCanonicalPath) {
+  const fs::path d = fresh("same");
+  std::ofstream(d / "a.yaml") << "a: 1\n";
+  fs::create_hard_link(d / "a.yaml", d / "hard.yaml");
+  fs::create_symlink(d / "a.yaml", d / "soft.yaml");
+  fs::create_directories(d / "sub");
+  EXPECT_TRUE(cosim::same_file((d / "a.yaml").string(), (d / "hard.yaml").string()));
+  EXPECT_TRUE(cosim::same_file((d / "a.yaml").string(), (d / "soft.yaml").string()));
+  EXPECT_TRUE(cosim::same_file((d / "a.yaml").string(), (d / "sub/../a.yaml").string()));
+  EXPECT_TRUE(cosim::same_file((d / "new.h5").string(), (d / "sub/../new.h5").string()));  // neither exists
+  EXPECT_FALSE(cosim::same_file((d / "a.yaml").string(), (d / "new.h5").string()));
+  EXPECT_FALSE(cosim::same_file((d / "x.h5").string(), (d / "y.h5").string()));
+  EXPECT_FALSE(cosim::same_file("", ""));
+}
+
+TEST(Files, OutputsOntoEachOtherOrAnInputAreRefusedNamingBoth) {
+  const fs::path d = fresh("check");
+  std::ofstream(d / "run.yaml") << "a: 1\n";
+  const std::string cfg = (d / "run.yaml").string(), h5 = (d / "x.h5").string();
+  EXPECT_EQ(refusal({{"--output", h5}, {"--csv", (d / "x.csv").string()}}, {{"the config file", cfg}}), "");
+  EXPECT_EQ(refusal({{"--output", h5}, {"--csv", h5}}, {}),
+            "--output '" + h5 + "' and --csv '" + h5 +
+                "' are the same file: both would write it and leave it unreadable; give them different names");
+  EXPECT_EQ(refusal({{"--output", cfg}}, {{"the config file", cfg}}),
+            "--output '" + cfg + "' is the same file as the config file '" + cfg +
+                "', which this run reads: writing it would destroy the input; choose another output name");
+  EXPECT_NE(refusal({{"--output", (d / "none" / "x.h5").string()}}, {}).find("the folder '" + (d / "none").string() + "' does not exist"),
+            std::string::npos);
+  EXPECT_NE(refusal({{"output.file", d.string()}}, {}).find("output.file '" + d.string() + "' is a folder"),
+            std::string::npos);
+  EXPECT_EQ(refusal({{"--output", ""}, {"--csv", ""}}, {{"the config file", cfg}}), "");  // none
+}
+
+TEST(Files, AStagedFileReplacesTheOldOneOnlyWhenCommitted) {
+  const fs::path d = fresh("staged");
+  const fs::path out = d / "out.h5";
+  std::ofstream(out) << "old";
+  {
+    cosim::StagedFile f(out.string());
+    EXPECT_NE(f.current(), out.string());
+    EXPECT_EQ(fs::path(f.current()).parent_path(), d);  // same folder: the rename is atomic
+    std::ofstream(f.current()) << "new";
+    EXPECT_EQ(slurp(out), "old");
+  }  // never committed: the temporary file goes, the old file stays
+  EXPECT_EQ(slurp(out), "old");
+  EXPECT_EQ(std::distance(fs::directory_iterator(d), fs::directory_iterator()), 1);
+  {
+    cosim::StagedFile f(out.string());
+    std::ofstream(f.current()) << "new";
+    f.commit();
+    EXPECT_TRUE(f.committed());
+    EXPECT_EQ(f.current(), out.string());
+    f.commit();  // again: nothing
+  }
+  EXPECT_EQ(slurp(out), "new");
+  EXPECT_EQ(std::distance(fs::directory_iterator(d), fs::directory_iterator()), 1);
+}
+
+TEST(NumberArg, NamesTheOptionAndWhatItExpects) {
+  auto msg = [](auto f) {
+    try {
+      f();
+      return std::string();
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+  };
+  EXPECT_EQ(cosim::parse_number_arg("--wait", "2.5", "seconds"), 2.5);
+  EXPECT_EQ(cosim::parse_number_arg("--wait", "1e-3", "seconds"), 1e-3);
+  EXPECT_EQ(msg([] { cosim::parse_number_arg("--wait", "soon", "seconds >= 0"); }),
+            "--wait: 'soon' is not a number; expected seconds >= 0");
+  for (const char* bad : {"", "5s", "nan", "inf", "1e999", "0x", "1,5"})
+    EXPECT_NE(msg([&] { cosim::parse_number_arg("--x", bad, "a number"); }), "") << bad;
+  EXPECT_EQ(msg([] { cosim::parse_number_arg("--element", "5", "0.02..1", 0.02, 1.0); }),
+            "--element: 5 is out of range; expected 0.02..1");
+  EXPECT_EQ(cosim::parse_integer_arg("--refine", "3", "1..4", 1, 4), 3);
+  EXPECT_EQ(msg([] { cosim::parse_integer_arg("--refine", "2.5", "1..4", 1, 4); }),
+            "--refine: '2.5' is not a whole number; expected 1..4");
+  EXPECT_EQ(msg([] { cosim::parse_integer_arg("--refine", "0", "1..4", 1, 4); }),
+            "--refine: 0 is out of range; expected 1..4");
 }

@@ -1,4 +1,5 @@
 #include <cosim/time.hpp>
+#include <filesystem>
 #include <cosim/yaml_config.hpp>
 #include <gtest/gtest.h>
 
@@ -88,4 +89,54 @@ TEST(YamlConfig, TimesAreWholeNanoseconds) {
   EXPECT_EQ(cosim::seconds_to_time_point(4e-4, "t"), cosim::time_point_ns(400'000));
   EXPECT_THROW(cosim::seconds_to_duration(1.5e-10, "t"), ConfigError);
   EXPECT_THROW(cosim::seconds_to_time_point(-1, "t"), ConfigError);
+}
+
+namespace {
+
+std::string refusal(const std::string& text) {
+  try {
+    load_string(text, "c.yaml");
+    return "";
+  } catch (const ConfigError& e) {
+    return e.what();
+  }
+}
+
+}  // namespace
+
+// What yaml-cpp accepts but no config means is refused, naming the file, line and the fix.
+TEST(YamlConfig, FilesThatAreNotAMapOfKeysAreRefused) {
+  EXPECT_EQ(refusal("a: 1\nb: {c: 2}\n"), "");
+  EXPECT_EQ(refusal(""), "");  // empty: every key takes its default
+  EXPECT_EQ(refusal("hello\n"),
+            "c.yaml: expected a map of 'key: value' lines at the top level, got the single value "
+            "'hello': is this the right file? (docs/config.md, docs/dem.md)");
+  EXPECT_NE(refusal("[1, 2]\n").find("c.yaml: expected a map of 'key: value' lines at the top level, got a list"),
+            std::string::npos);
+  EXPECT_EQ(refusal("a: 1\nb:\n  c: 2\n  c: 3\n"),
+            "c.yaml:4:3: duplicate key 'c' (first at line 3): a key may appear once in a map; "
+            "remove or merge one of them");
+  EXPECT_NE(refusal("l: [{x: 1, x: 2}]\n").find("duplicate key 'x'"), std::string::npos);
+  EXPECT_NE(refusal("? [1, 2]\n: 3\n").find("c.yaml:1:3: a key must be a plain name, got a list"),
+            std::string::npos);
+  EXPECT_NE(refusal("a: [1, 2\n").find("c.yaml:"), std::string::npos);
+  EXPECT_NE(refusal("a: [1, 2\n").find("not valid YAML"), std::string::npos);
+}
+
+TEST(YamlConfig, AFolderOrAMissingFileIsNamed) {
+  const auto dir = std::filesystem::temp_directory_path() / "yaml_config_folder_test";
+  std::filesystem::create_directories(dir);
+  try {
+    load_file(dir.string());
+    FAIL() << "no error";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("config file '" + dir.string() + "' is a folder, not a file"),
+              std::string::npos) << e.what();
+  }
+  try {
+    load_file((dir / "missing.yaml").string());
+    FAIL() << "no error";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("missing.yaml': it does not exist"), std::string::npos) << e.what();
+  }
 }

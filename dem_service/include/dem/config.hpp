@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <string>
 
+#include "cosim/files.hpp"
 #include "dem/bed.hpp"
 #include "dem/scene.hpp"
 #include "dem/state.hpp"
@@ -54,7 +55,20 @@ struct RunConfig {
   bool continues = false;
   Perturbation perturb;     // applied to state already
   std::string config_text;  // the config as run (after --set), stored in the output
+  // The files the config made it read (meshes, keyframe CSVs, the checkpoint), as resolved.
+  std::vector<cosim::NamedFile> inputs;
 };
+
+// The files a run writes: output.file, the XDMF file beside it, output.checkpoint and, with
+// settle, settle.checkpoint. `output_key` names output.file in messages (e.g. "--output").
+std::vector<cosim::NamedFile> output_files(const RunConfig& rc, const std::string& output_key = "output.file");
+
+// Refuses outputs equal to each other or to an input (rc.inputs and the config file itself)
+// before anything is written (cosim::check_output_files). extra_outputs: files the program
+// writes besides output_files (dem_service's service.checkpoint).
+void check_files(const RunConfig& rc, const std::string& config_path,
+                 const std::string& output_key = "output.file",
+                 const std::vector<cosim::NamedFile>& extra_outputs = {});
 
 // Parses every section, then reads the files it names (meshes, keyframe CSVs, a checkpoint)
 // and generates the initial state (checkpoint, then particles.list, then particles.fill).

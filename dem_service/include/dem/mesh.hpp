@@ -29,6 +29,15 @@ Mesh build_mesh(const std::vector<Vec3>& corners, const std::string& source);
 // Loads STL, OBJ, PLY (anything assimp reads), scales it and stores it relative to
 // reference_point (given in the file's frame, after scaling). Throws std::runtime_error naming
 // the file and the fix when the file is missing, unreadable or has no triangles.
+// A .stl file is first read strictly (dem/stl.hpp): a truncated file or a vertex that is not a
+// finite float is named. Any format: a corner that is not finite or lies more than
+// kMaxMeshCoordinate from the reference point after scaling is named (triangle, corner, value).
 Mesh load_mesh(const std::string& path, double scale, Vec3 reference_point);
+// load_mesh on bytes in memory when `path` names an STL (path is used for its extension and in
+// messages); other formats are read from the file at path and stl_bytes is ignored.
+Mesh load_mesh_data(const std::string& stl_bytes, const std::string& path, double scale,
+                    Vec3 reference_point);
+
+inline constexpr double kMaxMeshCoordinate = 1e6;  // m
 
 }  // namespace dem

@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "cosim/files.hpp"
 #include "cosim/h5.hpp"
 #include "cosim/stopwatch.hpp"
 #include "dem/engine.hpp"
@@ -17,7 +18,10 @@ namespace dem {
 
 class RunOutput {
  public:
-  // Throws std::runtime_error naming the file and the fix if it cannot be created.
+  // Throws std::runtime_error naming the file and the fix if it cannot be created. The file is
+  // written under a temporary name beside `path` and renamed onto it at the first flush(), so
+  // an existing file of that name is replaced only when the run starts writing (the XDMF file
+  // is written at each flush, after that rename).
   RunOutput(const std::string& path, const Scene& scene, const std::string& config_text);
   ~RunOutput();
   RunOutput(const RunOutput&) = delete;
@@ -41,6 +45,7 @@ class RunOutput {
   void write_xdmf() const;
   std::string path_, xdmf_;
   const Scene& scene_;
+  std::unique_ptr<cosim::StagedFile> staged_;
   long long file_ = -1;
   std::vector<double> snapshot_times_;
   std::vector<std::size_t> snapshot_sizes_;

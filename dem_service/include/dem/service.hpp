@@ -34,7 +34,8 @@ class ServiceModel final : public cosim::Model {
  public:
   // root: the DEM config (the dem_run schema plus `service`), after --set; base_dir resolves its
   // relative paths. The config is checked here in full, so a bad file fails at start-up.
-  ServiceModel(YAML::Node root, std::string base_dir);
+  // config_path (if given) is the file root came from: no output may overwrite it.
+  ServiceModel(YAML::Node root, std::string base_dir, std::string config_path = {});
   ~ServiceModel() override;
 
   void configure(const YAML::Node& parameters, const cosim::RunInfo& run) override;
@@ -61,7 +62,7 @@ class ServiceModel final : public cosim::Model {
   void set_tool_poses(const cosim::StepInputs& in, cosim::TimePoint t);
 
   YAML::Node root_;  // as loaded, before the master's parameters
-  std::string base_dir_;
+  std::string base_dir_, config_path_;
   std::unique_ptr<RunConfig> rc_;
   std::unique_ptr<Engine> engine_;
   std::unique_ptr<RunOutput> out_;

@@ -17,8 +17,12 @@ struct ConfigError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-// Reads a YAML file; a missing or malformed file raises ConfigError naming the file and line.
+// Reads a YAML config file. Raises ConfigError naming the file (and line) when it is missing, a
+// folder, not valid YAML, has the same key twice in a map or a key that is not a plain name, or
+// its top level is not a map (an empty file gives a null node: every key takes its default).
 YAML::Node load_file(const std::string& path);
+// The same checks on text in memory; `name` stands for the file in messages.
+YAML::Node load_string(const std::string& text, const std::string& name);
 
 // Applies "a.b.c=value" (from --set) to root: the value is parsed as YAML, so numbers, lists
 // and maps work. Intermediate maps are created. A malformed assignment raises ConfigError.
