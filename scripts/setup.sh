@@ -11,6 +11,7 @@ packages=(
   libsodium-dev
   python3-matplotlib python3-h5py python3-numpy python3-yaml
   iproute2 util-linux
+  clang libclang-rt-14-dev
 )
 missing=()
 for p in "${packages[@]}"; do

@@ -57,9 +57,15 @@ Mesh build_mesh(const std::vector<Vec3>& corners, const std::string& source) {
     lo = {std::min(lo.x, p.x), std::min(lo.y, p.y), std::min(lo.z, p.z)};
     hi = {std::max(hi.x, p.x), std::max(hi.y, p.y), std::max(hi.z, p.z)};
   }
-  const double tol = std::max(1e-9 * norm(hi - lo), 1e-300);
+  // The floor keeps v / tol within int64 for every coordinate allowed (|v| <= 1e6 m, checked
+  // above): a sub-millimetre mesh welds at 1e-12 m. Cells are signed, stored as their two's
+  // complement (converting a negative double straight to uint64 is undefined; found by
+  // tests/fuzz/fuzz_stl).
+  const double tol = std::max(1e-9 * norm(hi - lo), 1e-12);
   std::unordered_map<PosKey, std::vector<std::int32_t>, PosHash> index;
-  auto cell = [&](double v) { return static_cast<std::uint64_t>(std::floor(v / tol)); };
+  auto cell = [&](double v) {
+    return static_cast<std::uint64_t>(static_cast<std::int64_t>(std::floor(v / tol)));
+  };
   auto vertex_id = [&](Vec3 p) {
     const std::uint64_t cx = cell(p.x), cy = cell(p.y), cz = cell(p.z);
     for (std::uint64_t dx = cx - 1; dx != cx + 2; ++dx)

@@ -10,6 +10,7 @@
 #include "cosim/participant.hpp"
 #include "cosim/polynomial.hpp"
 #include "cosim/signal.hpp"
+#include "cosim/yaml_config.hpp"
 
 namespace fuzz {
 
@@ -52,8 +53,8 @@ class Model final : public cosim::Model {
   }
 };
 
-inline configure_t configure_message() {
-  configure_t m{};
+inline cosim::configure_t configure_message() {
+  cosim::configure_t m{};
   m.protocol_version = cosim::kProtocolVersion;
   m.session_id = kSession;
   m.participant = kName;
@@ -63,8 +64,8 @@ inline configure_t configure_message() {
   return m;
 }
 
-inline step_request_t request_message() {
-  step_request_t q{};
+inline cosim::step_request_t request_message() {
+  cosim::step_request_t q{};
   q.session_id = kSession;
   q.participant = kName;
   q.step_index = 0;
@@ -76,7 +77,7 @@ inline step_request_t request_message() {
   return q;
 }
 
-inline ready_t ready_message() {
+inline cosim::ready_t ready_message() {
   Model model;
   cosim::ParticipantCore core(kName, model);
   return *core.configure(configure_message());
