@@ -13,10 +13,10 @@ set(strings 0)
 set(arrays 0)
 foreach(h ${headers})
   file(READ "${h}" text)
-  string(REGEX MATCHALL "if\\(__[A-Za-z0-9_]+_len__ > maxlen - pos\\) return -1;" s "${text}")
+  string(REGEX MATCHALL "_len__ > maxlen - pos\\)" s "${text}")
   string(REGEX REPLACE "if\\(__([A-Za-z0-9_]+)_len__ > maxlen - pos\\) return -1;"
          "if(__\\1_len__ < 1 || __\\1_len__ > maxlen - pos) return -1;" text "${text}")
-  string(REGEX MATCHALL "this->[A-Za-z0-9_]+\\.resize\\(this->[A-Za-z0-9_]+\\);" a "${text}")
+  string(REGEX MATCHALL "\\.resize\\(this->" a "${text}")
   string(REGEX REPLACE "([ ]*)this->([A-Za-z0-9_]+)\\.resize\\(this->([A-Za-z0-9_]+)\\);"
          "\\1if(this->\\3 < 0 || this->\\3 > maxlen - pos) return -1;\n\\1this->\\2.resize(this->\\3);"
          text "${text}")

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Fuzzing with libFuzzer (docs/testing.md#fuzzing).
 #   scripts/fuzz.sh smoke          build the targets in build-fuzz/ and run each over its seed
-#                                  corpus plus a fixed number of new inputs (CI: a few minutes)
+#                                  corpus plus FUZZ_RUNS new inputs (default 4000), at most 90 s
+#                                  per target (CI: a few minutes)
 #   scripts/fuzz.sh long [SECONDS] run each target for SECONDS (default 3600) on 1 core, growing
 #                                  the corpus in build-fuzz/corpus/<target>
 # A crash leaves the input in build-fuzz/crash-*; reproduce with build-fuzz/bin/<target> FILE.
@@ -35,7 +36,7 @@ for t in messages config stl; do
   if [ "$mode" = long ]; then
     args+=(-max_total_time="$seconds")
   else
-    args+=(-runs="$runs")
+    args+=(-runs="$runs" -max_total_time=90)  # whichever comes first
   fi
   echo "fuzz: $t (${mode})"
   if ! "$build/bin/fuzz_$t" "${args[@]}" "$build/corpus/$t" "tests/fuzz/corpus/$t" \

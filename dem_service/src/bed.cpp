@@ -50,14 +50,15 @@ void fill_region(const Scene& scene, const FillRegion& region, State& s) {
   // Half a pitch from the region's faces: a jittered particle stays inside the region.
   const double e = pitch / 2;
   const Vec3 lo = region.min + Vec3{e, e, e}, hi = region.max - Vec3{e, e, e};
-  // A lattice layer of more than 1e8 cells is a region in the wrong units (and would not fit
-  // a long or memory): refuse it before counting in integers.
+  // A lattice layer of more than 1e7 cells (a 70 m square at a 1 cm radius; a 1M-particle bed
+  // needs about 1e5) is a region in the wrong units, and the layer's shuffle would take its
+  // size in memory: refuse it before counting in integers.
   const double layer = (std::floor((hi.x - lo.x) / pitch) + 1) * (std::floor((hi.y - lo.y) / pitch) + 1);
-  if (!(layer <= 1e8) || !(std::floor((hi.z - lo.z) / pitch) + 1 <= 1e8)) {
+  if (!(layer <= 1e7) || !(std::floor((hi.z - lo.z) / pitch) + 1 <= 1e7)) {
     std::ostringstream msg;
     msg << "particles.fill: region [" << region.min.x << ", " << region.min.y << ", " << region.min.z
         << "] .. [" << region.max.x << ", " << region.max.y << ", " << region.max.z
-        << "] m is more than 1e8 lattice cells (pitch " << pitch
+        << "] m is more than 1e7 lattice cells (pitch " << pitch
         << " m) across: give min and max in metres around where the particles go";
     throw cosim::config::ConfigError(msg.str());
   }

@@ -152,9 +152,11 @@ TEST_P(BadInput, IsRefusedWithAMessageNamingIt) {
     if (fs::path(path).filename() == "run.log") continue;
     EXPECT_EQ(read(path), text) << path << " was changed by a refused run";
   }
-  for (const auto& e : fs::recursive_directory_iterator(d))
-    if (e.is_regular_file() && fs::path(e.path()).filename() != "run.log")
+  for (const auto& e : fs::recursive_directory_iterator(d)) {
+    if (e.is_regular_file() && fs::path(e.path()).filename() != "run.log") {
       EXPECT_TRUE(before.count(e.path().string())) << e.path() << " was written by a refused run";
+    }
+  }
 }
 
 void set_dem(const fs::path& d, const std::string& from, const std::string& to) {
