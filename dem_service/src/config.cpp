@@ -564,12 +564,12 @@ std::vector<cosim::NamedFile> output_files(const RunConfig& rc, const std::strin
 }
 
 void check_files(const RunConfig& rc, const std::string& config_path, const std::string& output_key,
-                 const std::vector<cosim::NamedFile>& extra_outputs) {
+                 const std::vector<cosim::NamedFile>& extra_outputs, bool require_folders) {
   std::vector<cosim::NamedFile> outputs = output_files(rc, output_key);
   outputs.insert(outputs.end(), extra_outputs.begin(), extra_outputs.end());
   std::vector<cosim::NamedFile> inputs{{"the config file", config_path}};
   inputs.insert(inputs.end(), rc.inputs.begin(), rc.inputs.end());
-  cosim::check_output_files(outputs, inputs);
+  cosim::check_output_files(outputs, inputs, require_folders);
 }
 
 }  // namespace dem

@@ -58,12 +58,12 @@ ToolPose tool_pose_from(const cosim::Kinematics& k) {
 
 ServiceModel::ServiceModel(YAML::Node root, std::string base_dir, std::string config_path)
     : root_(YAML::Clone(root)), base_dir_(std::move(base_dir)), config_path_(std::move(config_path)) {
-  build(YAML::Clone(root_), "config");  // fail at start-up, not when the master connects
+  build(YAML::Clone(root_), "config", true);  // fail at start-up, not when the master connects
 }
 
 ServiceModel::~ServiceModel() = default;
 
-void ServiceModel::build(YAML::Node root, const std::string& what) {
+void ServiceModel::build(YAML::Node root, const std::string& what, bool startup) {
   options_ = read_service_options(root);
   auto rc = std::make_unique<RunConfig>(load_config(root, base_dir_));
   if (rc->scene.tools.empty())
@@ -73,7 +73,8 @@ void ServiceModel::build(YAML::Node root, const std::string& what) {
   check_dt(rc->scene, warn);
   if (!warn.str().empty()) std::cerr << "dem_service: " << warn.str();
   validate_state(rc->scene, rc->state, !rc->continues);
-  check_files(*rc, config_path_, "output.file", {{"service.checkpoint", options_.checkpoint}});
+  check_files(*rc, config_path_, "output.file", {{"service.checkpoint", options_.checkpoint}},
+              !startup);
   inner_step_ = cosim::seconds_to_duration(rc->scene.dt, "scene.dt");
   if (std::abs(cosim::to_seconds(inner_step_) - rc->scene.dt) > 1e-12 * rc->scene.dt)
     throw cfg::ConfigError("scene.dt: " + std::to_string(rc->scene.dt) +
@@ -97,6 +98,9 @@ void ServiceModel::configure(const YAML::Node& parameters, const cosim::RunInfo&
                    "('%s'); set it in the config file or with --set in the launch command\n",
                    run.participant.c_str(), thread_wait_name(rc_->scene.thread_wait),
                    thread_wait_name(w.policy));
+  } else {
+    // The config file's own paths are final: now their folders must exist.
+    check_files(*rc_, config_path_, "output.file", {{"service.checkpoint", options_.checkpoint}});
   }
   pristine_ = false;
   run_ = run;

@@ -37,7 +37,8 @@ bool same_file(const std::string& a, const std::string& b) {
   return canonical_or_normal(a) == canonical_or_normal(b);
 }
 
-void check_output_files(const std::vector<NamedFile>& outputs, const std::vector<NamedFile>& inputs) {
+void check_output_files(const std::vector<NamedFile>& outputs, const std::vector<NamedFile>& inputs,
+                        bool require_folders) {
   using config::ConfigError;
   for (std::size_t i = 0; i < outputs.size(); ++i) {
     const NamedFile& o = outputs[i];
@@ -48,7 +49,7 @@ void check_output_files(const std::vector<NamedFile>& outputs, const std::vector
                         (fs::path(o.path) / "out.h5").string() + ")");
     fs::path folder = fs::path(o.path).parent_path();
     if (folder.empty()) folder = ".";
-    if (!fs::is_directory(folder, ec))
+    if (require_folders && !fs::is_directory(folder, ec))
       throw ConfigError(quoted(o) + ": the folder '" + folder.string() +
                         "' does not exist: create it or choose another path");
     for (std::size_t j = 0; j < i; ++j)

@@ -68,7 +68,8 @@ std::vector<cosim::NamedFile> output_files(const RunConfig& rc, const std::strin
 // writes besides output_files (dem_service's service.checkpoint).
 void check_files(const RunConfig& rc, const std::string& config_path,
                  const std::string& output_key = "output.file",
-                 const std::vector<cosim::NamedFile>& extra_outputs = {});
+                 const std::vector<cosim::NamedFile>& extra_outputs = {},
+                 bool require_folders = true);
 
 // Parses every section, then reads the files it names (meshes, keyframe CSVs, a checkpoint)
 // and generates the initial state (checkpoint, then particles.list, then particles.fill).

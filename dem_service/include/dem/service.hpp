@@ -58,7 +58,9 @@ class ServiceModel final : public cosim::Model {
   const ServiceOptions& options() const { return options_; }
 
  private:
-  void build(YAML::Node root, const std::string& what);
+  // startup: the config file alone; its output folders need not exist yet, because the
+  // master's parameters may replace the paths (checked in configure once they are final).
+  void build(YAML::Node root, const std::string& what, bool startup = false);
   void set_tool_poses(const cosim::StepInputs& in, cosim::TimePoint t);
 
   YAML::Node root_;  // as loaded, before the master's parameters

@@ -20,7 +20,10 @@ bool same_file(const std::string& a, const std::string& b);
 // Refuses, before anything is written, outputs that are the same file as each other or as an
 // input, and outputs whose folder does not exist or that are folders. Raises
 // config::ConfigError naming both paths (and the keys that give them) and the fix.
-void check_output_files(const std::vector<NamedFile>& outputs, const std::vector<NamedFile>& inputs);
+// require_folders = false skips the missing-folder check (dem_service at start-up: the master
+// may still replace the output path; the check runs once the final paths are known).
+void check_output_files(const std::vector<NamedFile>& outputs, const std::vector<NamedFile>& inputs,
+                        bool require_folders = true);
 
 // An output written under a temporary name beside its real one ("<folder>/.<name>.partial-<pid>")
 // and renamed onto the real name by commit(): an existing file of that name is replaced only
