@@ -156,9 +156,11 @@ int main(int argc, char** argv) {
   } catch (const cosim::Interrupted& e) {
     std::cerr << "cosim_master: interrupted by " << (e.signal() == SIGINT ? "SIGINT" : "SIGTERM")
               << ": the step under way was abandoned and the participants told to stop\n";
-    if (!config.output.file.empty())
+    if (recorder && recorder->started())
       std::cerr << "cosim_master: the steps completed so far are in " << config.output.file
                 << " (/status: stopped: interrupted)\n";
+    else if (!config.output.file.empty())
+      std::cerr << "cosim_master: no step was recorded; " << config.output.file << " was not written\n";
     launcher.stop(2.0);
     return 128 + e.signal();
   } catch (const cosim::LinkError& e) {
