@@ -1,10 +1,17 @@
 // cosim_master CONFIG.yaml [--set dotted.key=value ...] [--output FILE.h5] [--csv FILE.csv]
+// cosim_master --new-key FILE   (writes a new shared key, mode 600; docs/security.md)
+// The bus key comes from $COSIM_KEY_FILE or $COSIM_KEY, never from the command line; the
+// participants the master launches inherit it.
 // Exit codes: 0 finished, 1 the run failed (participant lost, refused or failed a step),
 // 2 the configuration was refused before any step, 130 / 143 interrupted by SIGINT / SIGTERM
 // (the step under way is abandoned, /status says "stopped: interrupted", participants are
 // told to stop).
-#include <cstdio>
+#include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
+
+#include <cerrno>
+#include <cstdio>
 
 #include <signal.h>
 
@@ -13,8 +20,10 @@
 #include <filesystem>
 #include <iostream>
 
+#include <cosim/auth.hpp>
 #include <cosim/bus.hpp>
 #include <cosim/files.hpp>
+#include <cosim/sealed_bus.hpp>
 
 #include "config.hpp"
 #include "cosimulation.hpp"
@@ -31,7 +40,42 @@ void usage() {
                "  --set     override a config value, e.g. --set time.macro_step=5e-4 --set predictors.force.order=1\n"
                "  --output  HDF5 file to record to (overrides output.file)\n"
                "  --csv     CSV export of every participant output (overrides output.csv)\n"
-               "See docs/config.md for the config keys and docs/output.md for the recorded layout.\n";
+               "       cosim_master --new-key FILE\n"
+               "  --new-key write a new random key for the bus to FILE (mode 600; an existing file is\n"
+               "            not overwritten); give it to every process of a run as COSIM_KEY_FILE=FILE\n"
+               "The bus key comes from $COSIM_KEY_FILE (a file only its owner can read) or $COSIM_KEY,\n"
+               "never from the command line; participants the master launches inherit it.\n"
+               "See docs/config.md for the config keys, docs/output.md for the recorded layout and\n"
+               "docs/security.md for the key.\n";
+}
+
+// Writes a new key to `path`, readable by its owner only; refuses an existing file.
+int write_new_key(const std::string& path) {
+  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
+  if (fd < 0) {
+    if (errno == EEXIST)
+      std::cerr << "cosim_master: --new-key: '" << path
+                << "' exists; a key file is never overwritten (remove it first if you mean to "
+                   "replace the key: every process of a run needs the new one)\n";
+    else
+      std::cerr << "cosim_master: --new-key: cannot create '" << path << "': " << std::strerror(errno) << "\n";
+    return 2;
+  }
+  const std::string text = cosim::auth::new_key_hex() + "\n";
+  const bool ok = ::fchmod(fd, 0600) == 0 &&  // whatever the umask left
+                  ::write(fd, text.data(), text.size()) == static_cast<ssize_t>(text.size()) &&
+                  ::fsync(fd) == 0;
+  const int err = errno;
+  ::close(fd);
+  if (!ok) {
+    ::unlink(path.c_str());
+    std::cerr << "cosim_master: --new-key: cannot write '" << path << "': " << std::strerror(err) << "\n";
+    return 2;
+  }
+  std::cerr << "cosim_master: wrote a new key to " << path
+            << " (mode 600). Give every process of a run the same key: export COSIM_KEY_FILE=" << path
+            << " (copy the file to the other hosts over a trusted channel, e.g. scp)\n";
+  return 0;
 }
 
 // Outputs that are the same file as each other or as an input are refused before anything
@@ -71,6 +115,7 @@ int main(int argc, char** argv) {
     if (a == "--set") overrides.push_back(value());
     else if (a == "--output") output = value();
     else if (a == "--csv") csv = value();
+    else if (a == "--new-key") return write_new_key(value());
     else if (a == "-h" || a == "--help") { usage(); return 0; }
     else if (!a.empty() && a[0] == '-') { std::cerr << "cosim_master: unknown option " << a << "\n"; usage(); return 2; }
     else if (config_path.empty()) config_path = a;
@@ -89,6 +134,13 @@ int main(int argc, char** argv) {
     return 2;
   }
   const std::string url = cosim::resolve_bus_url(config.bus_url);
+  std::optional<cosim::auth::Key> key;
+  try {
+    key = cosim::auth::key_from_environment();
+  } catch (const cosim::auth::AuthError& e) {
+    std::cerr << "cosim_master: bus key refused: " << e.what() << "\n";
+    return 2;
+  }
 
   std::signal(SIGPIPE, SIG_IGN);
   {  // no SA_RESTART: a wait on the bus returns at once and the run stops (exit 128 + signal)
@@ -103,15 +155,22 @@ int main(int argc, char** argv) {
   // the run starts writing it.
   std::unique_ptr<master::H5Recorder> recorder;
   std::unique_ptr<master::CsvWriter> csv_writer;
+  std::unique_ptr<cosim::Transport> transport;
+  // The messages dropped (forged, replayed, ...) also when the run fails.
+  auto print_auth = [&] {
+    if (!transport) return;
+    const auto& a = transport->stats().auth;
+    if (a.counts.rejected() > 0 || a.unreadable > 0) std::cerr << "cosim_master: " << cosim::auth_summary(a) << "\n";
+  };
   try {
-    auto transport = cosim::make_lcm_transport(url, cosim::new_session_id(), [&] {
+    transport = cosim::make_lcm_transport(url, cosim::new_session_id(), [&] {
       std::map<std::string, cosim::LinkSettings> links;
       for (const auto& p : config.participants) {
         links[p.name] = p.link;
         links[p.name].launched = !p.launch.empty();
       }
       return links;
-    }());
+    }(), key);
     transport->set_fault_plan(config.faults);
     transport->set_liveness_check([&] {
       if (g_stop_signal) throw cosim::Interrupted(g_stop_signal);
@@ -123,6 +182,13 @@ int main(int argc, char** argv) {
     master::CoSimulation sim(config, *transport);
     std::cerr << "cosim_master: session " << std::hex << transport->session() << std::dec << " on " << url
               << ", waiting for " << config.participants.size() << " participant(s)\n";
+    if (key)
+      std::cerr << "cosim_master: bus authenticated: every message sealed with the key from "
+                << (std::getenv("COSIM_KEY_FILE") && *std::getenv("COSIM_KEY_FILE") ? "$COSIM_KEY_FILE" : "$COSIM_KEY")
+                << "; messages without it are dropped\n";
+    else
+      std::cerr << "cosim_master: bus not authenticated (no $COSIM_KEY_FILE or $COSIM_KEY): any process "
+                   "that reaches it can forge messages (docs/security.md)\n";
     try {
       sim.connect();
     } catch (const cosim::ParticipantConfigError& e) {
@@ -150,10 +216,12 @@ int main(int argc, char** argv) {
     const auto& st = transport->stats();
     std::cerr << "cosim_master: " << st.resends << " request(s) resent, " << st.dropped_by_plan
               << " dropped by the fault plan, " << st.ignored_replies << " stale replies ignored\n";
+    if (const std::string a = cosim::auth_summary(st.auth); !a.empty()) std::cerr << "cosim_master: " << a << "\n";
     if (recorder) std::cerr << "cosim_master: recorded to " << config.output.file << "\n";
     launcher.stop(5.0);
     return 0;
   } catch (const cosim::Interrupted& e) {
+    print_auth();
     std::cerr << "cosim_master: interrupted by " << (e.signal() == SIGINT ? "SIGINT" : "SIGTERM")
               << ": the step under way was abandoned and the participants told to stop\n";
     if (recorder && recorder->started())
@@ -165,6 +233,7 @@ int main(int argc, char** argv) {
     return 128 + e.signal();
   } catch (const cosim::LinkError& e) {
     std::cerr << "cosim_master: run failed: " << e.what() << "\n";
+    print_auth();
     if (recorder && recorder->started())
       std::cerr << "cosim_master: the steps completed so far are in " << config.output.file << "\n";
     else if (!config.output.file.empty())

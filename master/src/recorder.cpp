@@ -48,6 +48,15 @@ void write_bus_stats(hid_t file, const RunSetup& setup) {
   write_number(file, "bus", "resends", static_cast<double>(st.resends));
   write_number(file, "bus", "dropped_by_plan", static_cast<double>(st.dropped_by_plan));
   write_number(file, "bus", "ignored_replies", static_cast<double>(st.ignored_replies));
+  // Authentication (docs/security.md): what the master's end of the bus accepted and dropped.
+  const auto& au = st.auth;
+  write_number(file, "bus/auth", "keyed", au.keyed ? 1.0 : 0.0);
+  write_number(file, "bus/auth", "accepted", static_cast<double>(au.counts.accepted));
+  write_number(file, "bus/auth", "malformed", static_cast<double>(au.counts.malformed));
+  write_number(file, "bus/auth", "forged", static_cast<double>(au.counts.forged));
+  write_number(file, "bus/auth", "other_session", static_cast<double>(au.counts.other_session));
+  write_number(file, "bus/auth", "replayed", static_cast<double>(au.counts.replayed));
+  write_number(file, "bus/auth", "unreadable", static_cast<double>(au.unreadable));
   for (const auto& [name, info] : setup.participants) {
     const std::string g = "participants/" + name + "/bus";
     auto value = [&](const auto& m) { auto it = m.find(name); return it == m.end() ? 0.0 : static_cast<double>(it->second); };

@@ -111,6 +111,18 @@ std::string new_key_hex() {
   return out;
 }
 
+bool looks_sealed(const std::uint8_t* data, std::size_t size) {
+  return data && size >= 4 && std::memcmp(data, kMagic, 4) == 0;
+}
+
+std::optional<std::pair<const std::uint8_t*, std::size_t>> unverified_payload(const std::uint8_t* data,
+                                                                              std::size_t size) {
+  if (!looks_sealed(data, size) || size < kHeader + 1 + kTagBytes) return std::nullopt;
+  const std::size_t slen = data[20];
+  if (slen == 0 || slen > kMaxSender || size < kHeader + slen + kTagBytes) return std::nullopt;
+  return std::make_pair(data + kHeader + slen, size - kTagBytes - kHeader - slen);
+}
+
 Sealer::Sealer(const Key& key, std::string sender) : key_(key), sender_(std::move(sender)) {
   ensure_sodium();
   if (sender_.empty() || sender_.size() > kMaxSender)

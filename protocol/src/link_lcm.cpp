@@ -20,6 +20,7 @@
 #include "cosim/bus.hpp"
 #include "cosim/link.hpp"
 #include "cosim/resend_timer.hpp"
+#include "cosim/sealed_bus.hpp"
 #include "cosim/stopwatch.hpp"
 
 namespace cosim {
@@ -29,8 +30,11 @@ using Clock = WallClock;
 
 class LcmTransport final : public Transport {
  public:
-  LcmTransport(const std::string& url, int64_t session, std::map<std::string, LinkSettings> links)
-      : url_(url), lcm_(url), session_(session), links_(std::move(links)) {
+  LcmTransport(const std::string& url, int64_t session, std::map<std::string, LinkSettings> links,
+               std::optional<auth::Key> key)
+      : url_(url), lcm_(url), session_(session), links_(std::move(links)),
+        bus_(lcm_, std::move(key), envelope_sender("master", session), "cosim_master") {
+    stats_.auth = bus_.stats();
     if (!lcm_.good())
       throw LinkError("", "cannot open the bus '" + url +
                               "' (for multicast on loopback: ip route add 224.0.0.0/4 dev lo)");
@@ -59,10 +63,10 @@ class LcmTransport final : public Transport {
           if (ready_.count(c.participant)) continue;
           if (links_.at(c.participant).launched) {  // started with --session: its own channel
             c.instance_id = 0;
-            lcm_.publish(channel::configure(session_, c.participant), &c);
+            bus_.publish(channel::configure(session_, c.participant), session_, c);
           } else if (auto it = chosen_.find(c.participant); it != chosen_.end()) {
             c.instance_id = it->second;
-            lcm_.publish(channel::configure(it->second), &c);
+            bus_.publish(channel::configure(it->second), 0, c);  // before a session: 0
           }
         }
         last_send = Clock::now();
@@ -94,6 +98,7 @@ class LcmTransport final : public Transport {
                           ? " (protocol version " + std::to_string(a.announce.protocol_version) + ")"
                           : "");
         if (!heard.empty()) msg << " (heard from: " << heard << ")";
+        msg << unauthenticated_text(configs, out);
         std::string first_missing = missing.substr(0, missing.find(','));
         throw LinkError(first_missing, msg.str());
       }
@@ -160,7 +165,7 @@ class LcmTransport final : public Transport {
     // timeout: six copies over 25 ms (at 20 % loss all are lost once in 15,000 times).
     for (int i = 0; i < 6; ++i) {
       if (i > 0) std::this_thread::sleep_for(std::chrono::milliseconds(5));
-      lcm_.publish(channel::terminate(session_), &t);
+      bus_.publish(channel::terminate(session_), session_, t);
     }
   }
 
@@ -243,7 +248,7 @@ class LcmTransport final : public Transport {
       ++stats_.dropped_by_plan;
       return;
     }
-    lcm_.publish(channel::request(session_, p.request.participant), &p.request);
+    bus_.publish(channel::request(session_, p.request.participant), session_, p.request);
   }
 
   // Handles messages for up to `ms`, publishes the master's heartbeat, checks liveness.
@@ -253,13 +258,14 @@ class LcmTransport final : public Transport {
       h.session_id = session_;
       h.sender = "master";
       h.state = heartbeat_t::BUSY;
-      lcm_.publish(channel::heartbeat(session_), &h);
+      bus_.publish(channel::heartbeat(session_), session_, h);
       last_beat_ = Clock::now();
     }
     const int r = lcm_.handleTimeout(ms);
     if (r < 0 && errno != EINTR)
       throw LinkError("", "the bus failed (lcm handle returned " + std::to_string(r) + ": " +
                               std::strerror(errno) + ")");
+    stats_.auth = bus_.stats();
     if (fatal_) throw *fatal_;
     if (liveness_) liveness_();
   }
@@ -270,6 +276,34 @@ class LcmTransport final : public Transport {
   }
   static std::string describe_instance(const announce_t& a) {
     return describe_instance(a.participant, a.host, a.pid);
+  }
+
+  // For the connect timeout: the participants not connected that were heard only through
+  // announces this master cannot accept, and the fix.
+  std::string unauthenticated_text(const std::vector<configure_t>& configs,
+                                   const std::map<std::string, ParticipantInfo>& connected) const {
+    std::string list;
+    bool sealed = false;
+    for (const auto& c : configs) {
+      if (connected.count(c.participant)) continue;
+      auto it = refused_.find(c.participant);
+      if (it == refused_.end()) continue;
+      for (const auto& [id, r] : it->second) {
+        sealed = sealed || r.heard == SealedBus::Heard::unreadable;
+        list += (list.empty() ? "" : ", ") + describe_instance(r.announce) +
+                (r.heard == SealedBus::Heard::forged      ? " (sealed with another key)"
+                 : r.heard == SealedBus::Heard::unreadable ? " (sealed with a key)"
+                                                           : " (no key)");
+      }
+    }
+    if (list.empty()) return "";
+    if (bus_.keyed())
+      return ". Heard only unauthenticated participants, which this master ignores: " + list +
+             ". This master has a key ($COSIM_KEY_FILE or $COSIM_KEY) and a participant joins "
+             "only with the same key: give every participant the run's key (docs/security.md)";
+    return ". Heard participants that seal their messages with a key, which this master cannot "
+           "check: " + list + ". This master has no key: give it theirs ($COSIM_KEY_FILE or "
+           "$COSIM_KEY), or start them without one (docs/security.md)";
   }
 
   // Picks the free instance of a participant started by hand, once the announces have had
@@ -302,7 +336,18 @@ class LcmTransport final : public Transport {
     chosen_[name] = free.front()->announce.instance_id;
   }
 
-  void on_announce(const lcm::ReceiveBuffer*, const std::string&, const announce_t* a) {
+  void on_announce(const lcm::ReceiveBuffer* rbuf, const std::string& ch) {
+    announce_t m;
+    const auto heard = bus_.open(rbuf, ch, {0}, m);  // announces come before any session
+    if (heard == SealedBus::Heard::malformed || heard == SealedBus::Heard::forged ||
+        heard == SealedBus::Heard::unreadable) {
+      // Not authentic (or, without a key, sealed): never a candidate, but named when the
+      // run cannot start (what it claims is all there is to go by).
+      if (links_.count(m.participant) && m.instance_id != 0) refused_[m.participant][m.instance_id] = {m, heard};
+      return;
+    }
+    if (heard != SealedBus::Heard::ok) return;
+    const announce_t* a = &m;
     if (!links_.count(a->participant) || a->instance_id == 0) return;
     const auto now = Clock::now();
     auto [it, added] = seen_[a->participant].try_emplace(a->instance_id);
@@ -322,7 +367,10 @@ class LcmTransport final : public Transport {
                                  "; stop the one that does not belong to this run");
   }
 
-  void on_ready(const lcm::ReceiveBuffer*, const std::string&, const ready_t* r) {
+  void on_ready(const lcm::ReceiveBuffer* rbuf, const std::string& ch) {
+    ready_t m;
+    if (bus_.open(rbuf, ch, {session_}, m) != SealedBus::Heard::ok) return;
+    const ready_t* r = &m;
     if (r->session_id != session_ || !peers_.count(r->participant)) return;
     if (!r->ok && r->bound_session_id != 0) {  // another run took it first: choose again
       taken_.insert(r->instance_id);
@@ -335,7 +383,10 @@ class LcmTransport final : public Transport {
     peers_[r->participant].heard = Clock::now();
     ready_.emplace(r->participant, *r);
   }
-  void on_heartbeat(const lcm::ReceiveBuffer*, const std::string&, const heartbeat_t* h) {
+  void on_heartbeat(const lcm::ReceiveBuffer* rbuf, const std::string& ch) {
+    heartbeat_t m;
+    if (bus_.open(rbuf, ch, {session_}, m) != SealedBus::Heard::ok) return;
+    const heartbeat_t* h = &m;
     if (h->session_id != session_) return;
     auto it = peers_.find(h->sender);
     if (it == peers_.end()) return;
@@ -356,7 +407,10 @@ class LcmTransport final : public Transport {
       q.reply_lost = true;  // done, but its reply did not arrive: ask again for the cached one
     }
   }
-  void on_reply(const lcm::ReceiveBuffer*, const std::string&, const step_reply_t* r) {
+  void on_reply(const lcm::ReceiveBuffer* rbuf, const std::string& ch) {
+    step_reply_t m;
+    if (bus_.open(rbuf, ch, {session_}, m) != SealedBus::Heard::ok) return;
+    const step_reply_t* r = &m;
     if (r->session_id == session_ && peers_.count(r->participant)) {
       peers_[r->participant].heard = Clock::now();
       auto b = bound_.find(r->participant);
@@ -407,6 +461,12 @@ class LcmTransport final : public Transport {
   std::set<int64_t> taken_;                              // instances another run took
   std::map<std::string, Bound> bound_;                   // name -> instance in this session
   std::optional<LinkError> fatal_;                       // found in a handler, thrown by pump
+  SealedBus bus_;                                        // seals and opens (with a key)
+  struct Refused {
+    announce_t announce;  // what it claims: not authentic
+    SealedBus::Heard heard;
+  };
+  std::map<std::string, std::map<int64_t, Refused>> refused_;  // unauthenticated announces
   Clock::time_point exchange_start_ = Clock::now();
   Clock::time_point last_beat_ = Clock::now() - std::chrono::hours(1);
 };
@@ -414,8 +474,9 @@ class LcmTransport final : public Transport {
 }  // namespace
 
 std::unique_ptr<Transport> make_lcm_transport(const std::string& url, int64_t session,
-                                              std::map<std::string, LinkSettings> links) {
-  return std::make_unique<LcmTransport>(url, session, std::move(links));
+                                              std::map<std::string, LinkSettings> links,
+                                              std::optional<auth::Key> key) {
+  return std::make_unique<LcmTransport>(url, session, std::move(links), std::move(key));
 }
 
 }  // namespace cosim

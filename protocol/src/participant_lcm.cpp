@@ -17,6 +17,7 @@
 #include "cosim/bus.hpp"
 #include "cosim/participant.hpp"
 #include "cosim/number_arg.hpp"
+#include "cosim/sealed_bus.hpp"
 #include "cosim/stopwatch.hpp"
 
 namespace cosim {
@@ -29,17 +30,24 @@ using Clock = WallClock;
 
 struct Server {
   lcm::LCM& lcm;
+  SealedBus& bus;
   ParticipantCore& core;
   bool finished = false;
   bool error = false;
   Clock::time_point last_master = Clock::now();
   lcm::Subscription* req_sub = nullptr;
 
-  void on_configure(const lcm::ReceiveBuffer*, const std::string&, const configure_t* m) {
+  // A configure comes on this instance's channel before a session exists (sealed with session
+  // 0), or on the channel of the session this process was started for.
+  void on_configure(const lcm::ReceiveBuffer* rbuf, const std::string& ch) {
+    configure_t msg;
+    const int64_t sealed_for = ch == channel::configure(core.instance()) ? 0 : core.reserved_session();
+    if (bus.open(rbuf, ch, {sealed_for}, msg) != SealedBus::Heard::ok) return;
+    const configure_t* m = &msg;
     const bool was_bound = core.bound();
     auto ready = core.configure(*m);
     if (!ready) return;
-    lcm.publish(channel::ready(m->session_id, core.name()), &*ready);
+    bus.publish(channel::ready(m->session_id, core.name()), m->session_id, *ready);
     if (!ready->ok) {
       std::cerr << core.name() << ": configuration from session " << id_hex(m->session_id)
                 << " refused: " << ready->error << "\n";
@@ -53,18 +61,27 @@ struct Server {
       std::cerr << core.name() << ": joined session " << id_hex(core.session()) << "\n";
     }
   }
-  void on_request(const lcm::ReceiveBuffer*, const std::string&, const step_request_t* q) {
+  void on_request(const lcm::ReceiveBuffer* rbuf, const std::string& ch) {
+    step_request_t msg;
+    if (bus.open(rbuf, ch, {core.session()}, msg) != SealedBus::Heard::ok) return;
+    const step_request_t* q = &msg;
     last_master = Clock::now();
     auto reply = core.handle(*q);
     if (!reply) return;
     if (reply->status != step_reply_t::OK)
       std::cerr << core.name() << ": step " << q->step_index << ": " << reply->message << "\n";
-    lcm.publish(channel::reply(core.session(), core.name()), &*reply);
+    bus.publish(channel::reply(core.session(), core.name()), core.session(), *reply);
   }
-  void on_heartbeat(const lcm::ReceiveBuffer*, const std::string&, const heartbeat_t* h) {
+  void on_heartbeat(const lcm::ReceiveBuffer* rbuf, const std::string& ch) {
+    heartbeat_t msg;
+    if (bus.open(rbuf, ch, {core.session()}, msg) != SealedBus::Heard::ok) return;
+    const heartbeat_t* h = &msg;
     if (h->session_id == core.session() && h->sender == "master") last_master = Clock::now();
   }
-  void on_terminate(const lcm::ReceiveBuffer*, const std::string&, const terminate_t* t) {
+  void on_terminate(const lcm::ReceiveBuffer* rbuf, const std::string& ch) {
+    terminate_t msg;
+    if (bus.open(rbuf, ch, {core.session()}, msg) != SealedBus::Heard::ok) return;
+    const terminate_t* t = &msg;
     if (t->session_id != core.session()) return;
     finished = true;
     error = t->error;
@@ -131,6 +148,14 @@ int run_participant(Model& model, const std::string& default_name, int argc, cha
               << "' (for multicast on loopback: ip route add 224.0.0.0/4 dev lo)\n";
     return 1;
   }
+  // The shared key, from the environment only (docs/security.md): never on the command line.
+  std::optional<auth::Key> key;
+  try {
+    key = auth::key_from_environment();
+  } catch (const auth::AuthError& e) {
+    std::cerr << name << ": " << e.what() << "\n";
+    return 2;
+  }
   std::signal(SIGTERM, on_signal);
   std::signal(SIGINT, on_signal);
 
@@ -139,7 +164,8 @@ int run_participant(Model& model, const std::string& default_name, int argc, cha
   ParticipantCore core(name, model);
   core.set_identity(new_session_id(), host, static_cast<int32_t>(getpid()));
   core.reserve_for(session);
-  Server server{lcm, core};
+  SealedBus bus(lcm, key, envelope_sender(name, core.instance()), name);
+  Server server{lcm, bus, core};
   // Configuration comes on channels of this process (its instance) or of its session only.
   lcm.subscribe(channel::configure(core.instance()), &Server::on_configure, &server);
   if (session != 0) lcm.subscribe(channel::configure(session, name), &Server::on_configure, &server);
@@ -159,7 +185,7 @@ int run_participant(Model& model, const std::string& default_name, int argc, cha
         h.step_index = busy >= 0 ? busy : core.last_step();
         h.iteration = busy >= 0 ? core.busy_iteration() : core.last_iteration();
         h.sim_time_ns = to_ns(core.time());
-        lcm.publish(channel::heartbeat(core.session()), &h);
+        bus.publish(channel::heartbeat(core.session()), core.session(), h);
       } else {
         announce_t a{};
         a.protocol_version = kProtocolVersion;
@@ -168,7 +194,7 @@ int run_participant(Model& model, const std::string& default_name, int argc, cha
         a.pid = core.pid();
         a.instance_id = core.instance();
         a.reserved_session_id = core.reserved_session();
-        lcm.publish(channel::announce(), &a);
+        bus.publish(channel::announce(), 0, a);  // before a session: 0
       }
       std::this_thread::sleep_for(std::chrono::milliseconds(250));
     }
@@ -203,6 +229,10 @@ int run_participant(Model& model, const std::string& default_name, int argc, cha
   }
   running = false;
   beat.join();
+  // What was dropped, if anything (each kind was logged as it came, a few per channel).
+  const AuthStats auth_stats = bus.stats();
+  if (auth_stats.counts.rejected() > 0 || auth_stats.unreadable > 0)
+    std::cerr << name << ": " << auth_summary(auth_stats) << "\n";
   if (g_stop && !server.finished) {
     std::cerr << name << ": stopped by a signal\n";
     return 0;

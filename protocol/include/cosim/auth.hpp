@@ -49,6 +49,16 @@ std::optional<Key> key_from_environment();
 // A new random key in hex, for `cosim_master --new-key FILE` and tests.
 std::string new_key_hex();
 
+// Whether a buffer starts like an envelope (its magic), so a process without a key can tell
+// sealed traffic it cannot check from garbage.
+bool looks_sealed(const std::uint8_t* data, std::size_t size);
+
+// The payload an envelope claims to carry, WITHOUT checking its tag: for diagnostics only
+// (naming who sent a message that was refused), never to act on. nullopt when it is not
+// shaped like an envelope.
+std::optional<std::pair<const std::uint8_t*, std::size_t>> unverified_payload(const std::uint8_t* data,
+                                                                              std::size_t size);
+
 // Seals messages of one sender. Sequence numbers start at the wall clock in nanoseconds and
 // grow by one per message, so they keep growing across restarts of the sender.
 class Sealer {
@@ -80,6 +90,17 @@ struct Opened {
 struct Counts {
   std::int64_t accepted = 0, malformed = 0, forged = 0, other_session = 0, replayed = 0;
   std::int64_t rejected() const { return malformed + forged + other_session + replayed; }
+};
+
+// What one process counted on the bus (cosim::SealedBus).
+struct BusCounts {
+  bool keyed = false;
+  // Keyed: messages opened, by verdict (malformed: not an envelope, for example the plain
+  // message of a process without the key, or an authentic payload that does not decode).
+  // Without a key: accepted and malformed count the plain messages that did or did not decode.
+  Counts counts;
+  // Without a key: sealed messages heard, which this process cannot check (it ignores them).
+  std::int64_t unreadable = 0;
 };
 
 // Opens messages for one receiver. A sequence number is accepted once per (sender, channel):

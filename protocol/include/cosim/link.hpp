@@ -7,12 +7,14 @@
 #include <functional>
 #include <map>
 #include <memory>
+#include <optional>
 #include <set>
 #include <stdexcept>
 #include <string>
 #include <utility>
 #include <vector>
 
+#include "cosim/auth.hpp"
 #include "cosim/participant.hpp"
 #include "cosim/signal.hpp"
 #include "cosim/time.hpp"
@@ -89,6 +91,9 @@ struct ExchangeStats {
   // trip (s) at the end.
   std::map<std::string, uint64_t> resends_to;
   std::map<std::string, double> resend_timeout_s, srtt_s;
+  // Authentication (docs/security.md): whether the bus is keyed, and what the master's end of
+  // it accepted and dropped, by verdict.
+  auth::BusCounts auth;
 };
 
 // A reply as the master uses it, validated against the participant's declaration.
@@ -129,8 +134,11 @@ class Transport {
   std::function<void()> liveness_;
 };
 
+// With a key every message is sealed and only authentic ones of this session are taken
+// (docs/security.md); without one the bus is unauthenticated.
 std::unique_ptr<Transport> make_lcm_transport(const std::string& url, int64_t session,
-                                              std::map<std::string, LinkSettings> links);
+                                              std::map<std::string, LinkSettings> links,
+                                              std::optional<auth::Key> key = std::nullopt);
 // participants: name -> core; the cores must outlive the transport.
 std::unique_ptr<Transport> make_in_process_transport(
     int64_t session, std::map<std::string, ParticipantCore*> participants);
