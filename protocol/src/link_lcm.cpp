@@ -84,9 +84,15 @@ class LcmTransport final : public Transport {
         std::string missing;
         for (const auto& c : configs)
           if (!out.count(c.participant)) missing += (missing.empty() ? "" : ", ") + c.participant;
-        msg << "no answer from participant(s) " << missing << " within " << timeout_s
-            << " s on bus " << url_ << ": start them with --name <name> --bus '" << url_
-            << "', or give participants.<name>.launch in the config";
+        // Heard, but not authentic (or sealed, without a key): the key is the problem.
+        const std::string unauthenticated = unauthenticated_text(configs, out);
+        if (!unauthenticated.empty())
+          msg << "participant(s) " << missing << " cannot join: within " << timeout_s << " s on bus "
+              << url_ << " " << unauthenticated;
+        else
+          msg << "no answer from participant(s) " << missing << " within " << timeout_s
+              << " s on bus " << url_ << ": start them with --name <name> --bus '" << url_
+              << "', or give participants.<name>.launch in the config";
         std::string heard;
         for (const auto& [name, instances] : seen_)
           for (const auto& [id, a] : instances)
@@ -98,7 +104,6 @@ class LcmTransport final : public Transport {
                           ? " (protocol version " + std::to_string(a.announce.protocol_version) + ")"
                           : "");
         if (!heard.empty()) msg << " (heard from: " << heard << ")";
-        msg << unauthenticated_text(configs, out);
         std::string first_missing = missing.substr(0, missing.find(','));
         throw LinkError(first_missing, msg.str());
       }
@@ -298,11 +303,11 @@ class LcmTransport final : public Transport {
     }
     if (list.empty()) return "";
     if (bus_.keyed())
-      return ". Heard only unauthenticated participants, which this master ignores: " + list +
+      return "this master heard only unauthenticated participants, which it ignores: " + list +
              ". This master has a key ($COSIM_KEY_FILE or $COSIM_KEY) and a participant joins "
              "only with the same key: give every participant the run's key (docs/security.md)";
-    return ". Heard participants that seal their messages with a key, which this master cannot "
-           "check: " + list + ". This master has no key: give it theirs ($COSIM_KEY_FILE or "
+    return "this master heard only participants that seal their messages with a key, which it "
+           "cannot check: " + list + ". This master has no key: give it theirs ($COSIM_KEY_FILE or "
            "$COSIM_KEY), or start them without one (docs/security.md)";
   }
 
