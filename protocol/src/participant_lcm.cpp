@@ -8,6 +8,7 @@
 #include <chrono>
 #include <cerrno>
 #include <csignal>
+#include <cstdio>
 #include <cstring>
 #include <iostream>
 #include <lcm/lcm-cpp.hpp>
@@ -231,8 +232,10 @@ int run_participant(Model& model, const std::string& default_name, int argc, cha
   beat.join();
   // What was dropped, if anything (each kind was logged as it came, a few per channel).
   const AuthStats auth_stats = bus.stats();
-  if (auth_stats.counts.rejected() > 0 || auth_stats.unreadable > 0)
-    std::cerr << name << ": " << auth_summary(auth_stats) << "\n";
+  if (auth_stats.counts.rejected() > 0 || auth_stats.unreadable > 0) {
+    const std::string line = name + ": " + auth_summary(auth_stats) + "\n";
+    std::fputs(line.c_str(), stderr);  // one write: participants may share the master's log
+  }
   if (g_stop && !server.finished) {
     std::cerr << name << ": stopped by a signal\n";
     return 0;
