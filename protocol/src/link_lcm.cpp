@@ -348,7 +348,11 @@ class LcmTransport final : public Transport {
         heard == SealedBus::Heard::unreadable) {
       // Not authentic (or, without a key, sealed): never a candidate, but named when the
       // run cannot start (what it claims is all there is to go by).
-      if (links_.count(m.participant) && m.instance_id != 0) refused_[m.participant][m.instance_id] = {m, heard};
+      // (A few per name: a flood of forged announces must not grow this without bound.)
+      if (links_.count(m.participant) && m.instance_id != 0) {
+        auto& of_name = refused_[m.participant];
+        if (of_name.size() < 8 || of_name.count(m.instance_id)) of_name[m.instance_id] = {m, heard};
+      }
       return;
     }
     if (heard != SealedBus::Heard::ok) return;
