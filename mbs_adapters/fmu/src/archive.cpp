@@ -42,6 +42,24 @@ struct ZipCloser {
   }
 };
 
+// Folders of adapters that were killed (SIGKILL leaves no chance to clean up): fmu_adapter_<pid>_*
+// whose process is gone.
+void remove_stale_folders(const std::string& base) {
+  std::error_code ec;
+  for (const auto& e : fs::directory_iterator(base, ec)) {
+    const std::string name = e.path().filename().string();
+    const std::string prefix = "fmu_adapter_";
+    if (name.rfind(prefix, 0) != 0 || !e.is_directory(ec)) continue;
+    const auto end = name.find('_', prefix.size());
+    if (end == std::string::npos) continue;
+    const std::string pid = name.substr(prefix.size(), end - prefix.size());
+    if (pid.empty() || pid.find_first_not_of("0123456789") != std::string::npos) continue;
+    struct stat st {};
+    if (stat(e.path().c_str(), &st) != 0 || st.st_uid != getuid()) continue;
+    if (!fs::exists("/proc/" + pid, ec)) remove_tree(e.path().string());
+  }
+}
+
 }  // namespace
 
 UnpackedFmu::UnpackedFmu(const std::string& path) : path_(path) {
@@ -66,7 +84,8 @@ UnpackedFmu::UnpackedFmu(const std::string& path) : path_(path) {
 
   const char* tmp = std::getenv("TMPDIR");
   std::string base = (tmp && *tmp) ? tmp : "/tmp";
-  std::string templ = base + "/fmu_adapter_XXXXXX";
+  remove_stale_folders(base);
+  std::string templ = base + "/fmu_adapter_" + std::to_string(getpid()) + "_XXXXXX";
   std::vector<char> buf(templ.begin(), templ.end());
   buf.push_back('\0');
   if (!mkdtemp(buf.data()))

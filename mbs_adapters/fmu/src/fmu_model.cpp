@@ -424,6 +424,21 @@ void FmuModel::prepare(const YAML::Node& parameters, const std::string& particip
 }
 
 void FmuModel::configure(const YAML::Node& parameters, const cosim::RunInfo& run) {
+  try {
+    configure_instance(parameters, run);
+  } catch (...) {
+    // Refused: let go of the FMU and its unpacked folder now. A refused participant is not in
+    // the session and may be killed rather than told to stop.
+    inst_.reset();
+    lib_.reset();
+    md_.reset();
+    unpacked_.reset();
+    prepared_yaml_.clear();
+    throw;
+  }
+}
+
+void FmuModel::configure_instance(const YAML::Node& parameters, const cosim::RunInfo& run) {
   prepare(parameters, run.participant);
   inst_.reset();  // a new run starts from a new instance
   received_.clear();

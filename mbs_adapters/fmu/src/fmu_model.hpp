@@ -73,6 +73,7 @@ class FmuModel final : public cosim::Model {
   const std::string& label() const { return label_; }
 
  private:
+  void configure_instance(const YAML::Node& parameters, const cosim::RunInfo& run);
   void parse_mapping(const YAML::Node& root, const std::string& path);
   PortMap parse_port(const YAML::Node& node, const std::string& path, bool input);
   Component output_component(const YAML::Node& node, const std::string& path) const;
