@@ -84,6 +84,12 @@ inline Entries fail_fmu_entries() {
           {"binaries/linux64/fail_fmu.so", slurp(FAIL_FMU_SO)}};
 }
 
+// The test-only echo FMU (tests/fmu/echo_fmu): outputs copy the inputs, with FMU state support.
+inline Entries echo_fmu_entries() {
+  return {{"modelDescription.xml", slurp(std::string(SOURCE_DIR) + "/tests/fmu/echo_fmu/modelDescription.xml")},
+          {"binaries/linux64/echo_fmu.so", slurp(ECHO_FMU_SO)}};
+}
+
 inline std::string pack(const Entries& e, const std::string& suffix = ".fmu") {
   const std::string path = temp_path(suffix);
   write_zip(path, e);

@@ -448,7 +448,8 @@ void FmuModel::configure_instance(const YAML::Node& parameters, const cosim::Run
   } else if (substeps_ > 0) {
     if (run.macro_step % substeps_ != cosim::Duration::zero())
       throw cfg::ConfigError(path + ".substeps: the macro step of " + std::to_string(cosim::to_ns(run.macro_step)) +
-                             " ns does not split into " + std::to_string(substeps_) + " whole nanoseconds");
+                             " ns does not split into " + std::to_string(substeps_) +
+                             " sub-steps of whole nanoseconds; choose another number or step_size");
     inner_step_ = run.macro_step / substeps_;
   } else {
     inner_step_ = run.macro_step;  // one doStep per macro step
