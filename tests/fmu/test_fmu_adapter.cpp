@@ -406,14 +406,68 @@ TEST(FmuState, RepeatedStepsOfTheEchoFmuAreBitIdentical) {
 }
 
 // ---------------------------------------------------------------------------------------------
+// The command line: a config with a relative fmu path, MODEL.fmu --mapping, problems found at
+// start (exit 2, the file named), and the unpacked folder gone after every exit.
+
+TEST(FmuCommandLine, ChecksTheFmuAtStartAndCleansUp) {
+  namespace fs = std::filesystem;
+  const fs::path dir = fmutest::temp_path("_dir");
+  fs::remove_all(dir);
+  fs::create_directories(dir / "tmp");
+  fmutest::write_zip((dir / "echo.fmu").string(), fmutest::echo_fmu_entries());
+  std::ofstream(dir / "good.yaml") << "fmu: echo.fmu\noutputs: [{name: y, scalar: y0}]\n";
+  std::ofstream(dir / "bad.yaml") << "fmu: echo.fmu\noutputs: [{name: y, scalar: y99}]\n";
+  std::ofstream(dir / "map.yaml") << "outputs: [{name: y, scalar: y0}]\n";
+  setenv("TMPDIR", (dir / "tmp").c_str(), 1);  // the children unpack here
+  const std::string url = harness::bus_url();
+  const std::string adapter = harness::bin("fmu_adapter");
+  auto run_adapter = [&](std::vector<std::string> args, const std::string& log) {
+    args.insert(args.begin(), adapter);
+    auto p = harness::spawn(args, (dir / log).string());
+    return harness::wait_for(p, 30);
+  };
+  // Good: loads, then waits for a master that does not come (exit 3 after --wait).
+  EXPECT_EQ(run_adapter({(dir / "good.yaml").string(), "--wait", "0.5", "--bus", url}, "good.log"), 3)
+      << harness::read_text((dir / "good.log").string());
+  EXPECT_EQ(run_adapter({(dir / "echo.fmu").string(), "--mapping", (dir / "map.yaml").string(), "--wait", "0.5", "--bus", url},
+                        "map.log"),
+            3)
+      << harness::read_text((dir / "map.log").string());
+  EXPECT_EQ(run_adapter({(dir / "bad.yaml").string(), "--bus", url}, "bad.log"), 2);
+  const std::string bad = harness::read_text((dir / "bad.log").string());
+  EXPECT_HAS(bad, "fmu_adapter: config error in " + (dir / "bad.yaml").string() +
+                      ": outputs.0.scalar: FMU echo.fmu (model 'EchoFmu') has no variable 'y99'");
+  EXPECT_EQ(run_adapter({(dir / "missing.fmu").string(), "--mapping", (dir / "map.yaml").string(), "--bus", url}, "missing.log"), 2);
+  EXPECT_HAS(harness::read_text((dir / "missing.log").string()), "missing.fmu': file not found");
+  EXPECT_EQ(run_adapter({(dir / "echo.fmu").string(), "--mapping", (dir / "map.yaml").string(), "--set", "fmu=x.fmu", "--bus", url},
+                        "twice.log"),
+            2);
+  EXPECT_HAS(harness::read_text((dir / "twice.log").string()), "the FMU is given twice");
+  unsetenv("TMPDIR");
+  EXPECT_TRUE(fs::is_empty(dir / "tmp")) << "an unpacked FMU folder was left behind";
+}
+
+// ---------------------------------------------------------------------------------------------
 // Through cosim_master over LCM.
 
 std::string config(const std::string& name) { return "tests/fmu/" + name; }
 
 // Runs the master on a config of tests/fmu with the CSV written; returns the exit code.
+// The adapters it launches unpack into a folder of their own, which must be empty afterwards
+// (also after refusals and failures).
 int run(const std::string& cfg, std::vector<std::string> overrides, const std::string& csv, double timeout = 90) {
+  namespace fs = std::filesystem;
   overrides.push_back("output.csv=" + csv);
-  return harness::run_master(overrides, csv + ".h5", timeout, config(cfg));
+  const fs::path tmp = csv + ".tmp";
+  fs::remove_all(tmp);
+  fs::create_directories(tmp);
+  setenv("TMPDIR", tmp.c_str(), 1);
+  const int code = harness::run_master(overrides, csv + ".h5", timeout, config(cfg));
+  unsetenv("TMPDIR");
+  for (int i = 0; i < 100 && !fs::is_empty(tmp); ++i)  // the launcher may not wait for every child
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  EXPECT_TRUE(fs::is_empty(tmp)) << "an unpacked FMU folder was left in " << tmp;
+  return code;
 }
 
 // Our run against a reference CSV: same times, every column within tol (absolute).

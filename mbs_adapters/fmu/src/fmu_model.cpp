@@ -303,17 +303,19 @@ void FmuModel::set_start_values(const YAML::Node& start, const std::string& path
 }
 
 void FmuModel::parse_mapping(const YAML::Node& root, const std::string& path) {
+  // path is "" for the adapter's own file at start-up (keys then stand alone)
+  auto key = [&](const std::string& k) { return cfg::join_path(path, k); };
   instance_name_ = cfg::get_string_or(root, path, "instance", participant_);
-  if (instance_name_.empty()) throw cfg::ConfigError(path + ".instance: must not be empty");
+  if (instance_name_.empty()) throw cfg::ConfigError(key("instance") + ": must not be empty");
   step_size_s_.reset();
   substeps_ = 0;
   if (root["step_size"] && root["substeps"])
-    throw cfg::ConfigError(path + ": give step_size or substeps, not both");
+    throw cfg::ConfigError((path.empty() ? std::string("mapping") : path) + ": give step_size or substeps, not both");
   if (root["step_size"]) step_size_s_ = cfg::get_positive(root, path, "step_size");
   if (root["substeps"]) {
     substeps_ = cfg::get_int(root, path, "substeps");
     if (substeps_ < 1 || substeps_ > 1000000)
-      throw cfg::ConfigError(path + ".substeps: " + std::to_string(substeps_) + " is not allowed (allowed: 1 to 1000000)");
+      throw cfg::ConfigError(key("substeps") + ": " + std::to_string(substeps_) + " is not allowed (allowed: 1 to 1000000)");
   }
   tolerance_.reset();
   if (root["tolerance"]) tolerance_ = cfg::get_positive(root, path, "tolerance");
@@ -321,29 +323,29 @@ void FmuModel::parse_mapping(const YAML::Node& root, const std::string& path) {
   snapshots_ = cfg::get_bool_or(root, path, "snapshots", true);
   start_ = root["start"] ? YAML::Clone(root["start"]) : YAML::Node();
   if (start_ && !start_.IsNull() && !start_.IsMap())
-    throw cfg::ConfigError(path + ".start: expected a map {variable name: value}");
+    throw cfg::ConfigError(key("start") + ": expected a map {variable name: value}");
   if (start_ && start_.IsMap())
     for (const auto& kv : start_) {  // names and kinds now, values once instantiated
-      const std::string k = path + ".start." + kv.first.as<std::string>();
+      const std::string k = key("start") + "." + kv.first.as<std::string>();
       variable(kv.first.as<std::string>(), k);
     }
   inputs_.clear();
   outputs_.clear();
   std::set<std::string> names;
   for (const bool input : {true, false}) {
-    const std::string key = input ? "inputs" : "outputs";
-    const YAML::Node list = root[key];
+    const std::string key_name = input ? "inputs" : "outputs";
+    const YAML::Node list = root[key_name];
     if (!list || list.IsNull()) continue;
-    if (!list.IsSequence()) throw cfg::ConfigError(path + "." + key + ": expected a list of ports {name, scalar|kinematics|wrench}");
+    if (!list.IsSequence()) throw cfg::ConfigError(key(key_name) + ": expected a list of ports {name, scalar|kinematics|wrench}");
     for (std::size_t i = 0; i < list.size(); ++i) {
-      PortMap p = parse_port(list[i], path + "." + key + "." + std::to_string(i), input);
+      PortMap p = parse_port(list[i], key(key_name) + "." + std::to_string(i), input);
       if (!names.insert(p.name).second)
         throw cfg::ConfigError(p.path + ".name: '" + p.name + "' is used twice (input and output names share one list)");
       (input ? inputs_ : outputs_).push_back(std::move(p));
     }
   }
   if (outputs_.empty())
-    throw cfg::ConfigError(path + ".outputs: missing; map at least one FMU output to a port (FMU " + label_ +
+    throw cfg::ConfigError(key("outputs") + ": missing; map at least one FMU output to a port (FMU " + label_ +
                            " has outputs: " + variables_with(*md_, {Causality::Output}) + ")");
   auto kinematics_port = [&](const std::string& name, const std::string& where) {
     for (const auto* list : {&inputs_, &outputs_})
@@ -376,9 +378,9 @@ void FmuModel::parse_mapping(const YAML::Node& root, const std::string& path) {
     }
 }
 
-void FmuModel::prepare(const YAML::Node& parameters, const std::string& participant) {
+void FmuModel::prepare(const YAML::Node& parameters, const std::string& participant, bool own_file) {
   participant_ = participant;
-  const std::string path = "participants." + participant + ".parameters";
+  const std::string path = own_file ? std::string() : "participants." + participant + ".parameters";
   YAML::Node root = YAML::Clone(root_);
   if (parameters && parameters.IsMap()) cfg::apply_overrides(root, parameters, path);
   cfg::check_keys(root, path, {"fmu", "instance", "step_size", "substeps", "tolerance", "start", "inputs",

@@ -54,8 +54,10 @@ class FmuModel final : public cosim::Model {
   ~FmuModel() override;
 
   // Unpacks and loads the FMU and checks the mapping against it, without instantiating:
-  // what configure() does first. Raises FmuError or config::ConfigError.
-  void prepare(const YAML::Node& parameters, const std::string& participant);
+  // what configure() does first. Raises FmuError or config::ConfigError naming the key: under
+  // "participants.<participant>.parameters", or (own_file, the check at start-up) as written in
+  // the adapter's own file.
+  void prepare(const YAML::Node& parameters, const std::string& participant, bool own_file = false);
 
   void configure(const YAML::Node& parameters, const cosim::RunInfo& run) override;
   cosim::Ports inputs() const override;

@@ -52,6 +52,7 @@ int main(int argc, char** argv) {
     }
   }
   if (!mapping.empty()) args.insert(args.begin() + 1, mapping.data());
+  std::string config_path;
   try {
     auto parsed = cosim::parse_participant_args(static_cast<int>(args.size()), args.data(), false);
     if (!fmu_file.empty()) {
@@ -60,13 +61,15 @@ int main(int argc, char** argv) {
                                          parsed.config_path);
       parsed.config["fmu"] = std::filesystem::absolute(fmu_file).string();
     }
+    config_path = parsed.config_path;
     fmu::FmuModel model(parsed.config, parsed.config_dir);
     // With the FMU named already, check it and the mapping now: a broken FMU is reported when
     // the adapter starts, not only when a master connects.
-    if (parsed.config["fmu"]) model.prepare(YAML::Node(YAML::NodeType::Map), name);
+    if (parsed.config["fmu"])
+      model.prepare(YAML::Node(YAML::NodeType::Map), name, true);
     return cosim::run_participant(model, "fmu", static_cast<int>(parsed.rest.size()), parsed.rest.data());
   } catch (const cosim::config::ConfigError& e) {
-    std::cerr << "fmu_adapter: config error: " << e.what() << "\n";
+    std::cerr << "fmu_adapter: config error" << (config_path.empty() ? "" : " in " + config_path) << ": " << e.what() << "\n";
     return 2;
   } catch (const fmu::FmuError& e) {
     std::cerr << "fmu_adapter: " << e.what() << "\n";
