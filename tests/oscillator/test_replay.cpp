@@ -13,6 +13,7 @@
 #include <signal.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 
@@ -78,7 +79,7 @@ TEST(BusReplay, Mass1AgainstTheRecordedMass2IsBitIdentical) {
   std::remove(logger_log.c_str());
   // lcm-logger on the same bus, as on any other host: every COSIM_ channel.
   harness::Process logger = harness::spawn(
-      {"/usr/bin/lcm-logger", "--lcm-url=" + harness::bus_url(), "-c", "COSIM_.*", "-f", "-q", logger_log},
+      {"/usr/bin/lcm-logger", "--lcm-url=" + harness::bus_url() + "&recv_buf_size=4194304", "-c", "COSIM_.*", "-f", "-q", logger_log},
       logger_log + ".out");
   std::this_thread::sleep_for(std::chrono::milliseconds(500));
   const std::string a = record("recorded");
@@ -132,12 +133,36 @@ TEST(BusReplay, Mass1AgainstTheRecordedMass2IsBitIdentical) {
   EXPECT_EQ(text(c, "replay/played"), "mass1");
 
   // lcm-logger's log of the same run (no records of the master's; announces and every channel
-  // of the session) replays the same, named by its session.
+  // of the session) replays the same, named by its session. lcm-logger 1.3.1 drops messages
+  // when it is not scheduled for a while (its subscription queue holds 30; measured on this
+  // loaded host: 0 to 460 of 2025 lost): the replay then names the first step it has no reply
+  // for and how far the log can be replayed, and that part replays bit for bit.
   const std::string d = harness::temp_path("_replay_logger.h5");
-  ASSERT_EQ(run_cosim_master(kConfig, d, {"--set", kEnd, "--replay", logger_log, "--replay-side", "mass1", "--replay-session", session}),
-            0)
-      << log_of(d);
-  expect_bit_identical(a, d);
+  auto replay_logger_log = [&](const std::string& end) {
+    return run_cosim_master(kConfig, d, {"--set", end, "--replay", logger_log, "--replay-side", "mass1",
+                                         "--replay-session", session});
+  };
+  int rows = kSteps + 1;
+  int code = replay_logger_log(kEnd);
+  if (code == 2) {
+    const std::string msg = log_of(d);
+    const std::string at_most = "Set time.end to at most ";
+    ASSERT_TRUE(contains(msg, "holds no reply of 'mass2' to step ")) << msg;
+    ASSERT_TRUE(contains(msg, "the log ends there or lost the message (recorded with lcm-logger?)")) << msg;
+    ASSERT_TRUE(contains(msg, at_most)) << msg;
+    const double end = std::stod(msg.substr(msg.find(at_most) + at_most.size()));
+    std::printf("lcm-logger lost messages; its log replays to t = %g s\n", end);
+    rows = static_cast<int>(std::lround(end / 5e-4)) + 1;
+    if (rows < 2) GTEST_SKIP() << "lcm-logger lost the first reply: nothing to replay";
+    code = replay_logger_log("time.end=" + std::to_string(end));
+  }
+  ASSERT_EQ(code, 0) << log_of(d);
+  for (const auto& ds : kDatasets) {
+    const auto x = harness::read_dataset(a, ds), y = harness::read_dataset(d, ds);
+    const std::size_t width = x.size() / (kSteps + 1);
+    ASSERT_EQ(y.size(), width * rows) << ds;
+    EXPECT_EQ(std::memcmp(x.data(), y.data(), y.size() * sizeof(double)), 0) << ds;
+  }
   EXPECT_EQ(number(d, "replay/complete_log"), 0);
   EXPECT_EQ(number(d, "replay/diverged"), 0);
 }
