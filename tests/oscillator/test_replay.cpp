@@ -285,6 +285,26 @@ TEST(BusReplay, LogsOfAnotherSessionTruncatedChangedOrWithoutTheParticipantAreRe
   msg = refused("not_a_log", harness::source(kConfig));
   EXPECT_TRUE(contains(msg, "is not an LCM event log: it does not start with LCM's sync word 0xEDA1DA01")) << msg;
 
+  // The command line: a replay names its live side, which must be a participant, and leaves one
+  // to play; a recording may not overwrite the log it replays.
+  msg = refused("no_side", log_path("a"), {"--replay-side"});  // (the option without a value)
+  EXPECT_TRUE(contains(msg, "--replay-side needs a value")) << msg;
+  msg = refused("unknown_side", log_path("a"), {"--replay-side", "mass3"});
+  EXPECT_TRUE(contains(msg, "--replay-side 'mass3': the config has no participant of that name (it has mass1, mass2)"))
+      << msg;
+  msg = refused("all_live", log_path("a"), {"--replay-side", "mass2"});
+  EXPECT_TRUE(contains(msg, "--replay-side names every participant of the config (mass1, mass2): nothing is left to play"))
+      << msg;
+  msg = refused("record_onto_log", log_path("a"), {"--record", log_path("a")});
+  EXPECT_TRUE(contains(msg, "--record")) << msg;
+  EXPECT_TRUE(contains(msg, "--replay")) << msg;
+  {
+    const std::string h5 = harness::temp_path("_without_side.h5");
+    EXPECT_EQ(run_cosim_master(kConfig, h5, {"--replay", log_path("a")}), 2);
+    EXPECT_TRUE(contains(log_of(h5), "--replay needs --replay-side NAME")) << log_of(h5);
+  }
+  EXPECT_EQ(replay_harness::read_log(log_path("a")).size(), events.size()) << "the log must be untouched";
+
   // A played side with other parameters than recorded.
   msg = refused("played_changed", log_path("a"), {"--set", "participants.mass2.parameters.damping=0.5"});
   EXPECT_TRUE(contains(msg, "participants.mass2.parameters differ from the recorded ones")) << msg;
