@@ -41,21 +41,23 @@ void on_stop_signal(int signal) { g_stop_signal = signal; }
 
 void usage() {
   std::cerr << "usage: cosim_master CONFIG.yaml [--set dotted.key=value ...] [--output FILE.h5] [--csv FILE.csv]\n"
+               "                    [--record FILE.lcmlog] [--replay LOG --replay-side NAME ...]\n"
                "  --set     override a config value, e.g. --set time.macro_step=5e-4 --set predictors.force.order=1\n"
                "  --output  HDF5 file to record to (overrides output.file)\n"
                "  --csv     CSV export of every participant output (overrides output.csv)\n"
-               "  --record  write every message of the run's session to FILE in LCM's log format\n"
+               "  --record  write every message of the run's session to FILE.lcmlog in LCM's log format\n"
                "            (lcm-logplayer plays it; docs/replay.md)\n"
                "  --replay LOG --replay-side NAME [--replay-side NAME2 ...] [--replay-session HEX]\n"
                "            rerun NAME live against the recorded replies of every other participant\n"
-               "            (not started); reports where the run diverges from the recording\n"
+               "            (not started); reports where the run diverges from the recording; the\n"
+               "            session only when LOG holds several runs (lcm-logger)\n"
                "       cosim_master --new-key FILE\n"
                "  --new-key write a new random key for the bus to FILE (mode 600; an existing file is\n"
                "            not overwritten); give it to every process of a run as COSIM_KEY_FILE=FILE\n"
                "The bus key comes from $COSIM_KEY_FILE (a file only its owner can read) or $COSIM_KEY,\n"
                "never from the command line; participants the master launches inherit it.\n"
-               "See docs/config.md for the config keys, docs/output.md for the recorded layout and\n"
-               "docs/security.md for the key.\n";
+               "See docs/config.md for the config keys, docs/output.md for the recorded layout,\n"
+               "docs/security.md for the key and docs/replay.md for recording and replay.\n";
 }
 
 // Writes a new key to `path`, readable by its owner only; refuses an existing file.
