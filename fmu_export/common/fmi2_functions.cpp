@@ -29,6 +29,9 @@ fmi2Status guarded(fmi2Component c, const char* function, bool breaks_instance, 
   if (!s) return fmi2Error;
   try {
     return f(*s);
+  } catch (const fmu_export::SequenceError& e) {
+    s->log(fmi2Error, "logStatusError", e.what());
+    return fmi2Error;
   } catch (const FmuError& e) {
     s->log(fmi2Error, "logStatusError", e.what());
   } catch (const std::bad_alloc&) {

@@ -192,21 +192,21 @@ void Slave::exit_initialization() {
 
 void Slave::do_step(double t, double h) {
   if (mode_ != Mode::Step)
-    throw FmuError("fmi2DoStep: the FMU is " + std::string(mode_name(mode_)));
+    throw SequenceError("fmi2DoStep: the FMU is " + std::string(mode_name(mode_)));
   if (!std::isfinite(t) || !std::isfinite(h) || h <= 0)
-    throw FmuError("fmi2DoStep: communicationStepSize must be a positive finite number (got " +
+    throw SequenceError("fmi2DoStep: communicationStepSize must be a positive finite number (got " +
                    std::to_string(h) + ")");
   if (std::abs(t - t_) > 1e-9 * std::max(1.0, std::abs(t_))) {
     char buf[200];
     std::snprintf(buf, sizeof buf,
                   "fmi2DoStep: currentCommunicationPoint %.17g, but the FMU is at t = %.17g "
                   "(a master that goes back must first restore an FMU state)", t, t_);
-    throw FmuError(buf);
+    throw SequenceError(buf);
   }
   if (stop_ && t + h > *stop_ * (1 + 1e-12) + 1e-12) {
     char buf[160];
     std::snprintf(buf, sizeof buf, "fmi2DoStep: the step to t = %.17g goes past the stop time %.17g of fmi2SetupExperiment", t + h, *stop_);
-    throw FmuError(buf);
+    throw SequenceError(buf);
   }
   step(t, h);
   // Input derivatives hold for one step; the next needs its own (else the inputs are held).

@@ -23,6 +23,10 @@ namespace fmu_export {
 struct FmuError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
+// A call out of sequence or with bad arguments that changed nothing: the instance stays usable.
+struct SequenceError : FmuError {
+  using FmuError::FmuError;
+};
 
 enum class Mode { Instantiated, Initialization, Step, Terminated, Error };
 

@@ -73,7 +73,7 @@ struct Library {
   FMU_FN(fmi2SetupExperiment) FMU_FN(fmi2EnterInitializationMode) FMU_FN(fmi2ExitInitializationMode)
   FMU_FN(fmi2Terminate) FMU_FN(fmi2Reset) FMU_FN(fmi2GetReal) FMU_FN(fmi2SetReal) FMU_FN(fmi2GetInteger)
   FMU_FN(fmi2SetInteger) FMU_FN(fmi2GetString) FMU_FN(fmi2SetString) FMU_FN(fmi2GetFMUstate)
-  FMU_FN(fmi2SetFMUstate) FMU_FN(fmi2FreeFMUstate) FMU_FN(fmi2SetRealInputDerivatives) FMU_FN(fmi2DoStep)
+  FMU_FN(fmi2SetFMUstate) FMU_FN(fmi2FreeFMUstate) FMU_FN(fmi2SetRealInputDerivatives) FMU_FN(fmi2DoStep) FMU_FN(fmi2SetDebugLogging)
 #undef FMU_FN
   explicit Library(const std::string& id) {
     handle = dlopen(so_path(id).c_str(), RTLD_NOW | RTLD_LOCAL);
@@ -86,7 +86,7 @@ struct Library {
     FMU_FN(fmi2SetupExperiment) FMU_FN(fmi2EnterInitializationMode) FMU_FN(fmi2ExitInitializationMode)
     FMU_FN(fmi2Terminate) FMU_FN(fmi2Reset) FMU_FN(fmi2GetReal) FMU_FN(fmi2SetReal) FMU_FN(fmi2GetInteger)
     FMU_FN(fmi2SetInteger) FMU_FN(fmi2GetString) FMU_FN(fmi2SetString) FMU_FN(fmi2GetFMUstate)
-    FMU_FN(fmi2SetFMUstate) FMU_FN(fmi2FreeFMUstate) FMU_FN(fmi2SetRealInputDerivatives) FMU_FN(fmi2DoStep)
+    FMU_FN(fmi2SetFMUstate) FMU_FN(fmi2FreeFMUstate) FMU_FN(fmi2SetRealInputDerivatives) FMU_FN(fmi2DoStep) FMU_FN(fmi2SetDebugLogging)
 #undef FMU_FN
   }
   ~Library() {

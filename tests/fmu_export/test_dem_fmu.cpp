@@ -196,21 +196,34 @@ TEST(DemFmu, RepeatedStepFromFmuStateIsBitIdentical) {
 
 TEST(DemFmu, WorksOnAKeyedBus) {
   const std::string key = cosim::auth::new_key_hex();
-  setenv("COSIM_KEY", key.c_str(), 1);  // the FMU and the dem_service spawned below
-  DemService dem;
   Library lib("dem_fmu");
-  Instance f(lib, "dem_fmu", "keyed");
-  configure(f);
-  const fmi2Status init = f.initialize(0, kEnd);
-  unsetenv("COSIM_KEY");
-  ASSERT_EQ(init, fmi2OK) << f.log.all() << dem.log();
-  for (int i = 0; i < 20; ++i) {
-    set_pose(f, i * kDt, 0, kDt);
-    ASSERT_EQ(f.step(i * kDt, kDt), fmi2OK) << f.log.all();
+  {  // the FMU and dem_service hold the key: sealed messages, the blade steps
+    setenv("COSIM_KEY", key.c_str(), 1);  // for the FMU, and the dem_service spawned here
+    DemService dem;
+    Instance f(lib, "dem_fmu", "keyed");
+    configure(f);
+    ASSERT_EQ(lib.fmi2SetDebugLogging(f.c, fmi2True, 0, nullptr), fmi2OK);
+    const fmi2Status init = f.initialize(0, kEnd);
+    unsetenv("COSIM_KEY");
+    ASSERT_EQ(init, fmi2OK) << f.log.all() << dem.log();
+    EXPECT_NE(f.log.all().find("(sealed with the bus key)"), std::string::npos) << f.log.all();
+    for (int i = 0; i < 20; ++i) {
+      set_pose(f, i * kDt, 0, kDt);
+      ASSERT_EQ(f.step(i * kDt, kDt), fmi2OK) << f.log.all();
+    }
+    EXPECT_EQ(lib.fmi2Terminate(f.c), fmi2OK);
+    EXPECT_EQ(dem.wait(), 0) << dem.log();
   }
-  EXPECT_EQ(lib.fmi2Terminate(f.c), fmi2OK);
-  EXPECT_EQ(dem.wait(), 0) << dem.log();
-  EXPECT_NE(dem.log().find("bus authenticated"), std::string::npos) << dem.log();
+  {  // a dem_service without the key cannot join, and the FMU says why
+    DemService dem;
+    setenv("COSIM_KEY", key.c_str(), 1);
+    Instance f(lib, "dem_fmu", "keyed_alone");
+    configure(f, 2.0);
+    const fmi2Status init = f.initialize(0, kEnd);
+    unsetenv("COSIM_KEY");
+    EXPECT_EQ(init, fmi2Error);
+    EXPECT_NE(f.log.all().find("cannot join"), std::string::npos) << f.log.all();
+  }
 }
 
 TEST(DemFmu, FailuresAreFmi2ErrorsThatSayWhy) {
