@@ -17,6 +17,7 @@ ParticipantInfo Transport::accept_ready(const ready_t& r) const {
     if (r.inner_step_ns <= 0) throw ProtocolError("reports inner step " + std::to_string(r.inner_step_ns));
     info.inner_step = nanoseconds(r.inner_step_ns);
     info.can_repeat = r.can_repeat;
+    if (!r.can_repeat) info.repeat_note = r.error;
     info.initial_outputs = from_message(r.initial_outputs, what + " initial outputs");
     check_against_ports(info.initial_outputs, info.outputs, what + " initial outputs");
     return info;

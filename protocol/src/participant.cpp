@@ -93,6 +93,7 @@ std::optional<ready_t> ParticipantCore::configure(const configure_t& m) {
     for (const auto& [n, s] : initial) validate_value(s.kind, s.value, "initial output '" + n + "'");
     r.inner_step_ns = to_ns(inner);
     r.can_repeat = model_.can_repeat();
+    if (!r.can_repeat) r.error = model_.repeat_note();
     r.inputs = to_message(inputs_);
     r.n_inputs = static_cast<int32_t>(r.inputs.size());
     r.outputs = to_message(outputs_);

@@ -80,6 +80,7 @@ struct ParticipantInfo {
   Ports inputs, outputs;
   Duration inner_step{};
   bool can_repeat = false;
+  std::string repeat_note;  // why it cannot repeat a step, when it says (ready_t.error with ok)
   Signals initial_outputs;
 };
 
