@@ -16,11 +16,11 @@ std::vector<std::string> with_fmus(std::vector<std::string> o) {
   return o;
 }
 
-struct Run {
+struct RunSeries {
   std::vector<double> t, x1, v1, force;
 };
 
-Run run(const std::string& config, const std::vector<std::string>& overrides, const std::string& tag) {
+RunSeries run(const std::string& config, const std::vector<std::string>& overrides, const std::string& tag) {
   const std::string h5 = harness::temp_path("_" + tag + ".h5");
   std::remove(h5.c_str());
   const int code = harness::run_master(overrides, h5, 300, config);
@@ -30,8 +30,8 @@ Run run(const std::string& config, const std::vector<std::string>& overrides, co
           harness::read_dataset(h5, "participants/mass2/outputs/force")};
 }
 
-Run fmus(std::vector<std::string> o, const std::string& tag) { return run("configs/oscillator_fmu.yaml", with_fmus(o), "fmu_" + tag); }
-Run native(std::vector<std::string> o, const std::string& tag) { return run("configs/oscillator.yaml", o, "native_" + tag); }
+RunSeries fmus(std::vector<std::string> o, const std::string& tag) { return run("configs/oscillator_fmu.yaml", with_fmus(o), "fmu_" + tag); }
+RunSeries native(std::vector<std::string> o, const std::string& tag) { return run("configs/oscillator.yaml", o, "native_" + tag); }
 
 double max_difference(const std::vector<double>& a, const std::vector<double>& b) {
   if (a.size() != b.size() || a.empty()) return INFINITY;
@@ -40,7 +40,7 @@ double max_difference(const std::vector<double>& a, const std::vector<double>& b
   return d;
 }
 
-double max_error(const Run& r) {
+double max_error(const RunSeries& r) {
   oscillator::Parameters p;
   double e = 0;
   for (std::size_t i = 0; i < r.t.size(); ++i)
@@ -72,7 +72,7 @@ TEST(OscillatorFmuAdapter, SameResultsAsTheNativeParticipants) {
                        Case{"gauss_seidel", 1, 1}}) {
     const std::string tag = std::string(c.scheme) + std::to_string(c.kq) + std::to_string(c.kf);
     const auto o = scheme(c.scheme, c.kq, c.kf, 5e-4);
-    const Run f = fmus(o, tag), n = native(o, tag);
+    const RunSeries f = fmus(o, tag), n = native(o, tag);
     ASSERT_EQ(f.t.size(), 2001u);
     const double dx = max_difference(f.x1, n.x1), df = max_difference(f.force, n.force);
     std::printf("%-12s (%d,%d) over LCM: largest difference FMUs - native: x1 %.3g m, force %.3g N\n", c.scheme, c.kq,
@@ -81,7 +81,9 @@ TEST(OscillatorFmuAdapter, SameResultsAsTheNativeParticipants) {
     // (u^(j) = a_j j! / H^j and back), far below the coupling error (1e-7..1e-4 m here).
     EXPECT_LT(dx, 1e-13);
     EXPECT_LT(df, 1e-10);
-    if (c.kq == 0 && c.kf == 0) EXPECT_EQ(f.x1, n.x1);  // no conversion at all
+    if (c.kq == 0 && c.kf == 0) {
+      EXPECT_EQ(f.x1, n.x1);  // no conversion at all
+    }
   }
 }
 
@@ -159,7 +161,7 @@ TEST(OscillatorFmuAdapter, CriticalMacroStepsAreTheNativeOnes) {
       no.push_back(std::string("participants.mass1.parameters.inner_step=") + h);
       no.push_back(std::string("participants.mass2.parameters.inner_step=") + h);
       no.push_back("output.file=");
-      const Run f = fmus(fo, factor < 1 ? "below" : "above");
+      const RunSeries f = fmus(fo, factor < 1 ? "below" : "above");
       ASSERT_FALSE(f.t.empty());
       const auto n = harness::run_in_process(harness::oscillator_config(no));
       const double rate = std::log(growth(f.force)) / (0.5 * f.t.back());
