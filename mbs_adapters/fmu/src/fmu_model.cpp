@@ -639,8 +639,8 @@ cosim::Signals FmuModel::initial_outputs() { return read_outputs("after initiali
 // the sub-step's start (fmi2SetRealInputDerivatives, orders 1..3), so it follows the predictor
 // within a doStep instead of holding the value (docs/fmi.md, "Input derivatives"). Only
 // components that reach a Real variable unconverted: scalars, and a kinematics port's
-// position, velocity and (ground-frame) angular velocity. Orientations and wrenches, which are
-// converted before they are set, are held.
+// position, velocity and (ground-frame) angular velocity, and a quaternion's first derivative.
+// Euler angles and wrenches, which are converted before they are set, are held.
 void FmuModel::write_input_derivatives(const cosim::StepInputs& in, cosim::TimePoint t, const std::string& when) {
   const double L = cosim::to_seconds(in.length());
   const double s = static_cast<double>(cosim::to_ns(t - in.t_start())) / static_cast<double>(cosim::to_ns(in.length()));
@@ -657,6 +657,16 @@ void FmuModel::write_input_derivatives(const cosim::StepInputs& in, cosim::TimeP
         parts.push_back({cosim::Kinematics::kTangentVelocity + i, &p.velocity[i]});
         if (!p.angular_velocity_in_body) parts.push_back({cosim::Kinematics::kTangentAngularVelocity + i, &p.angular_velocity[i]});
       }
+    }
+    // A quaternion's first derivative, by a central difference of the polynomial on the
+    // rotation group (relative truncation ~1e-10, rounding ~1e-11): enough for an FMU that
+    // extrapolates the pose linearly; higher orders of the orientation are not passed.
+    if (p.kind == SignalKind::Kinematics && p.orientation == OrientationMap::Quaternion && poly.n_coefficients > 1) {
+      const double ds = 1e-5;
+      const cosim::Value a = poly.evaluate(s - ds), b = poly.evaluate(s + ds);
+      for (int i = 0; i < 4; ++i)
+        if (p.quaternion[i].var && p.quaternion[i].var->type == VarType::Real)
+          inst_->set_input_derivative(*p.quaternion[i].var, 1, (b[3 + i] - a[3 + i]) / (2 * ds * L), when);
     }
     for (const auto& [index, component] : parts) {
       if (!component->var || component->var->type != VarType::Real) continue;
