@@ -62,6 +62,7 @@ Fmi2Library::Fmi2Library(const std::string& so_path, const std::string& fmu) {
   need(freeFMUstate, "fmi2FreeFMUstate", false);
   need(getStatus, "fmi2GetStatus", false);
   need(getRealStatus, "fmi2GetRealStatus", false);
+  need(setRealInputDerivatives, "fmi2SetRealInputDerivatives", false);
   if (!missing.empty()) {
     dlclose(handle_);
     handle_ = nullptr;
@@ -237,6 +238,13 @@ void Fmi2Instance::get_numbers(const std::vector<const Variable*>& vars, std::ve
                                const std::string& when) {
   out.resize(vars.size());
   for (std::size_t i = 0; i < vars.size(); ++i) out[i] = get_number(*vars[i], when);
+}
+
+void Fmi2Instance::set_input_derivative(const Variable& v, int order, double value, const std::string& when) {
+  const fmi2ValueReference vr = v.value_reference;
+  const fmi2Integer o = order;
+  check(lib_.setRealInputDerivatives(c_, &vr, 1, &o, &value), "fmi2SetRealInputDerivatives",
+        "of '" + v.name + "' (order " + std::to_string(order) + ") " + when);
 }
 
 void Fmi2Instance::save_state() {

@@ -50,6 +50,7 @@ class Fmi2Library {
   fmi2DoStepTYPE* doStep = nullptr;
   fmi2GetStatusTYPE* getStatus = nullptr;
   fmi2GetRealStatusTYPE* getRealStatus = nullptr;
+  fmi2SetRealInputDerivativesTYPE* setRealInputDerivatives = nullptr;  // optional
 
  private:
   void* handle_ = nullptr;
@@ -77,6 +78,8 @@ class Fmi2Instance {
   void enter_initialization();
   void exit_initialization();
   void do_step(double t, double h);
+  // The `order`-th time derivative of a Real input for the next doStep (canInterpolateInputs).
+  void set_input_derivative(const Variable& v, int order, double value, const std::string& when);
   // Values by variable; the type decides the FMI function.
   void set(const Variable& v, const Scalar& value, const std::string& when);
   double get_number(const Variable& v, const std::string& when);

@@ -321,6 +321,7 @@ void FmuModel::parse_mapping(const YAML::Node& root, const std::string& path) {
   if (root["tolerance"]) tolerance_ = cfg::get_positive(root, path, "tolerance");
   verbose_ = cfg::get_bool_or(root, path, "verbose", false);
   snapshots_ = cfg::get_bool_or(root, path, "snapshots", true);
+  input_derivatives_ = cfg::get_bool_or(root, path, "input_derivatives", true);
   start_ = root["start"] ? YAML::Clone(root["start"]) : YAML::Node();
   if (start_ && !start_.IsNull() && !start_.IsMap())
     throw cfg::ConfigError(key("start") + ": expected a map {variable name: value}");
@@ -384,7 +385,7 @@ void FmuModel::prepare(const YAML::Node& parameters, const std::string& particip
   YAML::Node root = YAML::Clone(root_);
   if (parameters && parameters.IsMap()) cfg::apply_overrides(root, parameters, path);
   cfg::check_keys(root, path, {"fmu", "instance", "step_size", "substeps", "tolerance", "start", "inputs",
-                               "outputs", "verbose", "snapshots"});
+                               "outputs", "verbose", "snapshots", "input_derivatives"});
   const std::string text = emit(root);
   if (md_ && text == prepared_yaml_) return;  // the same mapping: keep the loaded FMU
   inst_.reset();
@@ -637,6 +638,58 @@ cosim::Signals FmuModel::read_outputs(const std::string& when) {
 
 cosim::Signals FmuModel::initial_outputs() { return read_outputs("after initialization"); }
 
+// An FMU with canInterpolateInputs="true" gets the time derivatives of the input polynomial at
+// the sub-step's start (fmi2SetRealInputDerivatives, orders 1..3), so it follows the predictor
+// within a doStep instead of holding the value (docs/fmi.md, "Input derivatives"). Only
+// components that reach a Real variable unconverted: scalars, and a kinematics port's
+// position, velocity and (ground-frame) angular velocity, and a quaternion's first derivative.
+// Euler angles and wrenches, which are converted before they are set, are held.
+void FmuModel::write_input_derivatives(const cosim::StepInputs& in, cosim::TimePoint t, const std::string& when) {
+  const double L = cosim::to_seconds(in.length());
+  const double s = static_cast<double>(cosim::to_ns(t - in.t_start())) / static_cast<double>(cosim::to_ns(in.length()));
+  for (const auto& p : inputs_) {
+    if (p.kind == SignalKind::Wrench) continue;
+    const cosim::InputPolynomial& poly = in.polynomial(p.name);
+    const int n = cosim::tangent_size(p.kind);
+    std::vector<std::pair<int, const Component*>> parts;  // tangent index, its variable
+    if (p.kind == SignalKind::Scalar) {
+      parts.push_back({0, &p.scalar});
+    } else {
+      for (int i = 0; i < 3; ++i) {
+        parts.push_back({cosim::Kinematics::kTangentPosition + i, &p.position[i]});
+        parts.push_back({cosim::Kinematics::kTangentVelocity + i, &p.velocity[i]});
+        if (!p.angular_velocity_in_body) parts.push_back({cosim::Kinematics::kTangentAngularVelocity + i, &p.angular_velocity[i]});
+      }
+    }
+    // A quaternion's first derivative, by a central difference of the polynomial on the
+    // rotation group (relative truncation ~1e-10, rounding ~1e-11): enough for an FMU that
+    // extrapolates the pose linearly; higher orders of the orientation are not passed.
+    if (p.kind == SignalKind::Kinematics && p.orientation == OrientationMap::Quaternion && poly.n_coefficients > 1) {
+      const double ds = 1e-5;
+      const cosim::Value a = poly.evaluate(s - ds), b = poly.evaluate(s + ds);
+      for (int i = 0; i < 4; ++i)
+        if (p.quaternion[i].var && p.quaternion[i].var->type == VarType::Real)
+          inst_->set_input_derivative(*p.quaternion[i].var, 1, (b[3 + i] - a[3 + i]) / (2 * ds * L), when);
+    }
+    for (const auto& [index, component] : parts) {
+      if (!component->var || component->var->type != VarType::Real) continue;
+      double Lj = 1;
+      for (int j = 1; j < poly.n_coefficients; ++j) {
+        Lj *= L;
+        // d^j/ds^j of sum_i c_i s^i at s, over L^j
+        double d = 0, sk = 1;
+        for (int i = j; i < poly.n_coefficients; ++i) {
+          double falling = 1;
+          for (int f = 0; f < j; ++f) falling *= i - f;
+          d += poly.coefficients[i * n + index] * falling * sk;
+          sk *= s;
+        }
+        inst_->set_input_derivative(*component->var, j, d / Lj, when);
+      }
+    }
+  }
+}
+
 cosim::StepResult FmuModel::step(const cosim::StepInputs& in, bool /*want_average*/) {
   const int n = static_cast<int>(in.length() / inner_step_);
   const double h = cosim::to_seconds(inner_step_);
@@ -649,6 +702,8 @@ cosim::StepResult FmuModel::step(const cosim::StepInputs& in, bool /*want_averag
     for (const bool wrench : {false, true})
       for (const auto& p : inputs_)
         if ((p.kind == SignalKind::Wrench) == wrench) write_input(p, in.at(p.name, t), when);
+    if (input_derivatives_ && md_->can_interpolate_inputs && lib_->setRealInputDerivatives)
+      write_input_derivatives(in, t, when);
     inst_->do_step(cosim::to_seconds(t), h);
   }
   char when[64];

@@ -86,6 +86,7 @@ class FmuModel final : public cosim::Model {
   cosim::Kinematics kinematics_of(const std::string& port, const std::string& when);
   cosim::Value read_output(const PortMap& p, const std::string& when);
   void write_input(const PortMap& p, const cosim::Value& v, const std::string& when);
+  void write_input_derivatives(const cosim::StepInputs& in, cosim::TimePoint t, const std::string& when);
   double read(const Component& c, const std::string& when);
   void write(const Component& c, double value, const PortMap& p, const std::string& when);
   cosim::Signals read_outputs(const std::string& when);
@@ -107,6 +108,7 @@ class FmuModel final : public cosim::Model {
   std::optional<double> tolerance_;
   bool verbose_ = false;
   bool snapshots_ = true;
+  bool input_derivatives_ = true;  // mapping key input_derivatives
   YAML::Node start_;
   std::vector<PortMap> inputs_, outputs_;
   cosim::Duration inner_step_{};
