@@ -73,20 +73,20 @@ def fetch(src, t):
     return servermanager.Fetch(src)
 
 
-# First pass over the chosen frames: where the tools go (the camera frames their box over the
-# run) and how fast the particles are (the colour range).
+# First pass: where the tools go over the run (the camera frames their box) and how fast the
+# particles are in the chosen frames (the colour range).
 part = block(particles) if particles is not None else None
 tool_blocks = [block(i) for i in tools]
 wall_block = block(walls) if walls is not None else None
 lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
 speeds = []
-for k in chosen:
+for k in range(len(times)):  # the camera frames the tools over the whole run, whatever is drawn
     t = times[k]
     for tb in tool_blocks:
         b = fetch(tb, t).GetBounds()
         if b[0] <= b[1]:
             lo, hi = np.minimum(lo, b[0::2]), np.maximum(hi, b[1::2])
-    if part is not None:
+    if part is not None and k in chosen:
         d = fetch(part, t)
         v = d.GetPointData().GetArray("velocity")
         if v is not None and v.GetNumberOfTuples():
@@ -133,7 +133,7 @@ if part is not None:
 for tb in tool_blocks:
     td = Show(tb, view)
     td.ColorArrayName = ["POINTS", ""]
-    td.AmbientColor = td.DiffuseColor = [0.45, 0.47, 0.52]
+    td.AmbientColor = td.DiffuseColor = [0.62, 0.64, 0.70]
     td.Specular = 0.3
 if wall_block is not None:
     wd = Show(wall_block, view)
@@ -146,11 +146,12 @@ ld.FontSize = builtins.max(12, height // 30)
 ld.Color = [0.1, 0.1, 0.1]
 ld.WindowLocation = "Upper Left Corner"
 
-# Camera: the tools' box over the run (padded), seen from the front-left and above.
+# Camera: the tools' box over the run (padded), seen from the side (-y), a little from the
+# front (+x) and above.
 centre = 0.5 * (lo + hi)
 radius = 0.5 * float(np.linalg.norm(hi - lo))
-radius = builtins.max(radius * 1.4, 1e-3)
-direction = np.array([-0.55, -1.0, 0.6])
+radius = builtins.max(radius * 1.15, 1e-3)
+direction = np.array([0.3, -1.0, 0.75])
 direction /= np.linalg.norm(direction)
 view.CameraViewAngle = 30.0
 distance = radius / math.sin(math.radians(view.CameraViewAngle / 2))

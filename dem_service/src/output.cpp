@@ -101,6 +101,19 @@ std::array<Vec3, 4> wall_quad(const Wall& w, Vec3 lo, Vec3 hi) {
           w.point + a0 * u + b1 * v};
 }
 
+// The part of a convex polygon on the inner side of wall o (where the particles are), within eps.
+std::vector<Vec3> clip(const std::vector<Vec3>& poly, const Wall& o, double eps) {
+  std::vector<Vec3> out;
+  for (std::size_t i = 0; i < poly.size(); ++i) {
+    const Vec3 a = poly[i], b = poly[(i + 1) % poly.size()];
+    const double da = dot(a - o.point, o.normal), db = dot(b - o.point, o.normal);
+    const bool ina = da >= -eps, inb = db >= -eps;
+    if (ina) out.push_back(a);
+    if (ina != inb) out.push_back(a + (da / (da - db)) * (b - a));
+  }
+  return out;
+}
+
 }  // namespace
 
 RunOutput::RunOutput(const std::string& path, const Scene& scene, const std::string& config_text)
@@ -130,15 +143,14 @@ RunOutput::RunOutput(const std::string& path, const Scene& scene, const std::str
   }
   if (!scene.walls.empty()) {
     h5::Handle g(H5Gcreate2(file_, "wall_geometry", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Gclose);
-    std::vector<std::int32_t> quads(4 * scene.walls.size());
-    std::iota(quads.begin(), quads.end(), 0);
-    h5::write(g, "quads", H5T_NATIVE_INT32, quads.data(), scene.walls.size(), 4);
     std::string names;
     for (const Wall& w : scene.walls) names += (names.empty() ? "" : ", ") + w.name;
     h5::write_string_attribute(g, "names", names);
     h5::write_string_attribute(g, "note",
-                               "for pictures only: box faces as they are, planes (infinite in the "
-                               "physics) as rectangles over everything the snapshots saw");
+                               "for pictures only: each wall as the part of its plane (a box face: "
+                               "of that face; a plane: of a rectangle over everything the snapshots "
+                               "saw) on the particles' side of every other wall, as triangles; "
+                               "'wall' is each triangle's index into 'names'");
     wall_rows_ = std::make_unique<h5::Table>(file_, "walls", 1 + 3 * scene.walls.size(), kChunkRows);
     std::string cols = "time";
     for (const Wall& w : scene.walls) cols += ", " + w.name + " force xyz";
@@ -281,23 +293,40 @@ void RunOutput::write_wall_geometry() {
   Vec3 lo = extent_lo_, hi = extent_hi_;
   if (!have_extent_) lo = hi = scene_.walls.front().point;
   const Vec3 size = hi - lo;
-  const double margin =
-      std::max({0.1 * std::max({size.x, size.y, size.z}), 4 * scene_.r_max(), 1e-3});
+  const double span = std::max({size.x, size.y, size.z});
+  const double margin = std::max({0.1 * span, 4 * scene_.r_max(), 1e-3});
   lo -= Vec3{margin, margin, margin};
   hi += Vec3{margin, margin, margin};
-  std::vector<Vec3> corners;
-  for (const Wall& w : scene_.walls)
-    for (const Vec3& c : wall_quad(w, lo, hi)) corners.push_back(c);
-  // Rewritten in place at every snapshot (same shape): the XDMF points every time step at it.
-  if (H5Lexists(file_, "wall_geometry/vertices", H5P_DEFAULT) > 0) {
-    h5::Handle set(H5Dopen2(file_, "wall_geometry/vertices", H5P_DEFAULT), H5Dclose);
-    if (!set.ok() ||
-        H5Dwrite(set, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, corners.data()) < 0)
-      throw std::runtime_error("HDF5: cannot rewrite 'wall_geometry/vertices' in '" + path_ + "'");
-  } else {
-    h5::Handle g(H5Gopen2(file_, "wall_geometry", H5P_DEFAULT), H5Gclose);
-    h5::write(g, "vertices", corners);
+  // Each wall's rectangle, cut to the particles' side of every other wall (the domain), as a fan
+  // of triangles.
+  const double eps = 1e-9 * std::max(1.0, span);
+  std::vector<Vec3> vertices;
+  std::vector<std::array<std::int32_t, 3>> triangles;
+  std::vector<std::int32_t> owner;
+  for (std::size_t w = 0; w < scene_.walls.size(); ++w) {
+    const auto quad = wall_quad(scene_.walls[w], lo, hi);
+    std::vector<Vec3> poly(quad.begin(), quad.end());
+    for (std::size_t o = 0; o < scene_.walls.size() && poly.size() >= 3; ++o)
+      if (o != w) poly = clip(poly, scene_.walls[o], eps);
+    if (poly.size() < 3) continue;  // nothing of it borders the domain
+    const auto base = static_cast<std::int32_t>(vertices.size());
+    vertices.insert(vertices.end(), poly.begin(), poly.end());
+    for (std::int32_t i = 1; i + 1 < static_cast<std::int32_t>(poly.size()); ++i) {
+      triangles.push_back({base, base + i, base + i + 1});
+      owner.push_back(static_cast<std::int32_t>(w));
+    }
   }
+  // Replaced at every snapshot (its size may change): the XDMF points every time step at it.
+  h5::Handle g(H5Gopen2(file_, "wall_geometry", H5P_DEFAULT), H5Gclose);
+  for (const char* name : {"vertices", "triangles", "wall"})
+    if (H5Lexists(g, name, H5P_DEFAULT) > 0 && H5Ldelete(g, name, H5P_DEFAULT) < 0)
+      throw std::runtime_error(std::string("HDF5: cannot replace 'wall_geometry/") + name +
+                               "' in '" + path_ + "'");
+  h5::write(g, "vertices", vertices);
+  h5::write(g, "triangles", H5T_NATIVE_INT32, triangles.data(), triangles.size(), 3);
+  h5::write(g, "wall", H5T_NATIVE_INT32, owner.data(), owner.size(), 0);
+  wall_vertices_ = vertices.size();
+  wall_triangles_ = triangles.size();
 }
 
 void RunOutput::write_xdmf() const {
@@ -339,14 +368,15 @@ void RunOutput::write_xdmf() const {
       item(nv, 3, "Float", 8, g + "/snapshots/" + snap);
       out << "</Geometry>\n </Grid>\n";
     }
-    if (!scene_.walls.empty()) {
-      const std::size_t nw = scene_.walls.size();
+    if (wall_triangles_ > 0) {
       out << " <Grid Name=\"walls\" GridType=\"Uniform\">\n"
-          << "  <Topology TopologyType=\"Quadrilateral\" NumberOfElements=\"" << nw << "\">";
-      item(nw, 4, "Int", 4, "wall_geometry/quads");
+          << "  <Topology TopologyType=\"Triangle\" NumberOfElements=\"" << wall_triangles_ << "\">";
+      item(wall_triangles_, 3, "Int", 4, "wall_geometry/triangles");
       out << "</Topology>\n  <Geometry GeometryType=\"XYZ\">";
-      item(4 * nw, 3, "Float", 8, "wall_geometry/vertices");
-      out << "</Geometry>\n </Grid>\n";
+      item(wall_vertices_, 3, "Float", 8, "wall_geometry/vertices");
+      out << "</Geometry>\n  <Attribute Name=\"wall\" AttributeType=\"Scalar\" Center=\"Cell\">";
+      item(wall_triangles_, 0, "Int", 4, "wall_geometry/wall");
+      out << "</Attribute>\n </Grid>\n";
     }
     out << "</Grid>\n";
   }

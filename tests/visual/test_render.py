@@ -5,7 +5,7 @@ xvfb-run or ffmpeg is missing; scripts/setup.sh installs them.
 
 * ParaView's Xdmf3 reader (no plugins) opens the XDMF of a dem_run of tests/visual/scene.yaml:
   11 time steps, at each the particles (400 points with velocity and radius), the blade (6
-  points, 4 triangles) and the walls (6 quads); the blade's bounds in ParaView are those of its
+  points, 4 triangles) and the walls (6 rectangles, 12 triangles); the blade's bounds in ParaView are those of its
   vertices in the HDF5 file at that time (1e-6 m), and they move;
 * `render.sh RUN.xdmf --every 3 --width 320` writes 5 PNG frames (snapshots 0, 3, 6, 9 and the
   last, 10) of 320 x 180 pixels and an MP4 of 5 frames of that size (ffprobe);
@@ -86,7 +86,7 @@ class Render(unittest.TestCase):
                 np.testing.assert_allclose(tool["bounds"][0::2], v.min(axis=0), rtol=0, atol=1e-6)
                 np.testing.assert_allclose(tool["bounds"][1::2], v.max(axis=0), rtol=0, atol=1e-6)
                 self.assertTrue(walls["name"].startswith("walls"), walls["name"])
-                self.assertEqual((walls["points"], walls["cells"]), (24, 6))
+                self.assertEqual((walls["points"], walls["cells"]), (24, 12))  # 6 rectangles
                 first_tool = first_tool or tool["bounds"]
             # The blade went 0.17 m along x between the first and the last snapshot.
             self.assertGreater(tool["bounds"][0] - first_tool[0], 0.1)

@@ -11,8 +11,10 @@
   pose recorded at that time: the closed-form pose of the keyframes, the snapshot's own pose
   attributes, under dem_service also the DEM's wrench/pose samples and the pose the prescribed
   participant sent (the master's record) at that time; all within 1e-9 m;
-* the box's faces are drawn as the box's faces, the floor plane as a rectangle on the plane that
-  covers every particle and blade vertex of every snapshot.
+* each wall is drawn as the part of its plane on the particles' side of every other wall: the
+  box's faces as the faces, the floor (a plane) cut to the box's floor; with plane walls only,
+  a plane covers every particle and blade vertex of every snapshot with a margin of a tenth
+  of the scene and is cut where it meets the other plane.
 """
 import math
 import os
@@ -53,7 +55,9 @@ def rotation(q):
 
 def read_obj(path):
     v, f = [], []
-    for line in open(path).read().splitlines():
+    with open(path) as file:
+        lines = file.read().splitlines()
+    for line in lines:
         p = line.split()
         if p and p[0] == "v":
             v.append([float(x) for x in p[1:4]])
@@ -117,8 +121,6 @@ class Xdmf(unittest.TestCase):
                         self.assertIn(it[1], f, it[1])
                         self.assertEqual(f[it[1]].shape, it[2], it[1])
             self.assertEqual(steps[0][1]["tool_blade"]["topology"][0], "Triangle")
-            self.assertEqual(steps[0][1]["walls"]["topology"][0], "Quadrilateral")
-            self.assertEqual(steps[0][1]["walls"]["topology"][1], 6)  # floor + 5 faces of the open box
 
             # The mesh: the OBJ's triangles as coordinates, vertices relative to the reference point.
             local = f["tools/blade/vertices"][:]
@@ -173,28 +175,72 @@ class Xdmf(unittest.TestCase):
                     np.testing.assert_allclose(world, local @ rotation(q[3:7]).T + q[0:3], rtol=0, atol=TOL)
                 self.assertGreaterEqual(matched, len(steps) - 1)  # all but the session's end
 
-            # Walls: the box's faces exactly; the floor on z = 0 covering everything seen.
-            wv = f["wall_geometry/vertices"][:]
-            quads = f["wall_geometry/quads"][:]
-            names = f["wall_geometry"].attrs["names"]
-            names = names.decode() if isinstance(names, bytes) else names
-            self.assertEqual(names.split(", "), ["floor", "bin/xmin", "bin/xmax", "bin/ymin", "bin/ymax", "bin/zmin"])
-            face = lambda i: wv[quads[i]]  # noqa: E731
-            for i, (axis, value) in enumerate([(0, 0.0), (0, 0.3), (1, 0.0), (1, 0.1), (2, 0.0)], start=1):
-                c = face(i)
-                np.testing.assert_array_equal(c[:, axis], value)
-                others = [a for a in range(3) if a != axis]
-                for a in others:
-                    self.assertEqual(sorted(set(c[:, a])), [0.0, [0.3, 0.1, 0.4][a]])
-            floor = face(0)
-            np.testing.assert_allclose(floor[:, 2], 0.0, atol=1e-15)
-            pts = np.vstack(all_points)
-            for a in (0, 1):
-                self.assertLess(floor[:, a].min(), pts[:, a].min())
-                self.assertGreater(floor[:, a].max(), pts[:, a].max())
-            # ... and not absurdly larger (the margin is a tenth of the scene's size).
-            span = pts.max(axis=0) - pts.min(axis=0)
-            self.assertLess(floor[:, 0].max() - floor[:, 0].min(), 1.5 * max(span))
+            self.check_walls(f, steps, all_points)
+
+    def walls(self, f):
+        """{wall name: its triangles (m x 3 x 3 corners)}"""
+        g = f["wall_geometry"]
+        names = g.attrs["names"]
+        names = (names.decode() if isinstance(names, bytes) else names).split(", ")
+        v, t, owner = g["vertices"][:], g["triangles"][:], g["wall"][:]
+        self.assertEqual(len(owner), len(t))
+        return names, {n: v[t[owner == i]] for i, n in enumerate(names)}
+
+    def assert_rectangle(self, tris, axis, value, lo, hi):
+        """tris cover exactly the rectangle lo..hi (the two other axes) on coordinate axis = value."""
+        c = tris.reshape(-1, 3)
+        np.testing.assert_allclose(c[:, axis], value, rtol=0, atol=1e-12)
+        others = [a for a in range(3) if a != axis]
+        for a, l, h in zip(others, lo, hi):
+            self.assertAlmostEqual(c[:, a].min(), l, delta=1e-12)
+            self.assertAlmostEqual(c[:, a].max(), h, delta=1e-12)
+        area = sum(0.5 * np.linalg.norm(np.cross(x[1] - x[0], x[2] - x[0])) for x in tris)
+        self.assertAlmostEqual(area, (hi[0] - lo[0]) * (hi[1] - lo[1]), delta=1e-12)
+
+    def check_walls(self, f, steps, all_points):
+        """scene.yaml: a floor plane and an open box: each drawn as the part inside the others."""
+        for t, grids in steps:
+            w = grids["walls"]
+            self.assertEqual(w["topology"][0], "Triangle")
+            self.assertEqual(list(w["attributes"]), ["wall"])
+        names, tris = self.walls(f)
+        self.assertEqual(names, ["floor", "bin/xmin", "bin/xmax", "bin/ymin", "bin/ymax", "bin/zmin"])
+        # The floor is cut to the box's inside, each face is the face.
+        self.assert_rectangle(tris["floor"], 2, 0.0, (0.0, 0.0), (0.3, 0.1))
+        self.assert_rectangle(tris["bin/zmin"], 2, 0.0, (0.0, 0.0), (0.3, 0.1))
+        for name, axis, value in [("bin/xmin", 0, 0.0), ("bin/xmax", 0, 0.3), ("bin/ymin", 1, 0.0), ("bin/ymax", 1, 0.1)]:
+            hi = [x for a, x in enumerate([0.3, 0.1, 0.4]) if a != axis]
+            self.assert_rectangle(tris[name], axis, value, (0.0, 0.0), hi)
+
+    def test_plane_walls_cover_the_run(self):
+        """Two planes only (a floor and a back wall at x = 0.3): each is drawn over everything the
+        snapshots saw (particles, blade) and cut at the other."""
+        with tempfile.TemporaryDirectory() as tmp:
+            out = os.path.join(tmp, "planes.h5")
+            r = subprocess.run([os.path.join(BIN, "dem_run"), os.path.join(HERE, "scene.yaml"), "--output", out,
+                                "--set", "walls=[{name: floor, type: plane, point: [0, 0, 0], normal: [0, 0, 1]}, "
+                                         "{name: back, type: plane, point: [0.3, 0, 0], normal: [-1, 0, 0]}]"],
+                               capture_output=True, text=True, cwd=tmp)
+            self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+            with h5py.File(out, "r") as f:
+                pts = np.vstack([f["particles"][k]["position"][:] for k in f["particles"]] +
+                                [f["tools/blade/snapshots"][k][:] for k in f["tools/blade/snapshots"]])
+                names, tris = self.walls(f)
+            self.assertEqual(names, ["floor", "back"])
+            floor, back = tris["floor"].reshape(-1, 3), tris["back"].reshape(-1, 3)
+            np.testing.assert_allclose(floor[:, 2], 0, atol=1e-15)
+            np.testing.assert_allclose(back[:, 0], 0.3, atol=1e-15)
+            self.assertAlmostEqual(floor[:, 0].max(), 0.3, delta=1e-12)  # cut at the back wall
+            self.assertAlmostEqual(back[:, 2].min(), 0.0, delta=1e-12)   # cut at the floor
+            lo, hi = pts.min(axis=0), pts.max(axis=0)
+            self.assertLess(floor[:, 0].min(), lo[0])
+            for c in (floor, back):
+                self.assertLess(c[:, 1].min(), lo[1])
+                self.assertGreater(c[:, 1].max(), hi[1])
+            self.assertGreater(back[:, 2].max(), hi[2])
+            # ... with a margin of a tenth of the scene, not more.
+            span = (hi - lo).max()
+            self.assertAlmostEqual(back[:, 2].max(), hi[2] + 0.1 * span, delta=1e-9)
 
     def test_dem_run(self):
         with tempfile.TemporaryDirectory() as tmp:

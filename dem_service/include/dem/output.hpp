@@ -30,7 +30,8 @@ class RunOutput {
 
   // Particles (sorted by id) and every tool's mesh moved to `poses` (one per tool: the pose
   // at `time`, which the caller knows better than s.tool_pose, set for the force time of the
-  // last step); the walls' drawn rectangles grow to cover everything seen so far.
+  // last step). The walls are drawn as the part of their plane on the particles' side of every
+  // other wall; a plane's part grows to cover everything the snapshots have seen.
   void snapshot(const State& s, double time, const std::vector<ToolPose>& poses);
   // Buffers one sample of every tool's pose and wrench and every wall's force.
   void sample_wrenches(const State& s, const Engine& e, double time);
@@ -58,6 +59,7 @@ class RunOutput {
   // drawn over it).
   bool have_extent_ = false;
   Vec3 extent_lo_, extent_hi_;
+  std::size_t wall_vertices_ = 0, wall_triangles_ = 0;  // in wall_geometry/ now
   std::vector<std::unique_ptr<cosim::h5::Table>> tool_rows_;  // per tool: t, F, M, position, quaternion
   std::unique_ptr<cosim::h5::Table> wall_rows_;               // t, then F of every wall
   std::size_t buffered_ = 0;
