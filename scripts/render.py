@@ -37,6 +37,10 @@ try:
     names = [g.get("Name") for g in first.findall("Grid")] if first is not None else []
 except (ET.ParseError, AttributeError) as e:
     fail(f"{xdmf} is not an XDMF file this program reads ({e})")
+if first is not None and first.get("GridType") == "Uniform" and first.find("Topology") is not None:
+    fail(f"{xdmf} has one plain grid per time step (an XDMF written before tools and walls were "
+         "added, or not by dem_run/dem_service): run the DEM again with this version, or open it "
+         "in ParaView directly")
 if collection.get("CollectionType") != "Temporal" or not names:
     fail(f"{xdmf}: expected one temporal collection of time steps with particles, tools and walls "
          "(as dem_run and dem_service write them, docs/visualise.md)")

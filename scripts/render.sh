@@ -71,6 +71,8 @@ render() {
 # One more try when the virtual screen was not there in time (xvfb-run picks a free display
 # number; another X server starting at the same moment can take it).
 if ! render && ! { grep -q "bad X server connection" "$log" && echo "render: the virtual X screen failed, trying again" >&2 && render; }; then
+  # render.py's own refusals (a file it cannot use) are the whole story.
+  if grep -q "^render: " "$log"; then grep "^render: " "$log" >&2; exit 2; fi
   grep -v -E "^\s*[0-9]+\s+0x|^\(" "$log" | tail -20 >&2
   cat "$log.x" >&2
   die "ParaView could not render $xdmf (messages above)"

@@ -13,7 +13,7 @@ xvfb-run or ffmpeg is missing; scripts/setup.sh installs them.
   only the grey tool and walls on white), and the first and last frames differ (the blade moved);
 * `--last` writes one picture of the last snapshot;
 * refusals name the problem: a missing file, a file that is not XDMF, an XDMF whose HDF5 file is
-  gone, a bad --every, and no pvbatch on the PATH (names python3-paraview).
+  gone, an XDMF of the old particles-only layout, a bad --every, and no pvbatch on the PATH (names python3-paraview).
 """
 import glob
 import json
@@ -145,6 +145,16 @@ class Render(unittest.TestCase):
         r = render(os.path.join(lone, "blade.xdmf"), "--last")
         self.assertEqual(r.returncode, 2, r.stderr)
         self.assertIn("blade.h5, which is missing", r.stderr)
+        # A particles-only XDMF of the old layout (one plain grid per time step).
+        old = os.path.join(lone, "old.xdmf")
+        with open(old, "w") as f:
+            f.write('<?xml version="1.0" ?>\n<Xdmf Version="3.0"><Domain><Grid Name="particles" '
+                    'GridType="Collection" CollectionType="Temporal"><Grid Name="step0" GridType="Uniform">'
+                    '<Time Value="0"/><Topology TopologyType="Polyvertex" NumberOfElements="1"/></Grid>'
+                    '</Grid></Domain></Xdmf>\n')
+        r = render(old, "--last")
+        self.assertEqual(r.returncode, 2, r.stderr)
+        self.assertIn("one plain grid per time step", r.stderr)
         # No ParaView on the PATH: the package to install.
         bare = os.path.join(d, "bin")
         os.makedirs(bare, exist_ok=True)
