@@ -1,5 +1,6 @@
 #include "fmu_model.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -670,13 +671,23 @@ void FmuModel::write_input_derivatives(const cosim::StepInputs& in, cosim::TimeP
       for (int i = 0; i < 4; ++i)
         if (p.quaternion[i].var && p.quaternion[i].var->type == VarType::Real)
           inst_->set_input_derivative(*p.quaternion[i].var, 1, (b[3 + i] - a[3 + i]) / (2 * ds * L), when);
+    } else if (p.kind == SignalKind::Kinematics && p.orientation == OrientationMap::Quaternion &&
+               max_derivative_order_ > 0) {
+      for (int i = 0; i < 4; ++i)  // a constant pose this step: no rate left from the last
+        if (p.quaternion[i].var && p.quaternion[i].var->type == VarType::Real)
+          inst_->set_input_derivative(*p.quaternion[i].var, 1, 0.0, when);
     }
     for (const auto& [index, component] : parts) {
       if (!component->var || component->var->type != VarType::Real) continue;
       double Lj = 1;
-      for (int j = 1; j < poly.n_coefficients; ++j) {
+      // Orders up to the highest ever set: the standard does not say how long an FMU keeps a
+      // derivative, so a lower-order polynomial (e.g. the start-up step's constant) sets the
+      // orders it lacks to 0 instead of leaving the previous step's in the FMU.
+      const int top = std::max(poly.n_coefficients - 1, max_derivative_order_);
+      max_derivative_order_ = top;
+      for (int j = 1; j <= top; ++j) {
         Lj *= L;
-        // d^j/ds^j of sum_i c_i s^i at s, over L^j
+        // d^j/ds^j of sum_i c_i s^i at s, over L^j (0 beyond the polynomial's degree)
         double d = 0, sk = 1;
         for (int i = j; i < poly.n_coefficients; ++i) {
           double falling = 1;

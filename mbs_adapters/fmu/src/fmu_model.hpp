@@ -109,6 +109,7 @@ class FmuModel final : public cosim::Model {
   bool verbose_ = false;
   bool snapshots_ = true;
   bool input_derivatives_ = true;  // mapping key input_derivatives
+  int max_derivative_order_ = 0;   // highest input derivative order set so far
   YAML::Node start_;
   std::vector<PortMap> inputs_, outputs_;
   cosim::Duration inner_step_{};
