@@ -1,5 +1,8 @@
 // cosim_master CONFIG.yaml [--set dotted.key=value ...] [--output FILE.h5] [--csv FILE.csv]
 // cosim_master --new-key FILE   (writes a new shared key, mode 600; docs/security.md)
+// cosim_master --resume FILE.h5 [--set key=value ...] [--csv FILE.csv]
+//   continues a stopped run from its last checkpoint, appending to FILE.h5
+//   (docs/protocol.md#checkpoints-and-resume)
 // The bus key comes from $COSIM_KEY_FILE or $COSIM_KEY, never from the command line; the
 // participants the master launches inherit it.
 // Exit codes: 0 finished, 1 the run failed (participant lost, refused or failed a step),
@@ -29,6 +32,7 @@
 #include "cosimulation.hpp"
 #include "launcher.hpp"
 #include "recorder.hpp"
+#include "resume.hpp"
 
 namespace {
 
@@ -40,6 +44,12 @@ void usage() {
                "  --set     override a config value, e.g. --set time.macro_step=5e-4 --set predictors.force.order=1\n"
                "  --output  HDF5 file to record to (overrides output.file)\n"
                "  --csv     CSV export of every participant output (overrides output.csv)\n"
+               "       cosim_master --resume FILE.h5 [--set key=value ...] [--csv FILE.csv]\n"
+               "  --resume  continue the stopped run recorded in FILE.h5 from its last checkpoint\n"
+               "            (its config had checkpoints.every; restart participants started by hand\n"
+               "            first, where they ran). FILE.h5 is continued in place; --set only for\n"
+               "            bus.url, connect_timeout, output.progress, participants.<name>.launch,\n"
+               "            .timeout, .retries\n"
                "       cosim_master --new-key FILE\n"
                "  --new-key write a new random key for the bus to FILE (mode 600; an existing file is\n"
                "            not overwritten); give it to every process of a run as COSIM_KEY_FILE=FILE\n"
@@ -83,7 +93,8 @@ int write_new_key(const std::string& path) {
 // that names an existing file (a participant's config, its program).
 void check_files(const master::Config& c, const std::string& config_path, bool output_option,
                  bool csv_option) {
-  std::vector<cosim::NamedFile> inputs{{"the config file", config_path}};
+  std::vector<cosim::NamedFile> inputs;
+  if (!config_path.empty()) inputs.push_back({"the config file", config_path});
   for (const auto& p : c.participants)
     for (std::size_t i = 0; i < p.launch.size(); ++i) {
       std::error_code ec;
@@ -100,7 +111,7 @@ void check_files(const master::Config& c, const std::string& config_path, bool o
 int main(int argc, char** argv) {
   // Several processes share one log: a line must reach it in one write, not one per <<.
   std::setvbuf(stderr, nullptr, _IOLBF, 1 << 14);
-  std::string config_path, output, csv;
+  std::string config_path, output, csv, resume;
   std::vector<std::string> overrides;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -116,19 +127,50 @@ int main(int argc, char** argv) {
     else if (a == "--output") output = value();
     else if (a == "--csv") csv = value();
     else if (a == "--new-key") return write_new_key(value());
+    else if (a == "--resume") resume = value();
     else if (a == "-h" || a == "--help") { usage(); return 0; }
     else if (!a.empty() && a[0] == '-') { std::cerr << "cosim_master: unknown option " << a << "\n"; usage(); return 2; }
     else if (config_path.empty()) config_path = a;
     else { std::cerr << "cosim_master: more than one config file given\n"; usage(); return 2; }
   }
-  if (config_path.empty()) { usage(); return 2; }
+  if (!resume.empty() && (!config_path.empty() || !output.empty())) {
+    std::cerr << "cosim_master: --resume takes the config from the record and continues that file: "
+                 "give neither a config file nor --output with it\n";
+    return 2;
+  }
+  if (config_path.empty() && resume.empty()) { usage(); return 2; }
 
   master::Config config;
+  master::ResumeRecord record;
+  int64_t run_id = 0;
+  std::string checkpoint_folder;
   try {
-    config = master::load_config(config_path, overrides);
-    if (!output.empty()) config.output.file = output;
-    if (!csv.empty()) config.output.csv_file = csv;
-    check_files(config, config_path, !output.empty(), !csv.empty());
+    if (!resume.empty()) {
+      record = master::read_resume_record(resume);
+      config = master::resume_config(record, overrides);
+      config.output.file = resume;
+      config.output.csv_file = csv.empty() ? record.csv : csv;
+      run_id = record.run_id;
+      checkpoint_folder = record.folder;
+    } else {
+      config = master::load_config(config_path, overrides);
+      if (!output.empty()) config.output.file = output;
+      if (!csv.empty()) config.output.csv_file = csv;
+      if (config.checkpoints.every > cosim::Duration::zero()) {
+        if (config.output.file.empty())
+          throw cosim::config::ConfigError(
+              "checkpoints.every: needs output.file (or --output): a stopped run is resumed from "
+              "its record");
+        run_id = cosim::new_session_id();
+        // An absolute path: the participants may run in other folders (or on other hosts).
+        checkpoint_folder = std::filesystem::absolute(config.checkpoints.folder.empty()
+                                                          ? config.output.file + ".checkpoints"
+                                                          : config.checkpoints.folder)
+                                .lexically_normal()
+                                .string();
+      }
+    }
+    check_files(config, config_path, !output.empty() || !resume.empty(), !csv.empty());
   } catch (const std::exception& e) {  // ConfigError, and anything a malformed file raises
     std::cerr << "cosim_master: config refused: " << e.what() << "\n";
     return 2;
@@ -162,6 +204,18 @@ int main(int argc, char** argv) {
     const auto& a = transport->stats().auth;
     if (a.counts.rejected() > 0 || a.unreadable > 0) std::cerr << "cosim_master: " << cosim::auth_summary(a) << "\n";
   };
+  // After a failure: how to continue, if a checkpoint was recorded.
+  auto resume_hint = [&] {
+    if (!recorder || !recorder->started() || run_id == 0) return;
+    const int64_t n = recorder->checkpoint_steps();
+    if (n > 0)
+      std::cerr << "cosim_master: to continue from the last checkpoint (after " << n << " steps, t = "
+                << cosim::to_seconds(config.t_start + n * config.macro_step)
+                << " s): restart the participants started by hand, then cosim_master --resume "
+                << config.output.file << "\n";
+    else
+      std::cerr << "cosim_master: no checkpoint was completed yet, so the run cannot be resumed\n";
+  };
   try {
     transport = cosim::make_lcm_transport(url, cosim::new_session_id(), [&] {
       std::map<std::string, cosim::LinkSettings> links;
@@ -180,6 +234,15 @@ int main(int argc, char** argv) {
       if (!p.launch.empty()) launcher.start(p, url, transport->session());
 
     master::CoSimulation sim(config, *transport);
+    if (run_id != 0) sim.set_checkpoints(run_id, checkpoint_folder);
+    if (!resume.empty()) {
+      sim.set_resume(master::read_resume_point(record, config));
+      std::cerr << "cosim_master: resuming " << resume << " after " << record.steps_done << " of "
+                << (config.t_end - config.t_start) / config.macro_step << " steps (t = "
+                << cosim::to_seconds(config.t_start + record.steps_done * config.macro_step)
+                << " s; it had recorded " << record.steps_recorded << ", status '" << record.status
+                << "'); participants restore their checkpoints from " << checkpoint_folder << "\n";
+    }
     std::cerr << "cosim_master: session " << std::hex << transport->session() << std::dec << " on " << url
               << ", waiting for " << config.participants.size() << " participant(s)\n";
     if (key)
@@ -204,8 +267,14 @@ int main(int argc, char** argv) {
       throw;
     }
 
-    if (!config.output.file.empty()) recorder = std::make_unique<master::H5Recorder>(config.output.file);
-    if (!config.output.csv_file.empty()) csv_writer = std::make_unique<master::CsvWriter>(config.output.csv_file);
+    if (!resume.empty())
+      recorder = std::make_unique<master::H5Recorder>(master::H5Recorder::Continue{}, config.output.file);
+    else if (!config.output.file.empty())
+      recorder = std::make_unique<master::H5Recorder>(config.output.file);
+    if (!config.output.csv_file.empty()) {
+      csv_writer = std::make_unique<master::CsvWriter>(config.output.csv_file);
+      if (!resume.empty()) csv_writer->continue_from(config.output.file);
+    }
     const bool live = config.output.progress == "on" || (config.output.progress == "auto" && isatty(STDERR_FILENO));
     master::Progress progress(live);
     if (recorder) sim.add_observer(recorder.get());
@@ -229,6 +298,7 @@ int main(int argc, char** argv) {
                 << " (/status: stopped: interrupted)\n";
     else if (!config.output.file.empty())
       std::cerr << "cosim_master: no step was recorded; " << config.output.file << " was not written\n";
+    resume_hint();
     launcher.stop(2.0);
     return 128 + e.signal();
   } catch (const cosim::LinkError& e) {
@@ -238,6 +308,7 @@ int main(int argc, char** argv) {
       std::cerr << "cosim_master: the steps completed so far are in " << config.output.file << "\n";
     else if (!config.output.file.empty())
       std::cerr << "cosim_master: no step was recorded; " << config.output.file << " was not written\n";
+    resume_hint();
     return 1;
   } catch (const cosim::config::ConfigError& e) {
     std::cerr << "cosim_master: config refused: " << e.what() << "\n";

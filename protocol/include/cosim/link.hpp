@@ -80,6 +80,7 @@ struct ParticipantInfo {
   Ports inputs, outputs;
   Duration inner_step{};
   bool can_repeat = false;
+  bool can_checkpoint = false;  // saves and restores checkpoints (docs/protocol.md)
   Signals initial_outputs;
 };
 
@@ -103,6 +104,7 @@ struct StepAnswer {
   std::vector<std::pair<std::string, double>> diagnostics;
   double compute_seconds = 0;
   double round_trip_seconds = 0;
+  bool checkpointed = false;  // the checkpoint the request asked for was written
 };
 
 class Transport {
