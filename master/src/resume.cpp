@@ -35,12 +35,12 @@ ResumeRecord read_resume_record(const std::string& path) {
     throw ConfigError(prefix(path) + " is not a record of cosim_master (" + e.what() + ")");
   }
   if (H5Lexists(f, "status", H5P_DEFAULT) > 0) r.status = cosim::h5::read_string(f, "status");
-  if (r.status == "finished")
-    throw ConfigError(prefix(path) + " is a finished run (/status: finished): there is nothing to resume");
   if (H5Lexists(f, "checkpoint", H5P_DEFAULT) <= 0)
     throw ConfigError(prefix(path) + " has no checkpoints: its run had checkpoints.every: 0, so "
                       "the participants saved no state to continue from. Run it again, with "
                       "checkpoints.every set to resume later runs (docs/protocol.md#checkpoints-and-resume)");
+  if (r.status == "finished")
+    throw ConfigError(prefix(path) + " is a finished run (/status: finished): there is nothing to resume");
   try {
     cosim::h5::Handle g(H5Gopen2(f, "checkpoint", H5P_DEFAULT), H5Gclose);
     r.run_id = cosim::parse_id_hex(cosim::h5::read_string_attribute(g, "run_id"));
