@@ -266,6 +266,10 @@ int main(int argc, char** argv) {
       transport->terminate(true, e.what());  // participants that joined leave at once
       throw;
     }
+    for (const auto& [name, sends] : transport->stats().configure_sends)
+      if (sends > 1)
+        std::cerr << "cosim_master: the configuration of '" << name << "' went out " << sends
+                  << " times before it answered (a copy was lost, or it took long to configure)\n";
 
     if (!resume.empty())
       recorder = std::make_unique<master::H5Recorder>(master::H5Recorder::Continue{}, config.output.file);

@@ -65,6 +65,7 @@ void write_bus_stats(hid_t file, const RunSetup& setup) {
     write_number(file, g, "resends", value(st.resends_to));
     write_number(file, g, "resend_timeout", value(st.resend_timeout_s));
     write_number(file, g, "round_trip_smoothed", value(st.srtt_s));
+    write_number(file, g, "configure_sends", value(st.configure_sends));
   }
 }
 

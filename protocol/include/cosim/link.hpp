@@ -92,6 +92,9 @@ struct ExchangeStats {
   // trip (s) at the end.
   std::map<std::string, uint64_t> resends_to;
   std::map<std::string, double> resend_timeout_s, srtt_s;
+  // Per participant: configure messages sent until it answered (repeated every 0.5 s: more
+  // than one means a copy was lost, for example a fragment of a large one, or it was slow).
+  std::map<std::string, uint64_t> configure_sends;
   // Authentication (docs/security.md): whether the bus is keyed, and what the master's end of
   // it accepted and dropped, by verdict.
   auth::BusCounts auth;
