@@ -261,6 +261,32 @@ TEST(Resume, InterruptedMasterResumesAndAMissingCheckpointIsNamed) {
   EXPECT_TRUE(harness::read_text(osc.csv_of(h5)) == harness::read_text(osc.csv_of(full)));
 }
 
+// The master itself killed (kill -9) with participants it launched: the record as of its last
+// flush (always one at a checkpoint) is resumed, the master launching the participants again.
+// The orphans of the killed master leave by their idle timeout (2 s here, 60 by default).
+TEST(Resume, KilledMasterWithLaunchedParticipantsResumes) {
+  const std::string url = harness::bus_url();
+  const std::string full = harness::temp_path("_full.h5"), h5 = harness::temp_path(".h5");
+  fs::remove_all(h5 + ".checkpoints");
+  const std::vector<std::string> sets{
+      "bus.url=" + url, "time.end=5", "checkpoints.every=0.05", "output.progress=off", "output.csv=",
+      "participants.mass1.launch=[oscillator_participant, --side, mass1, --idle-timeout, 2]",
+      "participants.mass2.launch=[oscillator_participant, --side, mass2, --idle-timeout, 2]"};
+  auto first = harness::spawn(master_args("configs/oscillator.yaml", full, sets), full + ".log");
+  ASSERT_EQ(harness::wait_for(first, 120), 0) << harness::read_text(full + ".log");
+  auto master = harness::spawn(master_args("configs/oscillator.yaml", h5, sets), h5 + ".log");
+  ASSERT_TRUE(wait_for_checkpoint(h5 + ".checkpoints", "mass1", 1000, 60)) << harness::read_text(h5 + ".log");
+  kill(master.pid, SIGKILL);
+  harness::wait_for(master, 10);
+  const double at = harness::read_dataset(h5, "checkpoint/steps_done").at(0);
+  EXPECT_GE(at, 900);
+  EXPECT_TRUE(harness::read_string(h5, "status").empty()) << "a killed master writes no /status";
+  auto resumed = harness::spawn({harness::bin("cosim_master"), "--resume", h5}, h5 + ".resume.log");
+  ASSERT_EQ(harness::wait_for(resumed, 120), 0) << harness::read_text(h5 + ".resume.log");
+  expect_identical(full, h5, 20);
+  std::this_thread::sleep_for(std::chrono::milliseconds(2500));  // the orphans' idle timeout
+}
+
 // The DEM co-simulation of tests/dem_service/cosim.yaml (1500 spheres, a blade played by the
 // prescribed participant), 400 macro steps of 5 DEM steps, a checkpoint every 20: dem_service
 // is killed after its checkpoint at 100 steps or later.
