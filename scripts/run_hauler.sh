@@ -3,7 +3,8 @@
 # results/hauler_load.h5), runs the hauler discharging it (cosim_master + hauler_adapter +
 # dem_service, 22 s of the tipping profile, a few minutes on 2 cores) and draws the charts:
 #   results/hauler.h5, .csv, results/hauler_front_axle.png, _rear_axles.png, _discharge.png,
-#   results/hauler_soil.h5 + .xdmf (particles for ParaView).
+#   results/hauler_soil.h5 + .xdmf (particles, dump body and walls for ParaView) and
+#   results/hauler_soil_last.png (a picture of the last snapshot; docs/visualise.md).
 # Extra arguments go to cosim_master, e.g. --set time.end=10
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -16,3 +17,6 @@ if [ ! -f results/hauler_load.h5 ]; then
 fi
 ./build/bin/cosim_master configs/hauler.yaml "$@"
 /usr/bin/python3 master/studies/plot_hauler.py results/hauler.h5
+# A picture of the last snapshot (ParaView under xvfb-run, a few seconds); a movie of the whole
+# run is `bash scripts/render.sh results/hauler_soil.xdmf` (docs/visualise.md).
+bash scripts/render.sh results/hauler_soil.xdmf --out results --last

@@ -9,7 +9,9 @@ packages=(
   libgtest-dev libgmock-dev libomp-dev
   libsimbody-dev
   libsodium-dev
+  libminizip-dev libpugixml-dev
   python3-matplotlib python3-h5py python3-numpy python3-yaml
+  python3-paraview xvfb xauth ffmpeg
   iproute2 util-linux
   clang libclang-rt-14-dev
 )

@@ -32,6 +32,15 @@ void set_tool_poses(const dem::Scene& scene, dem::State& s) {
     s.tool_pose[m] = scene.tools[m].motion.evaluate(s.step * scene.dt);
 }
 
+// The tools where they are at the state's time (s.tool_pose holds them at the last step's force
+// time, one step earlier): what a particle snapshot shows.
+std::vector<dem::ToolPose> poses_now(const dem::Scene& scene, const dem::State& s) {
+  std::vector<dem::ToolPose> p(scene.tools.size());
+  for (std::size_t m = 0; m < scene.tools.size(); ++m)
+    p[m] = scene.tools[m].motion.evaluate(s.step * scene.dt);
+  return p;
+}
+
 // Where the particles are: the box around the centres (the front of a pile is its smallest x).
 std::string extent(const dem::State& s) {
   if (s.x.empty()) return "no particles";
@@ -167,7 +176,7 @@ int run(int argc, char** argv) {
   double asleep_steps = 0, particle_steps = 0;  // sleeping share of the run
   cosim::Stopwatch since_progress;
   cosim::Stopwatch output;
-  out.snapshot(s, t0);
+  out.snapshot(s, t0, poses_now(scene, s));
   engine.timing().lap(dem::section::output, output);
   for (long long k = 1; k <= steps; ++k) {
     set_tool_poses(scene, s);
@@ -177,7 +186,8 @@ int run(int argc, char** argv) {
     particle_steps += static_cast<double>(s.size());
     output.restart();
     if (k % wrench_every == 0) out.sample_wrenches(s, engine, t_force);
-    if (snap_every && k % snap_every == 0 && k != steps) out.snapshot(s, s.step * scene.dt);
+    if (snap_every && k % snap_every == 0 && k != steps)
+      out.snapshot(s, s.step * scene.dt, poses_now(scene, s));
     engine.timing().lap(dem::section::output, output);
     if (since_progress.seconds() >= rc.output.progress_every) {
       since_progress.restart();
@@ -195,7 +205,7 @@ int run(int argc, char** argv) {
     }
   }
   output.restart();
-  out.snapshot(s, s.step * scene.dt);
+  out.snapshot(s, s.step * scene.dt, poses_now(scene, s));
   if (!rc.output.checkpoint.empty()) dem::save_checkpoint(s, rc.output.checkpoint);
   engine.timing().lap(dem::section::output, output);
   const double wall = loop.seconds();

@@ -250,13 +250,13 @@ std::vector<Wall> parse_walls(const YAML::Node& w) {
       if (!(hi.x > lo.x && hi.y > lo.y && hi.z > lo.z))
         throw ConfigError(p + ": max must exceed min in x, y and z");
       // A container: particles stay inside, so each face's normal points inwards.
-      walls.push_back({name + "/xmin", lo, {1, 0, 0}});
-      walls.push_back({name + "/xmax", hi, {-1, 0, 0}});
-      walls.push_back({name + "/ymin", lo, {0, 1, 0}});
-      walls.push_back({name + "/ymax", hi, {0, -1, 0}});
-      walls.push_back({name + "/zmin", lo, {0, 0, 1}});
+      walls.push_back({name + "/xmin", lo, {1, 0, 0}, true, lo, hi});
+      walls.push_back({name + "/xmax", hi, {-1, 0, 0}, true, lo, hi});
+      walls.push_back({name + "/ymin", lo, {0, 1, 0}, true, lo, hi});
+      walls.push_back({name + "/ymax", hi, {0, -1, 0}, true, lo, hi});
+      walls.push_back({name + "/zmin", lo, {0, 0, 1}, true, lo, hi});
       if (!cfg::get_bool_or(w[i], p, "open_top", true))
-        walls.push_back({name + "/zmax", hi, {0, 0, -1}});
+        walls.push_back({name + "/zmax", hi, {0, 0, -1}, true, lo, hi});
     }
   }
   return walls;

@@ -123,6 +123,7 @@ void ServiceModel::configure(const YAML::Node& parameters, const cosim::RunInfo&
   snapshot_.reset();
   for (std::size_t m = 0; m < scene.tools.size(); ++m)
     rc_->state.tool_pose[m] = scene.tools[m].motion.evaluate(cosim::to_seconds(run.t_start));
+  end_poses_ = rc_->state.tool_pose;
   std::string output_file = o.file;
   if (!output_file.empty() && run.resume_steps_done > 0) {
     // The interrupted session's file keeps the steps before; this one holds the rest.
@@ -168,16 +169,23 @@ cosim::Signals ServiceModel::initial_outputs() {
   return s;
 }
 
-void ServiceModel::set_tool_poses(const cosim::StepInputs& in, TimePoint t) {
+std::vector<ToolPose> ServiceModel::tool_poses(const cosim::StepInputs& in, TimePoint t) const {
   const auto& tools = rc_->scene.tools;
+  std::vector<ToolPose> poses(tools.size());
   for (std::size_t m = 0; m < tools.size(); ++m) {
     const cosim::Value v = in.at(tools[m].name, t);
     for (double x : v)
       if (!std::isfinite(x))
         throw cosim::InputError("tool '" + tools[m].name + "': its pose polynomial gives NaN or "
                                 "infinity at t = " + std::to_string(cosim::to_seconds(t)) + " s");
-    rc_->state.tool_pose[m] = tool_pose_from(cosim::Kinematics::from_value(v));
+    poses[m] = tool_pose_from(cosim::Kinematics::from_value(v));
   }
+  return poses;
+}
+
+void ServiceModel::set_tool_poses(const cosim::StepInputs& in, TimePoint t) {
+  const std::vector<ToolPose> poses = tool_poses(in, t);
+  for (std::size_t m = 0; m < poses.size(); ++m) rc_->state.tool_pose[m] = poses[m];
 }
 
 void ServiceModel::save_snapshot() {
@@ -208,6 +216,7 @@ void ServiceModel::load_checkpoint(const std::string& path) {
                              std::to_string(rc_->scene.tools.size()) + ": it is of another scene");
   validate_state(rc_->scene, s, false);
   rc_->state = std::move(s);
+  end_poses_ = rc_->state.tool_pose;
   // Outputs and reports continue from the resume time.
   t_now_ = run_.resume_time;
   auto first_at_or_after = [&](cosim::Duration every) {
@@ -239,7 +248,9 @@ cosim::StepResult ServiceModel::step(const cosim::StepInputs& in, bool want_aver
   // Particle snapshots only at a step's start: that state is accepted (a repeat starts from it).
   if (out_ && particles_every_ > Duration::zero() && in.t_start() >= next_particles_ && in.t_start() != last_particles_) {
     const cosim::Stopwatch w;
-    out_->snapshot(s, cosim::to_seconds(in.t_start()));  // flushes the accepted rows too
+    // The tools where this step's inputs put them at its start (the state holds the poses of
+    // the last DEM step's force time, one inner step earlier).
+    out_->snapshot(s, cosim::to_seconds(in.t_start()), tool_poses(in, in.t_start()));  // flushes the accepted rows too
     snapshot_rows_ = out_->buffered_rows();
     last_particles_ = in.t_start();
     next_particles_ += particles_every_ * ((in.t_start() - next_particles_) / particles_every_ + 1);
@@ -268,6 +279,7 @@ cosim::StepResult ServiceModel::step(const cosim::StepInputs& in, bool want_aver
     }
   }
   t_now_ = in.t_end();
+  end_poses_ = tool_poses(in, in.t_end());  // for the session's last snapshot
   ++steps_done_;
 
   cosim::StepResult r;
@@ -333,7 +345,7 @@ void ServiceModel::finish(std::ostream& report) {
   const double sim = cosim::to_seconds(t_now_ - run_.t_start);
   const double wall = session_wall_.seconds();
   if (out_) {
-    if (t_now_ != last_particles_) out_->snapshot(s, cosim::to_seconds(t_now_));
+    if (t_now_ != last_particles_) out_->snapshot(s, cosim::to_seconds(t_now_), end_poses_);
     out_->write_summary(t, s, sim);
     out_->flush();
   }

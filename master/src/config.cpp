@@ -167,8 +167,12 @@ const PredictorSpec& named_predictor(const std::map<std::string, PredictorSpec>&
 
 std::vector<ConnectionSpec> parse_connections(const YAML::Node& conns, const Config& c,
                                               const std::map<std::string, PredictorSpec>& named) {
-  if (!conns || !conns.IsSequence() || conns.size() == 0)
-    throw ConfigError("connections: missing (expected a list of {from: p.signal, to: p.signal, predictor: ...})");
+  // An explicit empty list runs participants without coupling (one FMU on its own, say); a
+  // missing key is refused.
+  if (conns && conns.IsSequence() && conns.size() == 0) return {};
+  if (!conns || !conns.IsSequence())
+    throw ConfigError("connections: missing (expected a list of {from: p.signal, to: p.signal, predictor: ...}; "
+                      "connections: [] for participants that exchange nothing)");
   std::vector<ConnectionSpec> out;
   std::set<std::string> inputs_seen;
   for (std::size_t i = 0; i < conns.size(); ++i) {

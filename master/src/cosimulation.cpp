@@ -128,6 +128,19 @@ void CoSimulation::connect() {
                                        config_.t_start + j * config_.macro_step,
                                        resume_->received_average.at(i).at(static_cast<std::size_t>(j)));
   }
+  // Start-up iterations redo the first steps from their start: every participant must be able
+  // to. One that cannot is refused here, before any step, not skipped silently (the order the
+  // run would reach depends on it).
+  if (config_.startup_iterations > 0 && max_order_ > 0)
+    for (const auto& [name, info] : setup_.participants)
+      if (!info.can_repeat)
+        throw cosim::config::ConfigError(
+            "startup_iterations: " + std::to_string(config_.startup_iterations) +
+            " (with predictor order " + std::to_string(max_order_) +
+            ") redoes the first steps, but participant '" + name + "' cannot repeat a step" +
+            (info.repeat_note.empty() ? std::string() : " (" + info.repeat_note + ")") +
+            "; set startup_iterations: 0 (the first steps then run once, at a lower start-up order) "
+            "or make the participant able to repeat steps");
 }
 
 std::vector<cosim::step_request_t> CoSimulation::requests(const std::vector<std::string>& group,

@@ -18,6 +18,7 @@ ParticipantInfo Transport::accept_ready(const ready_t& r) const {
     info.inner_step = nanoseconds(r.inner_step_ns);
     info.can_repeat = r.can_repeat;
     info.can_checkpoint = r.can_checkpoint;
+    if (!r.can_repeat) info.repeat_note = r.error;
     info.initial_outputs = from_message(r.initial_outputs, what + " initial outputs");
     check_against_ports(info.initial_outputs, info.outputs, what + " initial outputs");
     return info;

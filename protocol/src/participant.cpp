@@ -111,6 +111,7 @@ std::optional<ready_t> ParticipantCore::configure(const configure_t& m) {
     for (const auto& [n, s] : initial) validate_value(s.kind, s.value, "initial output '" + n + "'");
     r.inner_step_ns = to_ns(inner);
     r.can_repeat = model_.can_repeat();
+    if (!r.can_repeat) r.error = model_.repeat_note();
     r.can_checkpoint = model_.can_checkpoint();
     checkpoint_folder_ = m.checkpoint_folder;
     run_id_ = m.run_id;

@@ -11,6 +11,7 @@
 #include <fstream>
 #include <functional>
 #include <map>
+#include <ostream>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -133,6 +134,12 @@ struct Case {
   // Extra set-up in the case's folder (files to corrupt, configs to change).
   std::function<void(const fs::path&)> setup = nullptr;
 };
+
+// gtest prints a parameter it cannot print as its raw bytes in ctest's test names; the case's
+// program and arguments say more.
+void PrintTo(const Case& c, std::ostream* os) {
+  for (std::size_t i = 0; i < c.args.size(); ++i) *os << (i ? " " : "") << c.args[i];
+}
 
 class BadInput : public ::testing::TestWithParam<Case> {};
 

@@ -73,6 +73,7 @@ class Receiver final : public cosim::Model {
 double run(const std::string& use, int order, double t_end) {
   YAML::Node root = YAML::Load(R"(
 time: {end: 1.0, macro_step: 1.0e-3}
+startup_iterations: 0  # these models cannot repeat a step (the master refuses iterations then)
 participants: {src: null, dst: null}
 connections: [{from: src.f, to: dst.f}]
 )");

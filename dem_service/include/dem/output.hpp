@@ -1,6 +1,7 @@
-// Run output: one HDF5 file with the config, particle snapshots and tool/wall wrench series,
-// and an XDMF file beside it so ParaView opens the snapshots (points, velocity, radius, id).
-// Layout in docs/dem.md.
+// Run output: one HDF5 file with the config, particle snapshots, the tool meshes at every
+// snapshot, tool/wall wrench series, and an XDMF file beside it so ParaView opens the scene
+// (particles, tools and walls in one temporal collection). Layout in docs/dem.md, what ParaView
+// shows in docs/visualise.md.
 #pragma once
 
 #include <memory>
@@ -27,7 +28,11 @@ class RunOutput {
   RunOutput(const RunOutput&) = delete;
   RunOutput& operator=(const RunOutput&) = delete;
 
-  void snapshot(const State& s, double time);  // particles, sorted by id
+  // Particles (sorted by id) and every tool's mesh moved to `poses` (one per tool: the pose
+  // at `time`, which the caller knows better than s.tool_pose, set for the force time of the
+  // last step). The walls are drawn as the part of their plane on the particles' side of every
+  // other wall; a plane's part grows to cover everything the snapshots have seen.
+  void snapshot(const State& s, double time, const std::vector<ToolPose>& poses);
   // Buffers one sample of every tool's pose and wrench and every wall's force.
   void sample_wrenches(const State& s, const Engine& e, double time);
   void flush();  // appends buffered samples and rewrites the XDMF file
@@ -43,12 +48,18 @@ class RunOutput {
 
  private:
   void write_xdmf() const;
+  void write_wall_geometry();
   std::string path_, xdmf_;
   const Scene& scene_;
   std::unique_ptr<cosim::StagedFile> staged_;
   long long file_ = -1;
   std::vector<double> snapshot_times_;
   std::vector<std::size_t> snapshot_sizes_;
+  // Box around every particle centre and tool vertex of the snapshots so far (plane walls are
+  // drawn over it).
+  bool have_extent_ = false;
+  Vec3 extent_lo_, extent_hi_;
+  std::size_t wall_vertices_ = 0, wall_triangles_ = 0;  // in wall_geometry/ now
   std::vector<std::unique_ptr<cosim::h5::Table>> tool_rows_;  // per tool: t, F, M, position, quaternion
   std::unique_ptr<cosim::h5::Table> wall_rows_;               // t, then F of every wall
   std::size_t buffered_ = 0;

@@ -36,6 +36,10 @@ struct Wall {
   std::string name;
   Vec3 point;
   Vec3 normal;  // unit
+  // For pictures only (the physics sees an infinite plane): a face of a `box` wall is drawn as
+  // the face of that box; a `plane` wall as a rectangle covering the run (docs/visualise.md).
+  bool from_box = false;
+  Vec3 box_min{}, box_max{};
 };
 
 // A rigid triangle-mesh tool; the mesh is stored relative to the reference point.

@@ -67,6 +67,8 @@ class ServiceModel final : public cosim::Model {
   // startup: the config file alone; its output folders need not exist yet, because the
   // master's parameters may replace the paths (checked in configure once they are final).
   void build(YAML::Node root, const std::string& what, bool startup = false);
+  // Every tool's pose from the step's input polynomials at t (refuses NaN or infinity).
+  std::vector<ToolPose> tool_poses(const cosim::StepInputs& in, cosim::TimePoint t) const;
   void set_tool_poses(const cosim::StepInputs& in, cosim::TimePoint t);
 
   YAML::Node root_;  // as loaded, before the master's parameters
@@ -83,6 +85,7 @@ class ServiceModel final : public cosim::Model {
   std::optional<State> snapshot_;
   std::size_t snapshot_rows_ = 0;
   cosim::TimePoint t_now_{};
+  std::vector<ToolPose> end_poses_;  // the tools at t_now_ (the last step's inputs at its end)
   std::int64_t steps_done_ = 0;
   double snapshot_seconds_ = 0;
   double asleep_steps_ = 0, particle_steps_ = 0;  // sleeping share (scene.sleep)

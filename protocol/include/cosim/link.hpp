@@ -81,6 +81,7 @@ struct ParticipantInfo {
   Duration inner_step{};
   bool can_repeat = false;
   bool can_checkpoint = false;  // saves and restores checkpoints (docs/protocol.md)
+  std::string repeat_note;  // why it cannot repeat a step, when it says (ready_t.error with ok)
   Signals initial_outputs;
 };
 

@@ -75,6 +75,9 @@ class Model {
   virtual StepResult step(const StepInputs& in, bool want_average) = 0;
   // Models that can go back to the start of the current step support iterations and rollback.
   virtual bool can_repeat() const { return false; }
+  // Why not, for people, when can_repeat() is false ("" when there is nothing to say). Sent in
+  // ready_t.error (which carries a refusal's reason when ok is false).
+  virtual std::string repeat_note() const { return ""; }
   virtual void save_snapshot() {}
   virtual void restore_snapshot() {}
   // Checkpoints (docs/protocol.md#checkpoints-and-resume): a model that can write everything

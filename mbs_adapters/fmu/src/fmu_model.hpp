@@ -1,0 +1,118 @@
+// fmu_adapter's model: an FMI 2.0 co-simulation FMU as a participant. The mapping (YAML, keys
+// in docs/fmi.md) names the FMU, its start values and parameters, and the ports: groups of FMU
+// variables that make up a scalar, a kinematics (pose and twist) or a wrench signal.
+#pragma once
+
+#include <array>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "archive.hpp"
+#include "cosim/participant.hpp"
+#include "euler.hpp"
+#include "fmi2_instance.hpp"
+#include "model_description.hpp"
+
+namespace fmu {
+
+// One number of a port: an FMU variable, a constant, or (inputs) nothing.
+struct Component {
+  const Variable* var = nullptr;
+  double constant = 0;
+};
+using Vec3Map = std::array<Component, 3>;
+
+enum class OrientationMap { Identity, Quaternion, Angles };
+
+struct PortMap {
+  std::string name;
+  cosim::SignalKind kind = cosim::SignalKind::Scalar;
+  bool input = false;
+  std::string path;  // its dotted key, for messages
+  Component scalar;
+  // kinematics
+  Vec3Map position, velocity, angular_velocity;
+  OrientationMap orientation = OrientationMap::Identity;
+  std::array<Component, 4> quaternion;
+  std::array<Component, 3> angles;
+  EulerSequence sequence;
+  bool angular_velocity_in_body = false;
+  // wrench
+  Vec3Map force, torque, point;
+  std::string frame_port;  // "" = ground axes, else the kinematics port whose body axes
+  std::string point_port;  // "" = `point`, else the kinematics port whose position
+};
+
+class FmuModel final : public cosim::Model {
+ public:
+  // root: the adapter's config (mapping) after --set, possibly empty; base_dir resolves its
+  // relative paths. The master's parameters amend it in configure().
+  FmuModel(YAML::Node root, std::string base_dir);
+  ~FmuModel() override;
+
+  // Unpacks and loads the FMU and checks the mapping against it, without instantiating:
+  // what configure() does first. Raises FmuError or config::ConfigError naming the key: under
+  // "participants.<participant>.parameters", or (own_file, the check at start-up) as written in
+  // the adapter's own file.
+  void prepare(const YAML::Node& parameters, const std::string& participant, bool own_file = false);
+
+  void configure(const YAML::Node& parameters, const cosim::RunInfo& run) override;
+  cosim::Ports inputs() const override;
+  cosim::Ports outputs() const override;
+  cosim::Duration inner_step() const override { return inner_step_; }
+  cosim::Signals initial_outputs() override;
+  cosim::StepResult step(const cosim::StepInputs& in, bool want_average) override;
+  bool can_repeat() const override;
+  std::string repeat_note() const override;
+  void save_snapshot() override;
+  void restore_snapshot() override;
+
+  const ModelDescription& description() const { return *md_; }
+  // "<file name> (model '<modelName>')", as messages name the FMU
+  const std::string& label() const { return label_; }
+
+ private:
+  void configure_instance(const YAML::Node& parameters, const cosim::RunInfo& run);
+  void parse_mapping(const YAML::Node& root, const std::string& path);
+  PortMap parse_port(const YAML::Node& node, const std::string& path, bool input);
+  Component output_component(const YAML::Node& node, const std::string& path) const;
+  Component input_component(const YAML::Node& node, const std::string& path) const;
+  const Variable& variable(const std::string& name, const std::string& path) const;
+  void set_start_values(const YAML::Node& start, const std::string& path);
+
+  cosim::Kinematics kinematics_of(const std::string& port, const std::string& when);
+  cosim::Value read_output(const PortMap& p, const std::string& when);
+  void write_input(const PortMap& p, const cosim::Value& v, const std::string& when);
+  void write_input_derivatives(const cosim::StepInputs& in, cosim::TimePoint t, const std::string& when);
+  double read(const Component& c, const std::string& when);
+  void write(const Component& c, double value, const PortMap& p, const std::string& when);
+  cosim::Signals read_outputs(const std::string& when);
+
+  YAML::Node root_;
+  std::string base_dir_;
+  std::string participant_ = "fmu";
+  std::string prepared_yaml_;  // the mapping prepare() saw, so configure() reuses the FMU
+  // Destroyed in reverse: instance, library, unpacked folder.
+  std::unique_ptr<UnpackedFmu> unpacked_;
+  std::unique_ptr<ModelDescription> md_;
+  std::unique_ptr<Fmi2Library> lib_;
+  std::unique_ptr<Fmi2Instance> inst_;
+  std::string label_;
+  std::string fmu_path_;
+  std::string instance_name_;
+  std::optional<double> step_size_s_;
+  long long substeps_ = 0;
+  std::optional<double> tolerance_;
+  bool verbose_ = false;
+  bool snapshots_ = true;
+  bool input_derivatives_ = true;  // mapping key input_derivatives
+  YAML::Node start_;
+  std::vector<PortMap> inputs_, outputs_;
+  cosim::Duration inner_step_{};
+  std::map<std::string, cosim::Kinematics> received_;  // kinematics inputs last set
+};
+
+}  // namespace fmu
