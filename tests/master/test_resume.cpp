@@ -378,6 +378,7 @@ TEST(Resume, RefusesWhatCannotBeResumedNamingWhy) {
       {{cm, "--resume", harness::temp_path("_none.h5")}, "is missing or not an HDF5 file"},
       {{cm, harness::source("configs/oscillator.yaml"), "--resume", done}, "give neither a config file nor --output"},
       {{cm, "--resume", done, "--output", plain}, "give neither a config file nor --output"},
+      {{cm, "--resume", done, "--replay", text, "--replay-side", "mass1"}, "--resume and --replay do not combine"},
       {{cm, harness::source("configs/oscillator.yaml"), "--output", harness::temp_path("_x.h5"), "--set",
         "checkpoints.every=0.00033"},
        "checkpoints.every: 0.00033 s is not a whole number of macro steps (time.macro_step = 0.0005 s)"},
