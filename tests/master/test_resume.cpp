@@ -11,6 +11,8 @@
 #include <regex>
 
 #include "harness.hpp"
+#include "recorder.hpp"
+#include "resume.hpp"
 
 namespace fs = std::filesystem;
 
@@ -430,4 +432,89 @@ TEST(Resume, RefusesWhatCannotBeResumedNamingWhy) {
   }
   EXPECT_TRUE(harness::read_text(stopped) == before) << "a refused resume changed the record";
   fs::remove_all(stopped + ".checkpoints");
+}
+
+// ---- in process: every resume point, through the start-up iterations and the schemes ----
+
+namespace {
+
+// Stops the run (as a crash of the master would) once `at` steps are recorded.
+struct StopAfter final : master::Observer {
+  int64_t at;
+  explicit StopAfter(int64_t n) : at(n) {}
+  void on_step(const master::StepRecord& r) override {
+    if (r.step_index + 1 == at) throw std::runtime_error("stopped on purpose");
+  }
+};
+
+// One in-process run of the oscillator into `h5`: from the start (stop_after > 0: stopped
+// there), or resumed from `h5` itself.
+void run_in_process(const std::vector<std::string>& sets, const std::string& h5, const std::string& folder,
+                    int64_t stop_after, bool resume) {
+  oscillator::OscillatorModel m1(oscillator::Side::Mass1), m2(oscillator::Side::Mass2);
+  cosim::ParticipantCore c1("mass1", m1), c2("mass2", m2);
+  auto transport = cosim::make_in_process_transport(99, {{"mass1", &c1}, {"mass2", &c2}});
+  master::Config config;
+  std::unique_ptr<master::H5Recorder> recorder;
+  std::optional<master::ResumePoint> point;
+  int64_t run_id = 0x5eed;
+  if (resume) {
+    const master::ResumeRecord record = master::read_resume_record(h5);
+    config = master::resume_config(record, {});
+    run_id = record.run_id;
+    EXPECT_EQ(record.folder, folder);
+    point = master::read_resume_point(record, config);
+    recorder = std::make_unique<master::H5Recorder>(master::H5Recorder::Continue{}, h5);
+  } else {
+    config = harness::oscillator_config(sets);
+    recorder = std::make_unique<master::H5Recorder>(h5);
+  }
+  master::CoSimulation sim(config, *transport);
+  sim.set_checkpoints(run_id, folder);
+  if (point) sim.set_resume(*point);
+  StopAfter stop(stop_after);
+  sim.add_observer(recorder.get());
+  if (stop_after > 0) sim.add_observer(&stop);
+  sim.connect();
+  try {
+    sim.run();
+  } catch (const std::exception& e) {
+    EXPECT_GT(stop_after, 0) << e.what();
+  }
+}
+
+}  // namespace
+
+TEST(ResumeInProcess, EveryResumePointThroughTheStartUpIterationsIsBitIdentical) {
+  struct Variant {
+    const char* name;
+    std::vector<std::string> sets;
+  };
+  const std::vector<Variant> variants{
+      {"jacobi_1_0", {}},
+      {"gauss_seidel_2_2_average",
+       {"scheme=gauss_seidel", "predictors.kinematics.order=2", "predictors.force.order=2", "connections.2.use=average"}},
+      {"jacobi_3_3_least_squares",
+       {"predictors.kinematics={order: 3, samples: 6}", "predictors.force={order: 3, samples: 5}"}}};
+  for (const auto& v : variants) {
+    std::vector<std::string> sets = v.sets;
+    sets.insert(sets.end(), {"time.end=0.005", "checkpoints.every=0.0005", "output.csv="});  // 10 steps
+    const std::string folder = harness::temp_path(std::string("_") + v.name + ".checkpoints");
+    const std::string full = harness::temp_path(std::string("_") + v.name + "_full.h5");
+    fs::remove_all(folder);
+    run_in_process(sets, full, folder, 0, false);
+    ASSERT_EQ(harness::read_string(full, "status"), "finished") << v.name;
+    for (int64_t n : {1, 2, 3, 4, 7}) {  // steps 0..2 are start-up iterations for order 3
+      SCOPED_TRACE(std::string(v.name) + ", resumed after " + std::to_string(n) + " steps");
+      const std::string h5 = harness::temp_path(std::string("_") + v.name + "_" + std::to_string(n) + ".h5");
+      run_in_process(sets, h5, folder, n, false);
+      ASSERT_EQ(harness::read_dataset(h5, "checkpoint/steps_done"), std::vector<double>{static_cast<double>(n)});
+      ASSERT_EQ(harness::read_string(h5, "status"), "stopped: stopped on purpose");
+      run_in_process(sets, h5, folder, 0, true);
+      const Comparison c = compare_records(full, h5);
+      EXPECT_TRUE(c.differ.empty() && c.missing.empty()) << c.text();
+      EXPECT_GE(c.compared, 20);
+    }
+    fs::remove_all(folder);
+  }
 }
