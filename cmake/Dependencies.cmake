@@ -42,7 +42,17 @@ function(soil_add_gtest name)
   # themselves): ctest -j runs two multi-threaded tests at once on two cores, and libgomp's
   # spinning made them take each other's cores (tests slowed 10-500x, timeouts).
   gtest_discover_tests(${name} DISCOVERY_TIMEOUT 60
-    PROPERTIES TIMEOUT ${T_TIMEOUT} LABELS "${T_LABELS}" ENVIRONMENT "OMP_WAIT_POLICY=PASSIVE")
+    PROPERTIES TIMEOUT ${T_TIMEOUT} ENVIRONMENT "OMP_WAIT_POLICY=PASSIVE")
+  # The labels are set by a script ctest reads after the discovered tests: a list such as
+  # "physics;bus" given in PROPERTIES above reaches set_tests_properties split into words, so
+  # the tests had "physics" only (`ctest -L bus` missed them). <name>_TESTS is the list
+  # gtest_discover_tests defines for the target.
+  if(T_LABELS)
+    set(labels_file "${CMAKE_CURRENT_BINARY_DIR}/${name}_labels.cmake")
+    file(WRITE "${labels_file}"
+      "if(DEFINED ${name}_TESTS)\n  set_tests_properties(\${${name}_TESTS} PROPERTIES LABELS \"${T_LABELS}\")\nendif()\n")
+    set_property(DIRECTORY APPEND PROPERTY TEST_INCLUDE_FILES "${labels_file}")
+  endif()
 endfunction()
 
 # Simbody 3.7 (Debian libsimbody-dev) for the machine models. Debian builds it without

@@ -1,6 +1,7 @@
 #include "dem/service.hpp"
 
 #include <cmath>
+#include <filesystem>
 #include <cstdio>
 #include <iostream>
 #include <sstream>
@@ -123,7 +124,18 @@ void ServiceModel::configure(const YAML::Node& parameters, const cosim::RunInfo&
   for (std::size_t m = 0; m < scene.tools.size(); ++m)
     rc_->state.tool_pose[m] = scene.tools[m].motion.evaluate(cosim::to_seconds(run.t_start));
   end_poses_ = rc_->state.tool_pose;
-  if (!o.file.empty()) out_ = std::make_unique<RunOutput>(o.file, scene, rc_->config_text);
+  std::string output_file = o.file;
+  if (!output_file.empty() && run.resume_steps_done > 0) {
+    // The interrupted session's file keeps the steps before; this one holds the rest.
+    std::filesystem::path p(output_file);
+    output_file = (p.parent_path() / (p.stem().string() + "_from_step" +
+                                      std::to_string(run.resume_steps_done) + p.extension().string()))
+                      .string();
+    std::fprintf(stderr, "dem_service: resuming after %lld steps (t = %.6g s): output goes to %s, %s is left as it was\n",
+                 static_cast<long long>(run.resume_steps_done), cosim::to_seconds(run.resume_time),
+                 output_file.c_str(), o.file.c_str());
+  }
+  if (!output_file.empty()) out_ = std::make_unique<RunOutput>(output_file, scene, rc_->config_text);
   session_wall_.restart();
   since_report_.restart();
   std::fprintf(stderr,
@@ -188,6 +200,33 @@ void ServiceModel::restore_snapshot() {
   if (!snapshot_) throw std::logic_error("dem_service: restore_snapshot without a snapshot");
   rc_->state = *snapshot_;
   if (out_) out_->discard_rows_after(snapshot_rows_);  // samples of the abandoned attempt
+}
+
+void ServiceModel::save_checkpoint(const std::string& path) {
+  const cosim::Stopwatch w;
+  if (out_) out_->flush_if_older_than(2.0);  // the step is accepted: its rows may go
+  dem::save_checkpoint(rc_->state, path);
+  if (engine_) engine_->timing().add(section::output, w.seconds());
+}
+
+void ServiceModel::load_checkpoint(const std::string& path) {
+  State s = dem::load_checkpoint(path);
+  if (s.tool_pose.size() != rc_->scene.tools.size())
+    throw std::runtime_error("it holds " + std::to_string(s.tool_pose.size()) + " tool(s), the scene has " +
+                             std::to_string(rc_->scene.tools.size()) + ": it is of another scene");
+  validate_state(rc_->scene, s, false);
+  rc_->state = std::move(s);
+  end_poses_ = rc_->state.tool_pose;
+  // Outputs and reports continue from the resume time.
+  t_now_ = run_.resume_time;
+  auto first_at_or_after = [&](cosim::Duration every) {
+    if (every <= Duration::zero()) return run_.resume_time;
+    const Duration since = run_.resume_time - run_.t_start;
+    return run_.t_start + every * ((since + every - cosim::nanoseconds(1)) / every);
+  };
+  next_particles_ = first_at_or_after(particles_every_);
+  next_checkpoint_ = first_at_or_after(checkpoint_every_);
+  if (next_checkpoint_ == run_.resume_time) next_checkpoint_ += checkpoint_every_;
 }
 
 cosim::StepResult ServiceModel::step(const cosim::StepInputs& in, bool want_average) {
@@ -262,7 +301,7 @@ cosim::StepResult ServiceModel::step(const cosim::StepInputs& in, bool want_aver
   }
   if (checkpoint_every_ > Duration::zero() && t_now_ >= next_checkpoint_) {
     const cosim::Stopwatch w;
-    save_checkpoint(s, options_.checkpoint);
+    dem::save_checkpoint(s, options_.checkpoint);
     next_checkpoint_ += checkpoint_every_ * ((t_now_ - next_checkpoint_) / checkpoint_every_ + 1);
     engine.timing().add(section::output, w.seconds());
   }
@@ -310,7 +349,7 @@ void ServiceModel::finish(std::ostream& report) {
     out_->write_summary(t, s, sim);
     out_->flush();
   }
-  if (!rc_->output.checkpoint.empty()) save_checkpoint(s, rc_->output.checkpoint);
+  if (!rc_->output.checkpoint.empty()) dem::save_checkpoint(s, rc_->output.checkpoint);
   std::vector<cosim::TimingRow> rows = t.rows();
   rows.push_back({"snapshot", snapshot_seconds_});
   rows.push_back({"other", std::max(0.0, wall - t.sum() - snapshot_seconds_)});

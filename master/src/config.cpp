@@ -1,5 +1,6 @@
 #include "config.hpp"
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <set>
@@ -223,6 +224,31 @@ OutputSpec parse_output(const YAML::Node& o) {
   return out;
 }
 
+std::string number_text(double v) {
+  std::ostringstream o;
+  o << v;
+  return o.str();
+}
+
+CheckpointSpec parse_checkpoints(const YAML::Node& n, const Config& c) {
+  CheckpointSpec out;
+  if (!n) return out;
+  cfg::check_keys(n, "checkpoints", {"every", "folder"});
+  const double every = cfg::get_double_or(n, "checkpoints", "every", cosim::to_seconds(out.every));
+  if (!(every >= 0) || !std::isfinite(every))
+    throw ConfigError("checkpoints.every: " + number_text(every) +
+                      " is not allowed: give seconds of simulated time >= 0 (0: no checkpoints)");
+  if (every > 0) {
+    out.every = cosim::seconds_to_duration(every, "checkpoints.every");
+    if (out.every % c.macro_step != Duration::zero())
+      throw ConfigError("checkpoints.every: " + number_text(every) +
+                        " s is not a whole number of macro steps (time.macro_step = " +
+                        number_text(cosim::to_seconds(c.macro_step)) + " s)");
+  }
+  out.folder = cfg::get_string_or(n, "checkpoints", "folder", out.folder);
+  return out;
+}
+
 // For tests: lose a request or reply once.
 cosim::FaultPlan parse_faults(const YAML::Node& f, const Config& c) {
   cosim::FaultPlan faults;
@@ -256,7 +282,7 @@ Config parse_config(const YAML::Node& root, const std::string& source_text) {
   }
   cfg::check_keys(root, "", {"bus", "time", "scheme", "order", "startup_iterations",
                               "connect_timeout", "participants", "predictors", "connections",
-                              "power", "output", "faults"});
+                              "power", "output", "checkpoints", "faults"});
   if (root["bus"]) {
     cfg::check_keys(root["bus"], "bus", {"url"});
     c.bus_url = cfg::get_string_or(root["bus"], "bus", "url", c.bus_url);
@@ -268,6 +294,7 @@ Config parse_config(const YAML::Node& root, const std::string& source_text) {
   c.connections = parse_connections(root["connections"], c, parse_predictors(root["predictors"]));
   c.power = parse_power(root["power"], c);
   c.output = parse_output(root["output"]);
+  c.checkpoints = parse_checkpoints(root["checkpoints"], c);
   c.faults = parse_faults(root["faults"], c);
   return c;
 }

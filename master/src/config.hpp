@@ -60,6 +60,13 @@ struct OutputSpec {
   std::string progress = "auto";  // auto (when stderr is a terminal), on, off
 };
 
+// Checkpoints every participant writes at common macro times, so that a stopped run can be
+// continued with cosim_master --resume (docs/protocol.md#checkpoints-and-resume).
+struct CheckpointSpec {
+  Duration every{};    // zero: none; else a whole number of macro steps
+  std::string folder;  // on each participant's host; "" : the output file's name + ".checkpoints"
+};
+
 struct Config {
   std::string bus_url;
   TimePoint t_start{}, t_end{};
@@ -72,6 +79,7 @@ struct Config {
   std::vector<ConnectionSpec> connections;
   std::vector<PowerSpec> power;
   OutputSpec output;
+  CheckpointSpec checkpoints;
   cosim::FaultPlan faults;
   std::string source_text;     // the file as read
   std::string effective_yaml;  // after --set

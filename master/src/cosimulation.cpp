@@ -43,7 +43,25 @@ CoSimulation::CoSimulation(const Config& config, cosim::Transport& transport)
   }
 }
 
+void CoSimulation::set_checkpoints(int64_t run_id, std::string folder) {
+  run_id_ = run_id;
+  checkpoint_folder_ = std::move(folder);
+}
+
+void CoSimulation::set_resume(ResumePoint resume) { resume_ = std::move(resume); }
+
+bool CoSimulation::checkpoint_due(int64_t step) const {
+  if (config_.checkpoints.every <= Duration::zero()) return false;
+  const int64_t every = config_.checkpoints.every / config_.macro_step;
+  // Not after the last step: the run is over then.
+  return (step + 1) % every == 0 && step + 1 < setup_.steps;
+}
+
 void CoSimulation::connect() {
+  const int64_t resume_steps = resume_ ? resume_->steps_done : 0;
+  if ((config_.checkpoints.every > Duration::zero() || resume_) &&
+      (run_id_ == 0 || checkpoint_folder_.empty()))
+    throw std::logic_error("checkpoints without a run id or folder (set_checkpoints)");
   std::vector<cosim::configure_t> configs;
   for (const auto& p : config_.participants) {
     cosim::configure_t c{};
@@ -54,6 +72,10 @@ void CoSimulation::connect() {
     c.t_end_ns = cosim::to_ns(config_.t_end);
     c.macro_step_ns = cosim::to_ns(config_.macro_step);
     c.parameters_yaml = p.parameters_yaml;
+    c.checkpoint_folder = checkpoint_folder_;
+    c.run_id = run_id_;
+    c.resume_steps_done = resume_steps;
+    c.resume_t_ns = cosim::to_ns(config_.t_start + resume_steps * config_.macro_step);
     configs.push_back(c);
   }
   setup_.config = &config_;
@@ -62,15 +84,49 @@ void CoSimulation::connect() {
   setup_.participants = transport_.connect(configs, config_.connect_timeout);
   check_wiring(config_, setup_.participants);
   setup_.steps = (config_.t_end - config_.t_start) / config_.macro_step;
+  setup_.run_id = run_id_;
+  setup_.checkpoint_folder = checkpoint_folder_;
+  setup_.first_step = resume_steps;
+  if (config_.checkpoints.every > Duration::zero()) {
+    // A resumed participant that cannot checkpoint has refused its configuration already.
+    std::string cannot;
+    for (const auto& [name, info] : setup_.participants)
+      if (!info.can_checkpoint) cannot += (cannot.empty() ? "'" : ", '") + name + "'";
+    if (!cannot.empty())
+      throw cosim::config::ConfigError(
+          "checkpoints.every: participant(s) " + cannot +
+          " cannot save checkpoints, so the run could not be resumed from them; set "
+          "checkpoints.every: 0 (no checkpoints, no --resume) or replace the participant");
+  }
   can_iterate_ = true;
   for (const auto& [name, info] : setup_.participants) can_iterate_ = can_iterate_ && info.can_repeat;
   predictors_.clear();
-  for (const auto& k : config_.connections) {
+  for (std::size_t i = 0; i < config_.connections.size(); ++i) {
+    const auto& k = config_.connections[i];
     const auto& src = setup_.participants.at(k.from.participant);
     const auto& initial = src.initial_outputs.at(k.from.signal);
     predictors_.emplace_back(initial.kind, k.predictor, k.use);
-    predictors_.back().record(config_.t_start, initial.value);
     max_order_ = std::max(max_order_, k.predictor.order);
+    if (!resume_) {
+      predictors_.back().record(config_.t_start, initial.value);
+      continue;
+    }
+    // The history an uninterrupted run's predictor holds after steps_done steps: the same
+    // values (the recorded ones are what it was given), at the same times. The predictor
+    // keeps only the latest samples it needs.
+    const auto& received = resume_->received.at(i);
+    if (static_cast<int64_t>(received.size()) != resume_steps + 1)
+      throw std::logic_error("resume: received history of the wrong length");
+    for (int64_t j = 0; j <= resume_steps; ++j) {
+      if (k.use == Use::Average && j > 0) continue;  // its samples: the initial output only
+      predictors_.back().record(config_.t_start + j * config_.macro_step,
+                                received[static_cast<std::size_t>(j)]);
+    }
+    if (k.use == Use::Average)
+      for (int64_t j = 1; j <= resume_steps; ++j)
+        predictors_.back().record_mean(config_.t_start + (j - 1) * config_.macro_step,
+                                       config_.t_start + j * config_.macro_step,
+                                       resume_->received_average.at(i).at(static_cast<std::size_t>(j)));
   }
   // Start-up iterations redo the first steps from their start: every participant must be able
   // to. One that cannot is refused here, before any step, not skipped silently (the order the
@@ -89,7 +145,8 @@ void CoSimulation::connect() {
 
 std::vector<cosim::step_request_t> CoSimulation::requests(const std::vector<std::string>& group,
                                                           int64_t step, int iteration,
-                                                          TimePoint t0, TimePoint t1) {
+                                                          TimePoint t0, TimePoint t1,
+                                                          bool checkpoint) {
   std::vector<cosim::step_request_t> out;
   for (const auto& name : group) {
     cosim::step_request_t q{};
@@ -100,6 +157,7 @@ std::vector<cosim::step_request_t> CoSimulation::requests(const std::vector<std:
     q.attempt = 0;
     q.t_start_ns = cosim::to_ns(t0);
     q.t_end_ns = cosim::to_ns(t1);
+    q.checkpoint = checkpoint;
     // Asked of a source whose output feeds a `use: average` connection.
     q.want_average = false;
     for (const auto& k : config_.connections)
@@ -146,7 +204,8 @@ void CoSimulation::run_step(int64_t step, TimePoint t0, TimePoint t1) {
   std::map<std::string, cosim::Signals> averages;  // participants asked for interval averages
   for (int it = 0; it < iterations; ++it) {
     for (const auto& group : groups_) {
-      auto qs = requests(group, step, it, t0, t1);
+      // The checkpoint goes with the last iteration: the state after it is the step's result.
+      auto qs = requests(group, step, it, t0, t1, it + 1 == iterations && checkpoint_due(step));
       for (std::size_t i = 0; i < config_.connections.size(); ++i)
         for (const auto& name : group)
           if (config_.connections[i].to.participant == name) sent[i] = predictors_[i].predict(t0, t1);
@@ -172,6 +231,7 @@ void CoSimulation::run_step(int64_t step, TimePoint t0, TimePoint t1) {
     }
   }
   rec.iterations = iterations;
+  rec.checkpoint = checkpoint_due(step);  // every reply confirmed it, or exchange() raised
   for (std::size_t i = 0; i < config_.connections.size(); ++i) {
     const auto& k = config_.connections[i];
     ConnectionRecord c;
@@ -211,9 +271,10 @@ void CoSimulation::run_step(int64_t step, TimePoint t0, TimePoint t1) {
 
 void CoSimulation::run() {
   for (auto* o : observers_) o->on_start(setup_);
-  int64_t step = 0;
+  int64_t step = setup_.first_step;
   try {
-    for (TimePoint t = config_.t_start; t < config_.t_end; t += config_.macro_step, ++step)
+    for (TimePoint t = config_.t_start + step * config_.macro_step; t < config_.t_end;
+         t += config_.macro_step, ++step)
       run_step(step, t, t + config_.macro_step);
   } catch (const std::exception& e) {
     transport_.terminate(true, e.what());

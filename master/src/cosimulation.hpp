@@ -6,6 +6,8 @@
 
 #include <map>
 #include <memory>
+#include <optional>
+#include <string>
 #include <vector>
 
 #include "config.hpp"
@@ -45,6 +47,20 @@ struct StepRecord {
   std::map<std::string, double> compute_seconds, round_trip_seconds;
   double master_seconds = 0;  // time in the master itself (predictors, observers excluded)
   double wall_seconds = 0;    // the whole step
+  // Every participant wrote its checkpoint after this step (checkpoints.every): a stopped run
+  // can be resumed from here once the recorder has recorded it.
+  bool checkpoint = false;
+};
+
+// Where a resumed run continues (cosim_master --resume, master/src/resume.hpp reads it from
+// the record): after steps_done steps, with the predictor history the record holds.
+struct ResumePoint {
+  int64_t steps_done = 0;
+  // Per connection in config order: the source's values the predictors were given, rows
+  // 0..steps_done of connections/<to>/received (row i at t_start + i macro steps), and for
+  // use: average connections the means of connections/<to>/received_average (row i: the
+  // step ending at row i's time; row 0 unused).
+  std::vector<std::vector<cosim::Value>> received, received_average;
 };
 
 struct RunSetup {
@@ -53,6 +69,12 @@ struct RunSetup {
   int64_t session = 0;
   int64_t steps = 0;
   const cosim::ExchangeStats* bus = nullptr;  // the transport's counters, final at on_finish
+  // Checkpoints: the run's id (the same across resumes) and the participants' folder.
+  int64_t run_id = 0;
+  std::string checkpoint_folder;
+  // Steps recorded before this process started: 0, or the resume point's steps_done (the
+  // observers continue the record after that many steps instead of starting it).
+  int64_t first_step = 0;
 };
 
 class Observer {
@@ -68,6 +90,12 @@ class CoSimulation {
  public:
   CoSimulation(const Config& config, cosim::Transport& transport);
   void add_observer(Observer* observer) { observers_.push_back(observer); }
+  // Checkpoints (config.checkpoints.every > 0, or a resume): the run's id and the folder the
+  // participants write to (an absolute path on their hosts). Before connect().
+  void set_checkpoints(int64_t run_id, std::string folder);
+  // Continue a stopped run after resume.steps_done steps: the participants restore their
+  // checkpoints in connect() and the predictors start from the recorded history. Before connect().
+  void set_resume(ResumePoint resume);
   // Handshake and wiring check; raises ConfigError, ParticipantConfigError or LinkError.
   void connect();
   // All macro steps; raises LinkError on failure after telling the observers.
@@ -76,7 +104,8 @@ class CoSimulation {
 
  private:
   std::vector<cosim::step_request_t> requests(const std::vector<std::string>& group, int64_t step,
-                                       int iteration, TimePoint t0, TimePoint t1);
+                                       int iteration, TimePoint t0, TimePoint t1, bool checkpoint);
+  bool checkpoint_due(int64_t step) const;
   void run_step(int64_t step, TimePoint t0, TimePoint t1);
   // transport_.exchange, with a missing interval average named by its connection.
   std::vector<cosim::StepAnswer> exchange(const std::vector<cosim::step_request_t>& requests);
@@ -89,6 +118,9 @@ class CoSimulation {
   std::vector<std::vector<std::string>> groups_;  // participants stepping together
   int max_order_ = 0;
   bool can_iterate_ = false;
+  int64_t run_id_ = 0;
+  std::string checkpoint_folder_;
+  std::optional<ResumePoint> resume_;
 };
 
 }  // namespace master

@@ -2,6 +2,9 @@
 // cosim_master --new-key FILE   (writes a new shared key, mode 600; docs/security.md)
 // --record FILE: the session's bus messages as an LCM log; --replay LOG --replay-side NAME:
 // rerun NAME live against the recorded messages of the others (docs/replay.md).
+// cosim_master --resume FILE.h5 [--set key=value ...] [--csv FILE.csv]
+//   continues a stopped run from its last checkpoint, appending to FILE.h5
+//   (docs/protocol.md#checkpoints-and-resume)
 // The bus key comes from $COSIM_KEY_FILE or $COSIM_KEY, never from the command line; the
 // participants the master launches inherit it.
 // Exit codes: 0 finished, 1 the run failed (participant lost, refused or failed a step),
@@ -33,6 +36,7 @@
 #include "launcher.hpp"
 #include "recorder.hpp"
 #include "replay.hpp"
+#include "resume.hpp"
 
 namespace {
 
@@ -51,6 +55,12 @@ void usage() {
                "            rerun NAME live against the recorded replies of every other participant\n"
                "            (not started); reports where the run diverges from the recording; the\n"
                "            session only when LOG holds several runs (lcm-logger)\n"
+               "       cosim_master --resume FILE.h5 [--set key=value ...] [--csv FILE.csv]\n"
+               "  --resume  continue the stopped run recorded in FILE.h5 from its last checkpoint\n"
+               "            (its config had checkpoints.every; restart participants started by hand\n"
+               "            first, where they ran). FILE.h5 is continued in place; --set only for\n"
+               "            bus.url, connect_timeout, output.progress, participants.<name>.launch,\n"
+               "            .timeout, .retries\n"
                "       cosim_master --new-key FILE\n"
                "  --new-key write a new random key for the bus to FILE (mode 600; an existing file is\n"
                "            not overwritten); give it to every process of a run as COSIM_KEY_FILE=FILE\n"
@@ -112,7 +122,7 @@ void check_files(const master::Config& c, const std::string& config_path, bool o
 int main(int argc, char** argv) {
   // Several processes share one log: a line must reach it in one write, not one per <<.
   std::setvbuf(stderr, nullptr, _IOLBF, 1 << 14);
-  std::string config_path, output, csv;
+  std::string config_path, output, csv, resume;
   std::vector<std::string> overrides;
   std::string record;                    // --record
   master::replay::Options replay_options;  // --replay, --replay-side, --replay-session
@@ -131,6 +141,7 @@ int main(int argc, char** argv) {
     else if (a == "--csv") csv = value();
     else if (a == "--new-key") return write_new_key(value());
     else if (a == "--record") record = value();
+    else if (a == "--resume") resume = value();
     else if (a == "--replay") replay_options.log = value();
     else if (a == "--replay-side") replay_options.live.push_back(value());
     else if (a == "--replay-session") {
@@ -147,7 +158,17 @@ int main(int argc, char** argv) {
     else if (config_path.empty()) config_path = a;
     else { std::cerr << "cosim_master: more than one config file given\n"; usage(); return 2; }
   }
-  if (config_path.empty()) { usage(); return 2; }
+  if (!resume.empty() && (!config_path.empty() || !output.empty())) {
+    std::cerr << "cosim_master: --resume takes the config from the record and continues that file: "
+                 "give neither a config file nor --output with it\n";
+    return 2;
+  }
+  if (!resume.empty() && !replay_options.log.empty()) {
+    std::cerr << "cosim_master: --resume and --replay do not combine: resume the run, then replay its "
+                 "recorded sessions one by one\n";
+    return 2;
+  }
+  if (config_path.empty() && resume.empty()) { usage(); return 2; }
   const bool replaying = !replay_options.log.empty();
   if (!replaying && (!replay_options.live.empty() || replay_options.session != 0)) {
     std::cerr << "cosim_master: --replay-side and --replay-session need --replay LOG\n";
@@ -160,11 +181,37 @@ int main(int argc, char** argv) {
   }
 
   master::Config config;
+  master::ResumeRecord resume_record;
+  int64_t run_id = 0;
+  std::string checkpoint_folder;
   try {
-    config = master::load_config(config_path, overrides);
-    if (!output.empty()) config.output.file = output;
-    if (!csv.empty()) config.output.csv_file = csv;
-    check_files(config, config_path, !output.empty(), !csv.empty(), record, replay_options.log);
+    if (!resume.empty()) {
+      resume_record = master::read_resume_record(resume);
+      config = master::resume_config(resume_record, overrides);
+      config.output.file = resume;
+      config.output.csv_file = csv.empty() ? resume_record.csv : csv;
+      run_id = resume_record.run_id;
+      checkpoint_folder = resume_record.folder;
+    } else {
+      config = master::load_config(config_path, overrides);
+      if (!output.empty()) config.output.file = output;
+      if (!csv.empty()) config.output.csv_file = csv;
+      if (config.checkpoints.every > cosim::Duration::zero()) {
+        if (config.output.file.empty())
+          throw cosim::config::ConfigError(
+              "checkpoints.every: needs output.file (or --output): a stopped run is resumed from "
+              "its record");
+        run_id = cosim::new_session_id();
+        // An absolute path: the participants may run in other folders (or on other hosts).
+        checkpoint_folder = std::filesystem::absolute(config.checkpoints.folder.empty()
+                                                          ? config.output.file + ".checkpoints"
+                                                          : config.checkpoints.folder)
+                                .lexically_normal()
+                                .string();
+      }
+    }
+    check_files(config, config_path, !output.empty() || !resume.empty(), !csv.empty(), record,
+                replay_options.log);
   } catch (const std::exception& e) {  // ConfigError, and anything a malformed file raises
     std::cerr << "cosim_master: config refused: " << e.what() << "\n";
     return 2;
@@ -208,6 +255,18 @@ int main(int argc, char** argv) {
   // --record: the log ends with the run's status, also when the run never started.
   auto close_recording = [&](const std::string& status) {
     if (bus_recorder) bus_recorder->finish(status);
+  };
+  // After a failure: how to continue, if a checkpoint was recorded.
+  auto resume_hint = [&] {
+    if (!recorder || !recorder->started() || run_id == 0) return;
+    const int64_t n = recorder->checkpoint_steps();
+    if (n > 0)
+      std::cerr << "cosim_master: to continue from the last checkpoint (after " << n << " steps, t = "
+                << cosim::to_seconds(config.t_start + n * config.macro_step)
+                << " s): restart the participants started by hand, then cosim_master --resume "
+                << config.output.file << "\n";
+    else
+      std::cerr << "cosim_master: no checkpoint was completed yet, so the run cannot be resumed\n";
   };
   // The messages dropped (forged, replayed, ...) also when the run fails.
   auto print_auth = [&] {
@@ -256,6 +315,16 @@ int main(int argc, char** argv) {
       if (!p.launch.empty() && !played(p.name)) launcher.start(p, url, transport->session());
 
     master::CoSimulation sim(config, *transport);
+    if (run_id != 0) sim.set_checkpoints(run_id, checkpoint_folder);
+    if (!resume.empty()) {
+      sim.set_resume(master::read_resume_point(resume_record, config));
+      std::cerr << "cosim_master: resuming " << resume << " after " << resume_record.steps_done << " of "
+                << (config.t_end - config.t_start) / config.macro_step << " steps (t = "
+                << cosim::to_seconds(config.t_start + resume_record.steps_done * config.macro_step)
+                << " s; it had recorded " << resume_record.steps_recorded << ", status '"
+                << resume_record.status << "'); participants restore their checkpoints from "
+                << checkpoint_folder << "\n";
+    }
     std::cerr << "cosim_master: session " << std::hex << transport->session() << std::dec << " on " << url
               << ", waiting for " << config.participants.size() << " participant(s)\n";
     if (key)
@@ -281,9 +350,19 @@ int main(int argc, char** argv) {
       transport->terminate(true, e.what());  // participants that joined leave at once
       throw;
     }
+    for (const auto& [name, sends] : transport->stats().configure_sends)
+      if (sends > 1)
+        std::cerr << "cosim_master: the configuration of '" << name << "' went out " << sends
+                  << " times before it answered (a copy was lost, or it took long to configure)\n";
 
-    if (!config.output.file.empty()) recorder = std::make_unique<master::H5Recorder>(config.output.file);
-    if (!config.output.csv_file.empty()) csv_writer = std::make_unique<master::CsvWriter>(config.output.csv_file);
+    if (!resume.empty())
+      recorder = std::make_unique<master::H5Recorder>(master::H5Recorder::Continue{}, config.output.file);
+    else if (!config.output.file.empty())
+      recorder = std::make_unique<master::H5Recorder>(config.output.file);
+    if (!config.output.csv_file.empty()) {
+      csv_writer = std::make_unique<master::CsvWriter>(config.output.csv_file);
+      if (!resume.empty()) csv_writer->continue_from(config.output.file);
+    }
     const bool live = config.output.progress == "on" || (config.output.progress == "auto" && isatty(STDERR_FILENO));
     master::Progress progress(live);
     if (recorder) sim.add_observer(recorder.get());
@@ -312,6 +391,7 @@ int main(int argc, char** argv) {
                 << " (/status: stopped: interrupted)\n";
     else if (!config.output.file.empty())
       std::cerr << "cosim_master: no step was recorded; " << config.output.file << " was not written\n";
+    resume_hint();
     launcher.stop(2.0);
     return 128 + e.signal();
   } catch (const cosim::LinkError& e) {
@@ -322,6 +402,7 @@ int main(int argc, char** argv) {
       std::cerr << "cosim_master: the steps completed so far are in " << config.output.file << "\n";
     else if (!config.output.file.empty())
       std::cerr << "cosim_master: no step was recorded; " << config.output.file << " was not written\n";
+    resume_hint();
     return 1;
   } catch (const cosim::config::ConfigError& e) {
     std::cerr << "cosim_master: config refused: " << e.what() << "\n";

@@ -1,10 +1,12 @@
 #include "recorder.hpp"
 
+#include "cosim/bus.hpp"
 #include "cosim/files.hpp"
 #include "cosim/h5.hpp"
 #include "cosim/timer.hpp"
 
 #include <cmath>
+#include <filesystem>
 #include <iostream>
 #include <limits>
 #include <stdexcept>
@@ -63,7 +65,42 @@ void write_bus_stats(hid_t file, const RunSetup& setup) {
     write_number(file, g, "resends", value(st.resends_to));
     write_number(file, g, "resend_timeout", value(st.resend_timeout_s));
     write_number(file, g, "round_trip_smoothed", value(st.srtt_s));
+    write_number(file, g, "configure_sends", value(st.configure_sends));
   }
+}
+
+bool exists(hid_t file, const std::string& path) {
+  // Every parent must exist before H5Lexists may ask about a child.
+  std::size_t pos = 0;
+  while ((pos = path.find('/', pos + 1)) != std::string::npos)
+    if (H5Lexists(file, path.substr(0, pos).c_str(), H5P_DEFAULT) <= 0) return false;
+  return H5Lexists(file, path.c_str(), H5P_DEFAULT) > 0;
+}
+
+void remove_if_present(hid_t file, const std::string& path) {
+  if (exists(file, path)) H5Ldelete(file, path.c_str(), H5P_DEFAULT);
+}
+
+// Overwrites the one number of an existing 1-element dataset.
+void set_number(hid_t file, const std::string& path, double value) {
+  cosim::h5::Handle d(H5Dopen2(file, path.c_str(), H5P_DEFAULT), H5Dclose);
+  if (!d.ok() || H5Dwrite(d, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, &value) < 0)
+    throw std::runtime_error("HDF5: cannot write '" + path + "'");
+}
+
+// Names of the datasets directly under a group.
+std::vector<std::string> children(hid_t file, const std::string& group) {
+  std::vector<std::string> out;
+  if (!exists(file, group)) return out;
+  cosim::h5::Handle g(H5Gopen2(file, group.c_str(), H5P_DEFAULT), H5Gclose);
+  H5Literate(
+      g, H5_INDEX_NAME, H5_ITER_INC, nullptr,
+      [](hid_t, const char* name, const H5L_info_t*, void* data) -> herr_t {
+        static_cast<std::vector<std::string>*>(data)->push_back(name);
+        return 0;
+      },
+      &out);
+  return out;
 }
 
 }  // namespace
@@ -84,6 +121,12 @@ struct H5Recorder::Impl {
   struct Pow { std::unique_ptr<Table> force_side, motion_side, residual, energy_residual; double energy = 0; double last = kNaN; };
   std::vector<Pow> pows;
   cosim::Stopwatch since_flush;
+  bool resume = false;  // continue an existing record (H5Recorder(Continue, ...))
+  bool checkpoints = false;  // the record has /checkpoint (RunSetup::run_id != 0)
+  int64_t checkpoint_steps = 0;  // what /checkpoint/steps_done says
+
+  void start_new(const RunSetup& s);
+  void continue_existing(const RunSetup& s);
 
   void flush_all() {
     auto f = [](auto& m) { for (auto& [k, t] : m) t->flush(); };
@@ -109,6 +152,15 @@ H5Recorder::H5Recorder(const std::string& path) : impl_(std::make_unique<Impl>()
                              "': check that its folder exists and is writable (output.file / --output)");
 }
 
+H5Recorder::H5Recorder(Continue, const std::string& path) : impl_(std::make_unique<Impl>()) {
+  impl_->path = path;
+  impl_->resume = true;
+  H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+  impl_->file = H5Fopen(path.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
+  if (impl_->file < 0)
+    throw std::runtime_error("cannot open the record '" + path + "' for writing: check that it exists and is writable");
+}
+
 H5Recorder::~H5Recorder() {
   if (impl_->file >= 0) {
     impl_->outputs.clear();
@@ -119,6 +171,77 @@ H5Recorder::~H5Recorder() {
 void H5Recorder::on_start(const RunSetup& s) {
   auto& I = *impl_;
   I.setup = &s;
+  I.checkpoints = s.run_id != 0;
+  if (I.resume) I.continue_existing(s);
+  else I.start_new(s);
+  if (I.checkpoints) {
+    // The checkpoint the participants and this record agree on so far (steps_done 0: none).
+    set_number(I.file, "checkpoint/steps_done", static_cast<double>(s.first_step));
+    I.checkpoint_steps = s.first_step;
+    set_number(I.file, "checkpoint/time",
+               cosim::to_seconds(s.config->t_start + s.first_step * s.config->macro_step));
+  }
+  I.flush_all();
+  H5Fflush(I.file, H5F_SCOPE_GLOBAL);
+  if (I.staged) I.staged->commit();  // the run has started: now the file replaces one of its name
+}
+
+void H5Recorder::Impl::continue_existing(const RunSetup& s) {
+  auto& I = *this;
+  const Config& c = *s.config;
+  const std::size_t keep = static_cast<std::size_t>(s.first_step) + 1;  // row 0: t_start
+  using cosim::h5::Table;
+  auto open = [&](const std::string& name) { return std::make_unique<Table>(Table::Existing{}, I.file, name, keep); };
+  // What the interrupted run wrote at its end is rewritten at this one's.
+  remove_if_present(I.file, "status");
+  remove_if_present(I.file, "bus");
+  I.time = open("time");
+  I.master_s = open("timing/master");
+  I.wall_s = open("timing/step_wall");
+  I.iterations = open("timing/iterations");
+  for (const auto& [name, info] : s.participants) {
+    remove_if_present(I.file, "participants/" + name + "/bus");
+    for (const auto& port : info.outputs)
+      I.outputs[name + "/" + port.name] = open("participants/" + name + "/outputs/" + port.name);
+    for (const auto& key : children(I.file, "participants/" + name + "/diagnostics"))
+      I.diagnostics[name + "/" + key] = open("participants/" + name + "/diagnostics/" + key);
+    I.compute[name] = open("participants/" + name + "/timing/compute");
+    I.round_trip[name] = open("participants/" + name + "/timing/round_trip");
+  }
+  for (const auto& k : c.connections) {
+    const std::string g = "connections/" + k.to.str();
+    Impl::Conn cr;
+    cr.sent = open(g + "/sent");
+    cr.width = static_cast<int>(cr.sent->width());
+    cr.predicted = open(g + "/predicted");
+    cr.received = open(g + "/received");
+    cr.deviation = open(g + "/deviation");
+    if (k.use == Use::Average) cr.received_average = open(g + "/received_average");
+    I.conns.push_back(std::move(cr));
+  }
+  for (const auto& p : c.power) {
+    Impl::Pow pw;
+    const std::string g = "power/" + p.name;
+    pw.force_side = open(g + "/force_side");
+    pw.motion_side = open(g + "/motion_side");
+    pw.residual = open(g + "/residual");
+    pw.energy_residual = open(g + "/energy_residual");
+    // The running sums on_step continues: the energy so far and the last residual (NaN at
+    // row 0, as in a run that starts there).
+    pw.energy = cosim::h5::read_doubles(I.file, g + "/energy_residual").at(keep - 1);
+    pw.last = cosim::h5::read_doubles(I.file, g + "/residual").at(keep - 1);
+    I.pows.push_back(std::move(pw));
+  }
+  if (I.checkpoints) {
+    Table resumed(Table::Existing{}, I.file, "checkpoint/resumed_at",
+                  cosim::h5::rows(I.file, "checkpoint/resumed_at"));
+    resumed.append(static_cast<double>(s.first_step));
+    resumed.flush();
+  }
+}
+
+void H5Recorder::Impl::start_new(const RunSetup& s) {
+  auto& I = *this;
   const Config& c = *s.config;
   cosim::h5::write_string(I.file, "config", c.source_text);
   cosim::h5::write_string(I.file, "config_effective", c.effective_yaml);
@@ -188,11 +311,25 @@ void H5Recorder::on_start(const RunSetup& s) {
     pw.energy_residual->append(0.0);
     I.pows.push_back(std::move(pw));
   }
-  I.flush_all();
-  I.staged->commit();  // the run has started: now the file replaces one of its name
+  if (I.checkpoints) {
+    // docs/output.md#checkpoints-and-resume
+    write_number(I.file, "checkpoint", "steps_done", 0.0);
+    write_number(I.file, "checkpoint", "time", cosim::to_seconds(c.t_start));
+    write_number(I.file, "checkpoint", "every", cosim::to_seconds(c.checkpoints.every));
+    Table(I.file, "checkpoint/resumed_at", 1).attribute(
+        "meaning", "steps done when the run was resumed (cosim_master --resume), one row per resume");
+    cosim::h5::Handle g(H5Gopen2(I.file, "checkpoint", H5P_DEFAULT), H5Gclose);
+    cosim::h5::write_string_attribute(g, "run_id", cosim::id_hex(s.run_id));
+    cosim::h5::write_string_attribute(g, "folder", s.checkpoint_folder);
+    std::error_code ec;
+    cosim::h5::write_string_attribute(
+        g, "csv", c.output.csv_file.empty() ? std::string() : std::filesystem::absolute(c.output.csv_file, ec).string());
+  }
 }
 
-bool H5Recorder::started() const { return impl_->staged->committed(); }
+int64_t H5Recorder::checkpoint_steps() const { return impl_->checkpoint_steps; }
+
+bool H5Recorder::started() const { return !impl_->staged || impl_->staged->committed(); }
 
 void H5Recorder::on_step(const StepRecord& r) {
   auto& I = *impl_;
@@ -237,7 +374,16 @@ void H5Recorder::on_step(const StepRecord& r) {
     p.last = r.power[i].residual;
     p.energy_residual->append(p.energy);
   }
-  if (I.since_flush.seconds() > 1.0) {
+  if (r.checkpoint && I.checkpoints) {
+    // Every participant has its checkpoint after this step: with the rows up to here on disk
+    // first, the record now says a resume may start here.
+    I.flush_all();
+    set_number(I.file, "checkpoint/steps_done", static_cast<double>(r.step_index + 1));
+    I.checkpoint_steps = r.step_index + 1;
+    set_number(I.file, "checkpoint/time", cosim::to_seconds(r.t_end));
+    H5Fflush(I.file, H5F_SCOPE_GLOBAL);
+    I.since_flush.restart();
+  } else if (I.since_flush.seconds() > 1.0) {
     I.flush_all();
     I.since_flush.restart();
   }
@@ -290,7 +436,28 @@ void CsvWriter::on_start(const RunSetup& s) {
   std::fprintf(file_, "\n");
   std::map<std::string, cosim::Signals> initial;
   for (const auto& [name, info] : s.participants) initial[name] = info.initial_outputs;
-  row(s.config->t_start, initial);
+  if (continue_from_.empty()) {
+    row(s.config->t_start, initial);
+  } else {
+    // The rows up to the resume point, from the record: the values on_step was given then.
+    cosim::h5::Handle f(H5Fopen(continue_from_.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
+    if (!f.ok()) throw std::runtime_error("cannot read the record '" + continue_from_ + "' for the CSV");
+    std::map<std::string, std::vector<double>> data;
+    for (const auto& [name, sig] : columns_)
+      data[name + "/" + sig] = cosim::h5::read_doubles(f, "participants/" + name + "/outputs/" + sig);
+    for (int64_t i = 0; i <= s.first_step; ++i) {
+      std::map<std::string, cosim::Signals> outputs = initial;
+      for (const auto& [name, sig] : columns_) {
+        auto& v = outputs[name][sig].value;
+        const auto& all = data.at(name + "/" + sig);
+        const std::size_t w = v.size();
+        if (all.size() < (static_cast<std::size_t>(i) + 1) * w)
+          throw std::runtime_error("the record '" + continue_from_ + "' is shorter than its checkpoint");
+        v.assign(all.begin() + static_cast<std::ptrdiff_t>(i * w), all.begin() + static_cast<std::ptrdiff_t>((i + 1) * w));
+      }
+      row(s.config->t_start + i * s.config->macro_step, outputs);
+    }
+  }
   std::fflush(file_);
   staged_->commit();
 }
@@ -315,6 +482,9 @@ void Progress::on_start(const RunSetup& s) {
   setup_ = &s;
   run_wall_.restart();
   since_print_.restart();
+  // A resumed run counts on from its resume point; rates are of this process's steps.
+  steps_done_ = s.first_step;
+  t_begin_ = t_done_ = s.config->t_start + s.first_step * s.config->macro_step;
 }
 
 void Progress::on_step(const StepRecord& r) {
@@ -327,11 +497,12 @@ void Progress::on_step(const StepRecord& r) {
   if (!live_ || since_print_.seconds() < 1.0) return;
   since_print_.restart();
   const double wall = run_wall_.seconds();
-  const double sim = cosim::to_seconds(t_done_ - setup_->config->t_start);
+  const double sim = cosim::to_seconds(t_done_ - t_begin_);
+  const double done = cosim::to_seconds(t_done_ - setup_->config->t_start);
   const double total = cosim::to_seconds(setup_->config->t_end - setup_->config->t_start);
-  const double eta = sim > 0 ? wall / sim * (total - sim) : 0;
+  const double eta = sim > 0 ? wall / sim * (total - done) : 0;
   std::fprintf(stderr, "\rt = %.4f / %.4f s (%3.0f%%)  step %lld/%lld  real-time factor %.3g  ETA %.0f s   ",
-               cosim::to_seconds(t_done_), cosim::to_seconds(setup_->config->t_end), 100 * sim / total,
+               cosim::to_seconds(t_done_), cosim::to_seconds(setup_->config->t_end), 100 * done / total,
                static_cast<long long>(steps_done_), static_cast<long long>(setup_->steps),
                wall / sim, eta);
   std::fflush(stderr);  // stderr is line-buffered and this line ends in \r
@@ -341,7 +512,7 @@ void Progress::on_finish(bool ok, const std::string& message) {
   if (!setup_) return;
   if (live_) std::fprintf(stderr, "\n");
   const double wall = run_wall_.seconds();
-  const double sim = cosim::to_seconds(t_done_ - setup_->config->t_start);
+  const double sim = cosim::to_seconds(t_done_ - t_begin_);
   char title[256];
   std::snprintf(title, sizeof title,
                 "%s after %lld of %lld macro steps, t = %.6g s, wall %.3f s, real-time factor %.3g",

@@ -18,11 +18,18 @@ class H5Recorder final : public Observer {
   // onto `path` in on_start, so an existing file is replaced only when the run starts; raises
   // std::runtime_error naming the path if it cannot.
   explicit H5Recorder(const std::string& path);
+  // Resume (cosim_master --resume): opens the existing record at `path` for writing; on_start
+  // then keeps its first RunSetup::first_step steps, drops what followed and continues there
+  // (docs/output.md#checkpoints-and-resume). Raises std::runtime_error naming the path.
+  struct Continue {};
+  H5Recorder(Continue, const std::string& path);
   ~H5Recorder() override;
   void on_start(const RunSetup& setup) override;
   void on_step(const StepRecord& record) override;
   void on_finish(bool ok, const std::string& message) override;
   bool started() const;  // the file is at its path (on_start ran)
+  // Steps done at the last checkpoint the record holds (0: none; without checkpoints: 0).
+  int64_t checkpoint_steps() const;
 
  private:
   struct Impl;
@@ -33,6 +40,9 @@ class H5Recorder final : public Observer {
 class CsvWriter final : public Observer {
  public:
   explicit CsvWriter(const std::string& path);
+  // Resume: on_start writes the first RunSetup::first_step rows from this record's outputs
+  // (the text an uninterrupted run wrote) before the new ones.
+  void continue_from(const std::string& h5_path) { continue_from_ = h5_path; }
   ~CsvWriter() override;
   void on_start(const RunSetup& setup) override;
   void on_step(const StepRecord& record) override;
@@ -44,6 +54,7 @@ class CsvWriter final : public Observer {
   std::unique_ptr<cosim::StagedFile> staged_;
   std::FILE* file_ = nullptr;
   std::vector<std::pair<std::string, std::string>> columns_;  // participant, signal
+  std::string continue_from_;
 };
 
 class Progress final : public Observer {
@@ -58,7 +69,7 @@ class Progress final : public Observer {
   const RunSetup* setup_ = nullptr;
   cosim::Stopwatch run_wall_, since_print_;
   int64_t steps_done_ = 0;
-  TimePoint t_done_{};
+  TimePoint t_begin_{}, t_done_{};
   double wall_steps_ = 0, master_ = 0;
   std::map<std::string, double> compute_, round_trip_;
 };

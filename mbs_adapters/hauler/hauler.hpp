@@ -20,6 +20,8 @@
 // this header is plain C++.
 #pragma once
 
+#include <string>
+
 #include <array>
 #include <functional>
 #include <memory>
@@ -113,6 +115,11 @@ class Hauler {
   // One snapshot slot: the whole Simbody state (bodies and the circuits' oil).
   void save_snapshot();
   void restore_snapshot();
+  // Checkpoints: the Simbody state's time, q, u and z to a file and back, exactly (the
+  // integrator starts afresh at every advance, so nothing else carries over). load_state
+  // throws std::runtime_error for a file of another model or layout.
+  void save_state(const std::string& path) const;
+  void load_state(const std::string& path);
 
   // Evaluated wrench at time t (zero if none).
   Wrench wrench_at(double t) const { return wrench_ ? wrench_(t) : Wrench{}; }

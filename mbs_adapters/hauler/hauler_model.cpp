@@ -1,3 +1,8 @@
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
 #include "hauler_model.hpp"
 
 #include <cosim/yaml_config.hpp>
@@ -25,6 +30,7 @@ void HaulerModel::configure(const YAML::Node& parameters, const RunInfo& run) {
   YAML::Node root = YAML::Clone(base_);
   if (!root || root.IsNull()) root = YAML::Node(YAML::NodeType::Map);
   cfg::apply_overrides(root, parameters, "participants." + run.participant + ".parameters");
+  run_ = run;
   p_ = read_parameters(root);
   inner_step_ = seconds_to_duration(p_.inner_step, "inner_step");
   if (inner_step_ <= Duration::zero()) throw cfg::ConfigError("inner_step: must be at least 1 ns");
@@ -143,6 +149,14 @@ StepResult HaulerModel::step(const StepInputs& in, bool want_average) {
                         {"hoist_length", r.hoist_length},
                         {"pitch", r.pitch}};
   return result;
+}
+
+void HaulerModel::load_checkpoint(const std::string& path) {
+  model_->load_state(path);
+  const double t = cosim::to_seconds(run_.resume_time);
+  if (std::abs(model_->time() - t) > 1e-9 * std::max(1.0, std::abs(t)))
+    throw std::runtime_error("its state is at t = " + std::to_string(model_->time()) + " s, the resume at " +
+                             std::to_string(t) + " s");
 }
 
 }  // namespace hauler

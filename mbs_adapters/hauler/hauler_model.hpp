@@ -35,6 +35,10 @@ class HaulerModel final : public cosim::Model {
   bool can_repeat() const override { return true; }
   void save_snapshot() override { model_->save_snapshot(); }
   void restore_snapshot() override { model_->restore_snapshot(); }
+  // The Simbody state (time, q, u, z) exactly, mbs_adapters/common/state_file.hpp.
+  bool can_checkpoint() const override { return true; }
+  void save_checkpoint(const std::string& path) override { model_->save_state(path); }
+  void load_checkpoint(const std::string& path) override;
 
   const Hauler& model() const { return *model_; }
   // The scalar output names in port order (payload_rigid only with a test payload).
@@ -50,6 +54,7 @@ class HaulerModel final : public cosim::Model {
   void check_input(const cosim::StepInputs& in) const;
 
   YAML::Node base_;
+  cosim::RunInfo run_;
   Parameters p_;
   cosim::Duration inner_step_{};
   std::unique_ptr<Hauler> model_;

@@ -2,6 +2,12 @@
 
 #include <cosim/yaml_config.hpp>
 
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <sstream>
+#include <stdexcept>
+
 namespace oscillator {
 
 using namespace cosim;
@@ -91,6 +97,40 @@ StepResult OscillatorModel::step(const StepInputs& in, bool want_average) {
   r.diagnostics = {{"energy", 0.5 * (side_ == Side::Mass1 ? p_.m1 : p_.m2) * x(1) * x(1) +
                                   0.5 * (side_ == Side::Mass1 ? p_.c1 : p_.c2) * x(0) * x(0)}};
   return r;
+}
+
+namespace {
+const char* side_name(Side side) { return side == Side::Mass1 ? "mass1" : "mass2"; }
+}  // namespace
+
+void OscillatorModel::save_checkpoint(const std::string& path) {
+  std::ofstream out(path, std::ios::trunc);
+  char line[160];
+  const auto& x = half_->state();
+  std::snprintf(line, sizeof line, "oscillator_checkpoint 1\nside %s\nstate %a %a\n", side_name(side_),
+                x(0), x(1));  // %a: exact
+  out << line;
+  out.flush();
+  if (!out) throw std::runtime_error("cannot write '" + path + "'");
+}
+
+void OscillatorModel::load_checkpoint(const std::string& path) {
+  std::ifstream in(path);
+  std::string magic, side_key, side, state_key, a, b;
+  int version = 0;
+  if (!(in >> magic >> version >> side_key >> side >> state_key >> a >> b) ||
+      magic != "oscillator_checkpoint" || version != 1 || side_key != "side" || state_key != "state")
+    throw std::runtime_error("not an oscillator checkpoint (version 1)");
+  if (side != side_name(side_))
+    throw std::runtime_error("it is of side " + side + ", this participant is " + side_name(side_));
+  char* end = nullptr;
+  Eigen::Vector2d x;
+  x(0) = std::strtod(a.c_str(), &end);
+  const bool ok0 = end && *end == '\0';
+  x(1) = std::strtod(b.c_str(), &end);
+  if (!ok0 || !end || *end != '\0' || !x.allFinite())
+    throw std::runtime_error("its state '" + a + " " + b + "' is not two finite numbers");
+  half_->set_state(x);
 }
 
 }  // namespace oscillator

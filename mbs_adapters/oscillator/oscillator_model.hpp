@@ -22,6 +22,10 @@ class OscillatorModel final : public cosim::Model {
   bool can_repeat() const override { return true; }
   void save_snapshot() override { snapshot_ = half_->state(); }
   void restore_snapshot() override { half_->set_state(snapshot_); }
+  // The half's state (x, v) as exact hexadecimal floating-point text.
+  bool can_checkpoint() const override { return true; }
+  void save_checkpoint(const std::string& path) override;
+  void load_checkpoint(const std::string& path) override;
 
  private:
   cosim::Signals to_signals(const Eigen::VectorXd& out) const;

@@ -1,6 +1,8 @@
 #include "prescribed_model.hpp"
 
 #include <cstdio>
+#include <filesystem>
+#include <stdexcept>
 
 #include "cosim/yaml_config.hpp"
 
@@ -62,7 +64,12 @@ void PrescribedModel::configure(const YAML::Node& parameters, const cosim::RunIn
   record_path_ = cfg::get_string_or(root, path, "record", "");
   record_.reset();
   pending_.clear();
-  if (!record_path_.empty()) {
+  if (!record_path_.empty() && run.resume_steps_done > 0) {
+    // load_checkpoint cuts the earlier session's file back to the checkpoint and appends.
+    if (!std::filesystem::is_regular_file(record_path_))
+      throw cfg::ConfigError(path + ".record: '" + record_path_ +
+                             "' is missing; a resumed run continues the file of the run it resumes");
+  } else if (!record_path_.empty()) {
     record_ = std::make_unique<std::ofstream>(record_path_);
     if (!*record_)
       throw cfg::ConfigError(path + ".record: cannot write '" + record_path_ +
@@ -123,6 +130,35 @@ cosim::StepResult PrescribedModel::step(const cosim::StepInputs& in, bool /*want
   r.outputs = poses_at(in.t_end());
   // No interval average: the mean of a pose is not a pose. The reply says it has none.
   return r;
+}
+
+void PrescribedModel::save_checkpoint(const std::string& path) {
+  flush();  // the step is accepted: its rows belong before the checkpoint
+  const long long bytes = record_ ? static_cast<long long>(record_->tellp()) : 0;
+  std::ofstream out(path, std::ios::trunc);
+  out << "prescribed_checkpoint 1\nrecord_bytes " << bytes << "\n";
+  out.flush();
+  if (!out || bytes < 0) throw std::runtime_error("cannot write '" + path + "'");
+}
+
+void PrescribedModel::load_checkpoint(const std::string& path) {
+  std::ifstream in(path);
+  std::string magic, key;
+  int version = 0;
+  long long bytes = -1;
+  if (!(in >> magic >> version >> key >> bytes) || magic != "prescribed_checkpoint" || version != 1 ||
+      key != "record_bytes" || bytes < 0)
+    throw std::runtime_error("not a prescribed participant's checkpoint (version 1)");
+  pending_.clear();
+  if (record_path_.empty()) return;
+  std::error_code ec;
+  const auto size = std::filesystem::file_size(record_path_, ec);
+  if (ec || size < static_cast<std::uintmax_t>(bytes))
+    throw std::runtime_error("record '" + record_path_ + "' is shorter (" + std::to_string(ec ? 0 : size) +
+                             " bytes) than at the checkpoint (" + std::to_string(bytes) + ")");
+  std::filesystem::resize_file(record_path_, static_cast<std::uintmax_t>(bytes));
+  record_ = std::make_unique<std::ofstream>(record_path_, std::ios::app);
+  if (!*record_) throw std::runtime_error("cannot append to record '" + record_path_ + "'");
 }
 
 }  // namespace prescribed

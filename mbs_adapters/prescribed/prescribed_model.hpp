@@ -36,6 +36,11 @@ class PrescribedModel final : public cosim::Model {
   bool can_repeat() const override { return true; }  // nothing evolves but time
   void save_snapshot() override {}
   void restore_snapshot() override { pending_.clear(); }  // the repeated step's rows
+  // Nothing evolves but time, which the protocol restores: a checkpoint holds the length of
+  // the `record` CSV at the checkpoint, which a resumed session cuts it back to and continues.
+  bool can_checkpoint() const override { return true; }
+  void save_checkpoint(const std::string& path) override;
+  void load_checkpoint(const std::string& path) override;
   ~PrescribedModel() override;
 
   const std::vector<ToolTrack>& tools() const { return tools_; }

@@ -43,6 +43,52 @@ void read(hid_t loc, const std::string& name, hid_t type, void* data) {
     throw std::runtime_error("cannot read dataset '" + name + "'");
 }
 
+std::vector<double> read_doubles(hid_t loc, const std::string& name, std::size_t* width) {
+  if (H5Lexists(loc, name.c_str(), H5P_DEFAULT) <= 0)
+    throw std::runtime_error("dataset '" + name + "' missing");
+  Handle set(H5Dopen2(loc, name.c_str(), H5P_DEFAULT), H5Dclose);
+  Handle space(H5Dget_space(set), H5Sclose);
+  const int rank = H5Sget_simple_extent_ndims(space);
+  if (rank < 1 || rank > 2) throw std::runtime_error("dataset '" + name + "' is not a table");
+  hsize_t dims[2] = {0, 1};
+  H5Sget_simple_extent_dims(space, dims, nullptr);
+  if (width) *width = rank == 1 ? 1 : dims[1];
+  std::vector<double> v(static_cast<std::size_t>(dims[0] * (rank == 1 ? 1 : dims[1])));
+  if (!v.empty() && H5Dread(set, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, v.data()) < 0)
+    throw std::runtime_error("cannot read dataset '" + name + "'");
+  return v;
+}
+
+namespace {
+std::string read_fixed_string(hid_t id, hid_t type_of_it, bool attribute, const std::string& name) {
+  if (H5Tget_class(type_of_it) != H5T_STRING || H5Tis_variable_str(type_of_it) > 0)
+    throw std::runtime_error("'" + name + "' is not a fixed-length string");
+  std::string out(H5Tget_size(type_of_it), '\0');
+  Handle memory(H5Tcopy(H5T_C_S1), H5Tclose);
+  H5Tset_size(memory, out.size());
+  const herr_t e = attribute ? H5Aread(id, memory, out.data())
+                             : H5Dread(id, memory, H5S_ALL, H5S_ALL, H5P_DEFAULT, out.data());
+  if (e < 0) throw std::runtime_error("cannot read '" + name + "'");
+  if (const auto end = out.find('\0'); end != std::string::npos) out.resize(end);
+  return out;
+}
+}  // namespace
+
+std::string read_string(hid_t loc, const std::string& name) {
+  if (H5Lexists(loc, name.c_str(), H5P_DEFAULT) <= 0)
+    throw std::runtime_error("dataset '" + name + "' missing");
+  Handle set(H5Dopen2(loc, name.c_str(), H5P_DEFAULT), H5Dclose);
+  Handle type(H5Dget_type(set), H5Tclose);
+  return read_fixed_string(set, type, false, name);
+}
+
+std::string read_string_attribute(hid_t loc, const std::string& name) {
+  if (H5Aexists(loc, name.c_str()) <= 0) throw std::runtime_error("attribute '" + name + "' missing");
+  Handle attr(H5Aopen(loc, name.c_str(), H5P_DEFAULT), H5Aclose);
+  Handle type(H5Aget_type(attr), H5Tclose);
+  return read_fixed_string(attr, type, true, name);
+}
+
 void write_string_attribute(hid_t loc, const std::string& name, const std::string& value) {
   Handle type(string_type(value), H5Tclose);
   Handle space(H5Screate(H5S_SCALAR), H5Sclose);
@@ -78,6 +124,28 @@ Table::Table(hid_t parent, const std::string& name, std::size_t width, std::size
   H5Pset_create_intermediate_group(links, 1);
   id_ = H5Dcreate2(parent, name.c_str(), H5T_NATIVE_DOUBLE, space, links, props, H5P_DEFAULT);
   if (id_ < 0) throw std::runtime_error("HDF5: cannot create dataset '" + name + "'");
+}
+
+Table::Table(Existing, hid_t parent, const std::string& name, std::size_t keep_rows) : name_(name) {
+  if (H5Lexists(parent, name.c_str(), H5P_DEFAULT) <= 0)
+    throw std::runtime_error("dataset '" + name + "' is missing");
+  id_ = H5Dopen2(parent, name.c_str(), H5P_DEFAULT);
+  if (id_ < 0) throw std::runtime_error("HDF5: cannot open dataset '" + name + "'");
+  Handle space(H5Dget_space(id_), H5Sclose);
+  Handle type(H5Dget_type(id_), H5Tclose);
+  const int rank = H5Sget_simple_extent_ndims(space);
+  hsize_t dims[2] = {0, 1};
+  if (rank < 1 || rank > 2 || H5Tget_class(type) != H5T_FLOAT)
+    throw std::runtime_error("dataset '" + name + "' is not a table of numbers");
+  H5Sget_simple_extent_dims(space, dims, nullptr);
+  width_ = rank == 1 ? 1 : dims[1];
+  if (dims[0] < keep_rows)
+    throw std::runtime_error("dataset '" + name + "' has " + std::to_string(dims[0]) +
+                             " rows, fewer than the " + std::to_string(keep_rows) + " to keep");
+  const hsize_t size[2] = {keep_rows, width_};
+  if (dims[0] > keep_rows && H5Dset_extent(id_, size) < 0)
+    throw std::runtime_error("HDF5: cannot shorten dataset '" + name + "'");
+  rows_ = keep_rows;
 }
 
 Table::~Table() {

@@ -17,6 +17,7 @@ ParticipantInfo Transport::accept_ready(const ready_t& r) const {
     if (r.inner_step_ns <= 0) throw ProtocolError("reports inner step " + std::to_string(r.inner_step_ns));
     info.inner_step = nanoseconds(r.inner_step_ns);
     info.can_repeat = r.can_repeat;
+    info.can_checkpoint = r.can_checkpoint;
     if (!r.can_repeat) info.repeat_note = r.error;
     info.initial_outputs = from_message(r.initial_outputs, what + " initial outputs");
     check_against_ports(info.initial_outputs, info.outputs, what + " initial outputs");
@@ -55,11 +56,14 @@ StepAnswer Transport::accept(const step_request_t& q, const step_reply_t& r,
     }
     if (!std::isfinite(r.compute_seconds) || r.compute_seconds < 0)
       throw ProtocolError("compute_seconds is not a finite non-negative number");
+    if (q.checkpoint && !r.checkpointed)
+      throw ProtocolError("a checkpoint was asked for but the reply says none was written");
   } catch (const ProtocolError& e) {
     throw LinkError(q.participant, what + ": invalid reply: " + e.what());
   }
   a.compute_seconds = r.compute_seconds;
   a.round_trip_seconds = round_trip;
+  a.checkpointed = q.checkpoint && r.checkpointed;
   return a;
 }
 

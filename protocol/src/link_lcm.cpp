@@ -64,9 +64,11 @@ class LcmTransport final : public Transport {
           if (links_.at(c.participant).launched) {  // started with --session: its own channel
             c.instance_id = 0;
             bus_.publish(channel::configure(session_, c.participant), session_, c);
+            ++stats_.configure_sends[c.participant];
           } else if (auto it = chosen_.find(c.participant); it != chosen_.end()) {
             c.instance_id = it->second;
             bus_.publish(channel::configure(it->second), 0, c);  // before a session: 0
+            ++stats_.configure_sends[c.participant];
           }
         }
         last_send = Clock::now();

@@ -83,6 +83,24 @@ std::optional<ready_t> ParticipantCore::configure(const configure_t& m) {
     if (params.IsNull()) params = YAML::Node(YAML::NodeType::Map);
     run_ = RunInfo{name_, time_point_ns(m.t_start_ns), time_point_ns(m.t_end_ns),
                    nanoseconds(m.macro_step_ns)};
+    if (m.resume_steps_done < 0)
+      throw ProtocolError("configure: resume_steps_done " + std::to_string(m.resume_steps_done) +
+                          " is negative");
+    if (m.resume_steps_done > 0) {
+      // Checked before the multiplication can overflow: the run has (t_end - t_start) / H steps.
+      if (m.resume_steps_done >= (m.t_end_ns - m.t_start_ns) / m.macro_step_ns)
+        throw ProtocolError("configure: resume after " + std::to_string(m.resume_steps_done) +
+                            " steps, but the run has only " +
+                            std::to_string((m.t_end_ns - m.t_start_ns) / m.macro_step_ns));
+      run_.resume_steps_done = m.resume_steps_done;
+      run_.resume_time = run_.t_start + m.resume_steps_done * run_.macro_step;
+      if (to_ns(run_.resume_time) != m.resume_t_ns)
+        throw ProtocolError("configure: resume time " + std::to_string(m.resume_t_ns) +
+                            " ns is not t_start + " + std::to_string(m.resume_steps_done) +
+                            " macro steps");
+      if (m.checkpoint_folder.empty())
+        throw ProtocolError("configure: a resume needs the checkpoint folder");
+    }
     model_.configure(params, run_);
     inputs_ = model_.inputs();
     outputs_ = model_.outputs();
@@ -94,6 +112,21 @@ std::optional<ready_t> ParticipantCore::configure(const configure_t& m) {
     r.inner_step_ns = to_ns(inner);
     r.can_repeat = model_.can_repeat();
     if (!r.can_repeat) r.error = model_.repeat_note();
+    r.can_checkpoint = model_.can_checkpoint();
+    checkpoint_folder_ = m.checkpoint_folder;
+    run_id_ = m.run_id;
+    checkpoints_.clear();
+    if (!checkpoint_folder_.empty() && model_.can_checkpoint()) {
+      std::error_code ec;
+      std::filesystem::create_directories(checkpoint_folder_, ec);
+      if (ec || !std::filesystem::is_directory(checkpoint_folder_))
+        throw ProtocolError("checkpoints.folder: cannot create '" + checkpoint_folder_ + "' on " +
+                            (host_.empty() ? std::string("this host") : host_) + ": " +
+                            (ec ? ec.message() : std::string("not a folder")) +
+                            " (the folder is on each participant's host; choose one every "
+                            "participant can write)");
+    }
+    if (m.resume_steps_done > 0) restore_checkpoint(m);
     r.inputs = to_message(inputs_);
     r.n_inputs = static_cast<int32_t>(r.inputs.size());
     r.outputs = to_message(outputs_);
@@ -102,11 +135,84 @@ std::optional<ready_t> ParticipantCore::configure(const configure_t& m) {
     r.ok = true;
     session_ = m.session_id;
     t_now_ = t_before_last_ = run_.t_start;
+    last_step_ = -1;
+    last_iteration_ = -1;
+    if (m.resume_steps_done > 0) {
+      // As if step n-1 had just been done here; it cannot be redone (no snapshot of its start):
+      // a redo would have to start at t_before_last_ = the resume time, which none does.
+      t_now_ = t_before_last_ = run_.resume_time;
+      last_step_ = m.resume_steps_done - 1;
+      last_iteration_ = 0;
+    }
+    cached_.reset();
+    done_iteration_ = last_iteration_;
+    done_step_ = last_step_;
     ready_ = r;
   } catch (const std::exception& e) {
     r.error = e.what();
   }
   return r;
+}
+
+std::string ParticipantCore::checkpoint_path(const std::string& folder, const std::string& participant,
+                                             int64_t run_id, int64_t steps_done) {
+  return (std::filesystem::path(folder) /
+          (participant + "_" + id_hex(run_id) + "_" + std::to_string(steps_done) + ".ckpt"))
+      .string();
+}
+
+void ParticipantCore::restore_checkpoint(const configure_t& m) {
+  const std::string who = "participant '" + name_ + "' (pid " + std::to_string(pid_) + " on " +
+                          (host_.empty() ? std::string("?") : host_) + ")";
+  if (!model_.can_checkpoint())
+    throw ProtocolError(who + " cannot resume a run: this model does not save checkpoints, so "
+                              "its state at the resume time cannot be restored");
+  const std::string path = checkpoint_path(m.checkpoint_folder, name_, m.run_id, m.resume_steps_done);
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec))
+    throw ProtocolError(who + " has no checkpoint after " + std::to_string(m.resume_steps_done) +
+                        " steps of run " + id_hex(m.run_id) + ": '" + path +
+                        "' is missing. Start the participant on the host (and in the working "
+                        "directory) where it ran before, so that it sees the checkpoint folder");
+  try {
+    model_.load_checkpoint(path);
+  } catch (const std::exception& e) {
+    throw ProtocolError(who + ": checkpoint '" + path + "' cannot be restored: " + e.what());
+  }
+  // This run's other checkpoints of this participant are of no use now: older ones are
+  // superseded, later ones (written before the others had checkpointed) will be rewritten.
+  const std::string prefix = name_ + "_" + id_hex(m.run_id) + "_";
+  for (const auto& entry : std::filesystem::directory_iterator(m.checkpoint_folder, ec)) {
+    const std::string file = entry.path().filename().string();
+    if (file.rfind(prefix, 0) == 0 && entry.path().string() != path &&
+        (entry.path().extension() == ".ckpt" || entry.path().extension() == ".tmp"))
+      std::filesystem::remove(entry.path(), ec);
+  }
+  checkpoints_.push_back(path);
+}
+
+void ParticipantCore::write_checkpoint() {
+  const std::string path = checkpoint_path(checkpoint_folder_, name_, run_id_, last_step_ + 1);
+  const std::string temp = path + ".tmp";
+  model_.save_checkpoint(temp);
+  std::error_code ec;
+  std::filesystem::rename(temp, path, ec);  // complete or absent, never half written
+  if (ec) throw std::runtime_error("cannot rename '" + temp + "' to '" + path + "': " + ec.message());
+  if (checkpoints_.empty() || checkpoints_.back() != path) checkpoints_.push_back(path);
+  // The master records a checkpoint once every participant has written it, before it asks for
+  // the next one: the previous one is the oldest it may still resume from.
+  while (checkpoints_.size() > 2) {
+    std::filesystem::remove(checkpoints_.front(), ec);
+    checkpoints_.erase(checkpoints_.begin());
+  }
+}
+
+void ParticipantCore::end_session(bool finished) {
+  if (!finished || checkpoints_.empty()) return;
+  std::error_code ec;
+  for (const auto& path : checkpoints_) std::filesystem::remove(path, ec);
+  checkpoints_.clear();
+  std::filesystem::remove(checkpoint_folder_, ec);  // only if it is empty now
 }
 
 step_reply_t ParticipantCore::refuse(const step_request_t& q, int8_t status,
@@ -214,6 +320,19 @@ step_reply_t ParticipantCore::run_step(const step_request_t& q) {
   t_now_ = time_point_ns(q.t_end_ns);
   last_step_ = q.step_index;
   last_iteration_ = q.iteration;
+  if (q.checkpoint) {
+    try {
+      if (checkpoint_folder_.empty() || !model_.can_checkpoint())
+        throw std::runtime_error(checkpoint_folder_.empty()
+                                     ? "no checkpoint folder was configured"
+                                     : "this participant does not save checkpoints");
+      write_checkpoint();
+      r.checkpointed = true;
+    } catch (const std::exception& e) {
+      r = refuse(q, step_reply_t::FAILED,
+                 "the checkpoint after step " + std::to_string(q.step_index) + " failed: " + e.what());
+    }
+  }
   cached_ = r;
   done_iteration_ = last_iteration_;
   done_step_ = last_step_;

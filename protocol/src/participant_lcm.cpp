@@ -86,6 +86,7 @@ struct Server {
     if (t->session_id != core.session()) return;
     finished = true;
     error = t->error;
+    core.end_session(!t->error);  // a finished run's checkpoints are deleted
     if (t->error) std::cerr << core.name() << ": master ended the session: " << t->reason << "\n";
   }
 };

@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <fstream>
 #include <cstdio>
 #include <string>
 
@@ -233,4 +234,42 @@ TEST(hauler_adapter, DischargeAtTheMacroStepIsStableAndHitsTheStrokeLimit) {
   EXPECT_LT(end.rear.pressure, 0.5 * rear_pressure_start);
   EXPECT_LT(end.rear.flow, 0.0);        // the level control drains the rear circuit
   EXPECT_GT(front_min, 0.0);
+}
+
+// Checkpoints (cosim_master --resume): the bodies and the circuits' oil restored in a fresh
+// model continue bit for bit.
+TEST(hauler_adapter, CheckpointRestoresTheStateBitForBit) {
+  const std::string path = ::testing::TempDir() + "hauler_checkpoint.ckpt";
+  const char* params = "{tipping.angle: [[0, 0], [0.01, 0], [1, 20]]}";
+  HaulerModel m(cosim::config::load_file(kMachine));
+  m.configure(YAML::Load(params), run_info());
+  ASSERT_TRUE(m.can_checkpoint());
+  const cosim::Vec3 o = cosim::Kinematics::from_value(m.initial_outputs().at("body").value).position;
+  const Duration H = nanoseconds(1'000'000);
+  auto input = [&](int i) { return wrench({-1e4 - 500.0 * i, 0, -2e5 - 1e3 * i}, {o[0] + 2.6, 0, o[2] + 1.1}); };
+  TimePoint t{};
+  for (int i = 0; i < 20; ++i, t += H) m.step(cosim::StepInputs(t, t + H, input(i)), false);
+  m.save_checkpoint(path);
+  cosim::RunInfo resume = run_info();
+  resume.resume_steps_done = 20;
+  resume.resume_time = t;
+  HaulerModel r(cosim::config::load_file(kMachine));
+  r.configure(YAML::Load(params), resume);
+  r.load_checkpoint(path);
+  for (int i = 20; i < 30; ++i, t += H) {
+    const auto a = m.step(cosim::StepInputs(t, t + H, input(i)), true);
+    const auto b = r.step(cosim::StepInputs(t, t + H, input(i)), true);
+    for (const auto& [name, s] : a.outputs) EXPECT_EQ(s.value, b.outputs.at(name).value) << name << " step " << i;
+    for (const auto& [name, s] : *a.average) EXPECT_EQ(s.value, b.average->at(name).value) << name;
+    ASSERT_EQ(a.diagnostics.size(), b.diagnostics.size());
+    for (std::size_t k = 0; k < a.diagnostics.size(); ++k)
+      EXPECT_EQ(a.diagnostics[k].second, b.diagnostics[k].second) << a.diagnostics[k].first;
+  }
+  std::ofstream(path) << "mbs_state 1 wheel_loader\nt 0x0p+0\n";
+  try {
+    r.load_checkpoint(path);
+    ADD_FAILURE() << "a wheel loader's checkpoint was taken";
+  } catch (const std::exception& e) {
+    EXPECT_NE(std::string(e.what()).find("it is a wheel_loader's state, this is a hauler"), std::string::npos) << e.what();
+  }
 }

@@ -46,6 +46,7 @@ std::string describe(const master::Config& c) {
     o << "power " << p.name << ' ' << p.force.str() << ' ' << p.velocity.str() << '\n';
   o << "output '" << c.output.file << "' '" << c.output.csv_file << "' " << c.output.progress
     << " faults " << c.faults.drop_request.size() << ' ' << c.faults.drop_reply.size() << '\n';
+  o << "checkpoints " << c.checkpoints.every.count() << " '" << c.checkpoints.folder << "'\n";
   return o.str();
 }
 
@@ -98,7 +99,8 @@ TEST(master_ConfigDefaults, AWrongDefaultIsNoticed) {
   for (const char* set : {"scheme=gauss_seidel", "startup_iterations=3", "connect_timeout=31",
                           "participants.a.timeout=2.5", "participants.a.retries=4",
                           "participants.a.parameters={k: 1}", "output.progress=on",
-                          "output.file=x.h5", "time.start=0.5", "connections.0.use=average"})
+                          "output.file=x.h5", "time.start=0.5", "connections.0.use=average",
+                          "checkpoints.every=0.002", "checkpoints.folder=ck"})
     EXPECT_NE(describe(parse({set})), base) << set;
 }
 

@@ -13,6 +13,9 @@
 //   reorder  probability that a copy is held back by `hold` (default 2 ms) more than `delay`,
 //            so copies behind it overtake it
 //   delay    seconds every copy waits before it leaves (default 0)
+//   drop_fragment  N: of the first N IPv4 datagrams split into fragments that leave on this
+//            link, drop exactly one fragment each (the first after the initial one), whatever
+//            the random stream says: a large message that loses one fragment (docs/protocol.md)
 //
 // Hosts' veths compute UDP checksums lazily (tx checksum offload): a frame read here may carry
 // only a partial checksum, which a receiver on another veth would drop. The relay completes the
@@ -28,6 +31,7 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <chrono>
 #include <csignal>
@@ -51,6 +55,9 @@ using Clock = std::chrono::steady_clock;
 struct Link {
   std::string dev;
   double loss = 0, dup = 0, reorder = 0, delay = 0, hold = 0.002;
+  unsigned drop_fragment = 0;               // datagrams still to lose one fragment
+  std::vector<uint32_t> fragment_dropped;   // (source, IP id) of those that lost one
+  unsigned long long fragments_dropped = 0;
   int fd = -1;
   std::mt19937_64 rng;
   unsigned long long received = 0, forwarded = 0, dropped = 0, duplicated = 0, reordered = 0;
@@ -92,7 +99,11 @@ Link parse_link(const std::string& spec) {
     else if (key == "reorder") l.reorder = v;
     else if (key == "delay") l.delay = v;
     else if (key == "hold") l.hold = v;
-    else throw std::invalid_argument("unknown key '" + key + "' (allowed: loss, dup, reorder, delay, hold)");
+    else if (key == "drop_fragment") {
+      if (v != static_cast<unsigned>(v)) throw std::invalid_argument("drop_fragment is a count");
+      l.drop_fragment = static_cast<unsigned>(v);
+    } else
+      throw std::invalid_argument("unknown key '" + key + "' (allowed: loss, dup, reorder, delay, hold, drop_fragment)");
     if ((key == "loss" || key == "dup" || key == "reorder") && v > 1)
       throw std::invalid_argument(key + " is a probability (0 to 1)");
   }
@@ -150,6 +161,19 @@ void complete_udp_checksum(std::vector<uint8_t>& f) {
   udp[7] = static_cast<uint8_t>(sum & 0xff);
 }
 
+// For an IPv4 fragment after the first (offset > 0): its source address and IP id folded into
+// one key; 0 for any other frame.
+uint32_t later_fragment_key(const std::vector<uint8_t>& f) {
+  if (f.size() < 14 + 20 || f[12] != 0x08 || f[13] != 0x00) return 0;
+  const uint8_t* ip = f.data() + 14;
+  if ((ip[0] >> 4) != 4) return 0;
+  const unsigned offset = static_cast<unsigned>(((ip[6] << 8) | ip[7]) & 0x1fff);
+  if (offset == 0) return 0;
+  const uint32_t id = static_cast<uint32_t>((ip[4] << 8) | ip[5]);
+  const uint32_t source = static_cast<uint32_t>(ip[12] << 24 | ip[13] << 16 | ip[14] << 8 | ip[15]);
+  return (source * 2654435761u) ^ id ^ 0x80000000u;  // never 0
+}
+
 Clock::duration seconds(double s) {
   return std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(s));
 }
@@ -164,7 +188,7 @@ int main(int argc, char** argv) {
       const std::string a = argv[i];
       if (a == "--seed" && i + 1 < argc) seed = std::stoull(argv[++i]);
       else if (a == "-h" || a == "--help") {
-        std::fprintf(stderr, "usage: netns_relay [--seed N] DEV[:loss=P,dup=P,reorder=P,delay=S,hold=S] ...\n");
+        std::fprintf(stderr, "usage: netns_relay [--seed N] DEV[:loss=P,dup=P,reorder=P,delay=S,hold=S,drop_fragment=N] ...\n");
         return 0;
       } else links.push_back(parse_link(a));
     }
@@ -224,6 +248,16 @@ int main(int argc, char** argv) {
           // always three draws per copy, so the stream stays aligned with the frames
           const double u_loss = uniform(l.rng), u_dup = uniform(l.rng), u_reorder = uniform(l.rng);
           if (u_loss < l.loss) { ++l.dropped; continue; }
+          if (const uint32_t key = later_fragment_key(frame); key != 0) {
+            const bool hit = std::find(l.fragment_dropped.begin(), l.fragment_dropped.end(), key) !=
+                             l.fragment_dropped.end();
+            if (!hit && l.drop_fragment > 0) {  // this datagram's first later fragment: lost
+              --l.drop_fragment;
+              l.fragment_dropped.push_back(key);
+              ++l.fragments_dropped;
+              continue;
+            }
+          }
           Clock::time_point due = now + seconds(l.delay);
           if (u_reorder < l.reorder) { due += seconds(l.hold); ++l.reordered; }
           queue.push({due, order++, j, frame});
@@ -233,7 +267,7 @@ int main(int argc, char** argv) {
     }
   }
   for (const auto& l : links)
-    std::fprintf(stderr, "netns_relay: %s: received %llu, forwarded %llu, dropped %llu, duplicated %llu, reordered %llu\n",
-                 l.dev.c_str(), l.received, l.forwarded, l.dropped, l.duplicated, l.reordered);
+    std::fprintf(stderr, "netns_relay: %s: received %llu, forwarded %llu, dropped %llu, duplicated %llu, reordered %llu, fragments dropped %llu\n",
+                 l.dev.c_str(), l.received, l.forwarded, l.dropped, l.duplicated, l.reordered, l.fragments_dropped);
   return 0;
 }

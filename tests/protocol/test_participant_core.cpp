@@ -3,6 +3,12 @@
 #include <cosim/participant.hpp>
 #include <cosim/yaml_config.hpp>
 #include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
 
 using namespace cosim;
 
@@ -178,4 +184,179 @@ TEST(ParticipantCore, StartedForASessionTakesNoOtherAndIgnoresOtherInstances) {
   mine.instance_id = 77;
   ASSERT_TRUE(core.configure(mine)->ok);
   EXPECT_EQ(core.session(), 42);
+}
+
+// ---- checkpoints and resume (docs/protocol.md#checkpoints-and-resume) ----
+
+namespace {
+
+// The counter with checkpoints: x as exact hexadecimal text.
+class Saving final : public Model {
+ public:
+  Counter inner;
+  void configure(const YAML::Node& p, const RunInfo& r) override { inner.configure(p, r); }
+  Ports inputs() const override { return inner.inputs(); }
+  Ports outputs() const override { return inner.outputs(); }
+  Duration inner_step() const override { return inner.inner_step(); }
+  Signals initial_outputs() override { return inner.initial_outputs(); }
+  StepResult step(const StepInputs& in, bool a) override { return inner.step(in, a); }
+  bool can_repeat() const override { return true; }
+  void save_snapshot() override { inner.save_snapshot(); }
+  void restore_snapshot() override { inner.restore_snapshot(); }
+  bool can_checkpoint() const override { return true; }
+  void save_checkpoint(const std::string& path) override {
+    char text[64];
+    std::snprintf(text, sizeof text, "%a\n", inner.x);
+    std::ofstream(path) << text;
+  }
+  void load_checkpoint(const std::string& path) override {
+    std::ifstream in(path);
+    std::string text;
+    if (!(in >> text)) throw std::runtime_error("empty");
+    inner.x = std::strtod(text.c_str(), nullptr);
+  }
+};
+
+std::string fresh_folder(const std::string& name) {
+  const auto dir = std::filesystem::temp_directory_path() /
+                   ("cosim_ckpt_" + name + "_" + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  return dir.string();
+}
+
+configure_t with_checkpoints(const std::string& folder, int64_t resume_steps = 0);
+configure_t with_checkpoint_folderless() {
+  configure_t c = configure_message();
+  c.run_id = 0x1234;
+  c.resume_steps_done = 4;
+  c.resume_t_ns = 4 * c.macro_step_ns;
+  return c;
+}
+configure_t with_checkpoints(const std::string& folder, int64_t resume_steps) {
+  configure_t c = configure_message();
+  c.checkpoint_folder = folder;
+  c.run_id = 0x1234;
+  c.resume_steps_done = resume_steps;
+  c.resume_t_ns = resume_steps * c.macro_step_ns;
+  return c;
+}
+
+double x_of(const step_reply_t& r) { return r.outputs.scalars.at(0).value; }
+
+}  // namespace
+
+TEST(ParticipantCore, CheckpointsAreWrittenTheLastTwoKeptAndARestoredRunContinuesBitIdentically) {
+  const std::string folder = fresh_folder("keep");
+  Saving m;
+  ParticipantCore core("p", m);
+  auto ready = core.configure(with_checkpoints(folder));
+  ASSERT_TRUE(ready && ready->ok) << (ready ? ready->error : "");
+  EXPECT_TRUE(ready->can_checkpoint);
+  EXPECT_TRUE(std::filesystem::is_directory(folder)) << "the folder is created at configure";
+  const double u[] = {0.3, -1.7, 2.9, 0.1, 1e-3, 7.0, -0.25, 3.5};
+  for (int k = 0; k < 6; ++k) {
+    auto q = request(k, u[k]);
+    q.checkpoint = k % 2 == 1;  // after 2, 4 and 6 steps
+    auto r = core.handle(q);
+    ASSERT_TRUE(r && r->status == step_reply_t::OK) << (r ? r->message : "");
+    EXPECT_EQ(r->checkpointed, static_cast<bool>(q.checkpoint));
+  }
+  auto path = [&](int n) { return ParticipantCore::checkpoint_path(folder, "p", 0x1234, n); };
+  EXPECT_EQ(path(4), folder + "/p_0000000000001234_4.ckpt");
+  EXPECT_FALSE(std::filesystem::exists(path(2))) << "only the last two are kept";
+  EXPECT_TRUE(std::filesystem::exists(path(4)));
+  EXPECT_TRUE(std::filesystem::exists(path(6)));
+  EXPECT_FALSE(std::filesystem::exists(path(6) + ".tmp"));
+
+  // Another process restores after 4 steps and redoes steps 4 and 5 exactly.
+  Saving m2;
+  ParticipantCore resumed("p", m2);
+  auto ready2 = resumed.configure(with_checkpoints(folder, 4));
+  ASSERT_TRUE(ready2 && ready2->ok) << (ready2 ? ready2->error : "");
+  EXPECT_EQ(resumed.last_step(), 3);
+  EXPECT_FALSE(std::filesystem::exists(path(6))) << "a later checkpoint than the resume point is stale";
+  // Not step 3 again, nor a redo of it (no snapshot of its start), nor step 5.
+  EXPECT_EQ(resumed.handle(request(3, u[3]))->status, step_reply_t::REJECTED);
+  auto redo = resumed.handle(request(3, u[3], 1));
+  ASSERT_TRUE(redo.has_value());
+  EXPECT_EQ(redo->status, step_reply_t::REJECTED);
+  EXPECT_EQ(resumed.handle(request(5, u[5]))->status, step_reply_t::REJECTED);
+  Saving m3;  // an uninterrupted run for comparison
+  ParticipantCore straight("p", m3);
+  ASSERT_TRUE(straight.configure(configure_message())->ok);
+  double expected = 0, got = 0;
+  for (int k = 0; k < 8; ++k) {
+    expected = x_of(*straight.handle(request(k, u[k])));
+    if (k >= 4) {
+      auto r = resumed.handle(request(k, u[k]));
+      ASSERT_TRUE(r && r->status == step_reply_t::OK) << (r ? r->message : "");
+      got = x_of(*r);
+      EXPECT_EQ(got, expected) << "step " << k;  // bit for bit
+    }
+  }
+  EXPECT_EQ(m3.inner.steps_taken, 8);
+  EXPECT_EQ(m2.inner.steps_taken, 4);
+  // A finished session deletes the checkpoints this process wrote or restored, and the folder.
+  resumed.end_session(true);
+  EXPECT_FALSE(std::filesystem::exists(path(4)));
+  EXPECT_FALSE(std::filesystem::exists(folder));
+  core.end_session(false);  // a failed one keeps nothing it does not have
+  std::filesystem::remove_all(folder);
+}
+
+TEST(ParticipantCore, ResumesAndCheckpointsItCannotDoAreRefusedByName) {
+  const std::string folder = fresh_folder("refuse");
+  {  // a model without checkpoints cannot resume
+    Counter m;
+    ParticipantCore core("p", m);
+    auto r = core.configure(with_checkpoints(folder, 4));
+    ASSERT_TRUE(r.has_value());
+    EXPECT_FALSE(r->ok);
+    EXPECT_NE(r->error.find("cannot resume a run: this model does not save checkpoints"), std::string::npos) << r->error;
+    EXPECT_FALSE(core.bound());
+  }
+  {  // it declares so, and a checkpoint asked of it anyway fails the step, naming why
+    Counter m;
+    ParticipantCore core("p", m);
+    auto r = core.configure(with_checkpoints(folder));
+    ASSERT_TRUE(r && r->ok);
+    EXPECT_FALSE(r->can_checkpoint);
+    auto q = request(0, 1.0);
+    q.checkpoint = true;
+    auto reply = core.handle(q);
+    EXPECT_EQ(reply->status, step_reply_t::FAILED);
+    EXPECT_NE(reply->message.find("the checkpoint after step 0 failed: this participant does not save checkpoints"),
+              std::string::npos) << reply->message;
+  }
+  {  // a missing checkpoint file is named
+    Saving m;
+    ParticipantCore core("p", m);
+    auto r = core.configure(with_checkpoints(folder, 4));
+    EXPECT_FALSE(r->ok);
+    EXPECT_NE(r->error.find("has no checkpoint after 4 steps of run 0000000000001234: '" + folder +
+                            "/p_0000000000001234_4.ckpt' is missing"),
+              std::string::npos) << r->error;
+  }
+  {  // resume points outside the run, a time that does not match, no folder
+    Saving m;
+    ParticipantCore core("p", m);
+    configure_t c = with_checkpoints(folder, 100);  // the run has 100 steps
+    EXPECT_NE(core.configure(c)->error.find("resume after 100 steps, but the run has only 100"), std::string::npos);
+    c = with_checkpoints(folder, 4);
+    c.resume_t_ns += 1;
+    EXPECT_NE(core.configure(c)->error.find("is not t_start + 4 macro steps"), std::string::npos);
+    c = with_checkpoint_folderless();
+    EXPECT_NE(core.configure(c)->error.find("a resume needs the checkpoint folder"), std::string::npos);
+    c = with_checkpoints(folder, -1);
+    EXPECT_NE(core.configure(c)->error.find("resume_steps_done -1 is negative"), std::string::npos);
+    EXPECT_FALSE(core.bound());
+  }
+  {  // a folder that cannot be made
+    Saving m;
+    ParticipantCore core("p", m);
+    auto r = core.configure(with_checkpoints("/proc/no_such_place/ckpt"));
+    EXPECT_FALSE(r->ok);
+    EXPECT_NE(r->error.find("checkpoints.folder: cannot create '/proc/no_such_place/ckpt'"), std::string::npos) << r->error;
+  }
+  std::filesystem::remove_all(folder);
 }

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <fstream>
 #include <string>
 
 #include "config.hpp"  // master/src: the macro-step check
@@ -169,4 +170,57 @@ TEST(wheel_loader_adapter, SnapshotRepeatsAStepBitForBit) {
   const double xe = first.outputs.at("x_machine").value[0];
   EXPECT_LT(xa, xe);
   EXPECT_GT(xa, xe - 2e-3 * 1.3);
+}
+
+// Checkpoints (cosim_master --resume): a model restored from the checkpoint after 5 steps in a
+// fresh process continues bit for bit like the model that never stopped.
+TEST(wheel_loader_adapter, CheckpointRestoresTheStateBitForBit) {
+  const std::string path = ::testing::TempDir() + "wheel_loader_checkpoint.ckpt";
+  const Duration H = nanoseconds(2'000'000);
+  WheelLoaderModel m(cosim::config::load_file(kMachine));
+  m.configure(params("{initial_speed: 1.2}"), run_info(H));
+  ASSERT_TRUE(m.can_checkpoint());
+  const cosim::Vec3 ref = bucket_position(m.initial_outputs());
+  auto input = [&](int i) { return wrench(-5e4 - 3e3 * i, 2e4 + 1e3 * i, 1e3 * (i % 3), ref, -1e4); };
+  TimePoint t{};
+  for (int i = 0; i < 5; ++i, t += H) m.step(cosim::StepInputs(t, t + H, input(i)), false);
+  m.save_checkpoint(path);
+  cosim::RunInfo resume = run_info(H);
+  resume.resume_steps_done = 5;
+  resume.resume_time = t;
+  WheelLoaderModel r(cosim::config::load_file(kMachine));
+  r.configure(params("{initial_speed: 1.2}"), resume);
+  r.load_checkpoint(path);
+  for (int i = 5; i < 10; ++i, t += H) {
+    const auto in = input(i);
+    const auto a = m.step(cosim::StepInputs(t, t + H, in), i % 2 == 0);
+    const auto b = r.step(cosim::StepInputs(t, t + H, in), i % 2 == 0);
+    for (const auto& [name, s] : a.outputs) EXPECT_EQ(s.value, b.outputs.at(name).value) << name << " step " << i;
+    if (a.average)
+      for (const auto& [name, s] : *a.average) EXPECT_EQ(s.value, b.average->at(name).value) << name;
+    ASSERT_EQ(a.diagnostics.size(), b.diagnostics.size());
+    for (std::size_t k = 0; k < a.diagnostics.size(); ++k) EXPECT_EQ(a.diagnostics[k].second, b.diagnostics[k].second);
+  }
+  // not vacuous: a model that was not restored is elsewhere
+  WheelLoaderModel fresh(cosim::config::load_file(kMachine));
+  fresh.configure(params("{initial_speed: 1.2}"), run_info(H));
+  EXPECT_NE(bucket_position(fresh.initial_outputs())[0], bucket_position(m.initial_outputs())[0]);
+  // a checkpoint of another time or another model is refused, naming why
+  cosim::RunInfo later = resume;
+  later.resume_time = t;
+  WheelLoaderModel w(cosim::config::load_file(kMachine));
+  w.configure(params("{initial_speed: 1.2}"), later);
+  try {
+    w.load_checkpoint(path);
+    ADD_FAILURE() << "a checkpoint of another time was taken";
+  } catch (const std::exception& e) {
+    EXPECT_NE(std::string(e.what()).find("its state is at t = 0.010000 s, the resume at 0.020000 s"), std::string::npos) << e.what();
+  }
+  std::ofstream(path) << "mbs_state 1 hauler\nt 0x0p+0\n";
+  try {
+    w.load_checkpoint(path);
+    ADD_FAILURE() << "a hauler's checkpoint was taken";
+  } catch (const std::exception& e) {
+    EXPECT_NE(std::string(e.what()).find("it is a hauler's state, this is a wheel_loader"), std::string::npos) << e.what();
+  }
 }

@@ -47,6 +47,12 @@ class ServiceModel final : public cosim::Model {
   bool can_repeat() const override { return options_.snapshot; }
   void save_snapshot() override;
   void restore_snapshot() override;
+  // The master's checkpoints: the whole State (dem/checkpoint.hpp), bit for bit. A resumed
+  // session writes its output.file under a new name (<stem>_from_step<n><ext>) and leaves the
+  // interrupted session's file alone.
+  bool can_checkpoint() const override { return true; }
+  void save_checkpoint(const std::string& path) override;
+  void load_checkpoint(const std::string& path) override;
 
   // Ends the run: final particle snapshot, checkpoint, summary; prints the timing table.
   // Safe to call more than once and without a configured session.

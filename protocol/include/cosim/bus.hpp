@@ -6,7 +6,7 @@
 
 namespace cosim {
 
-constexpr int32_t kProtocolVersion = 2;
+constexpr int32_t kProtocolVersion = 3;
 constexpr const char* kDefaultBusUrl = "udpm://239.255.76.67:7667?ttl=0";
 
 // The URL given (non-empty), else $LCM_DEFAULT_URL, else kDefaultBusUrl.

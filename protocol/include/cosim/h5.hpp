@@ -59,6 +59,13 @@ std::vector<T> read(hid_t loc, const std::string& name) {
   return v;
 }
 
+// Every value of a 1-D or 2-D dataset of numbers as doubles, row-major; *width (if given) gets
+// the columns (1 for 1-D). Throws std::runtime_error naming the dataset.
+std::vector<double> read_doubles(hid_t loc, const std::string& name, std::size_t* width = nullptr);
+// A scalar string dataset or attribute of `loc`; throws std::runtime_error naming it.
+std::string read_string(hid_t loc, const std::string& name);
+std::string read_string_attribute(hid_t loc, const std::string& name);
+
 // Scalar strings (fixed length, the string's own length) as an attribute or a dataset.
 void write_string_attribute(hid_t loc, const std::string& name, const std::string& value);
 void write_string(hid_t loc, const std::string& name, const std::string& value);
@@ -71,6 +78,11 @@ class Table {
  public:
   // Throws std::runtime_error naming the dataset if it cannot be created.
   Table(hid_t parent, const std::string& name, std::size_t width, std::size_t chunk_rows = 256);
+  // Opens an existing table to append to, keeping its first `keep_rows` rows and dropping the
+  // rest (a resumed run continues after its checkpoint). Throws std::runtime_error naming the
+  // dataset if it is missing, not a table of doubles or shorter than keep_rows.
+  struct Existing {};
+  Table(Existing, hid_t parent, const std::string& name, std::size_t keep_rows);
   ~Table();  // closes the dataset; rows not flushed are dropped
   Table(const Table&) = delete;
   Table& operator=(const Table&) = delete;

@@ -80,6 +80,7 @@ struct ParticipantInfo {
   Ports inputs, outputs;
   Duration inner_step{};
   bool can_repeat = false;
+  bool can_checkpoint = false;  // saves and restores checkpoints (docs/protocol.md)
   std::string repeat_note;  // why it cannot repeat a step, when it says (ready_t.error with ok)
   Signals initial_outputs;
 };
@@ -92,6 +93,9 @@ struct ExchangeStats {
   // trip (s) at the end.
   std::map<std::string, uint64_t> resends_to;
   std::map<std::string, double> resend_timeout_s, srtt_s;
+  // Per participant: configure messages sent until it answered (repeated every 0.5 s: more
+  // than one means a copy was lost, for example a fragment of a large one, or it was slow).
+  std::map<std::string, uint64_t> configure_sends;
   // Authentication (docs/security.md): whether the bus is keyed, and what the master's end of
   // it accepted and dropped, by verdict.
   auth::BusCounts auth;
@@ -104,6 +108,7 @@ struct StepAnswer {
   std::vector<std::pair<std::string, double>> diagnostics;
   double compute_seconds = 0;
   double round_trip_seconds = 0;
+  bool checkpointed = false;  // the checkpoint the request asked for was written
 };
 
 class Transport {

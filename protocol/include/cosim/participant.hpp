@@ -28,6 +28,10 @@ struct RunInfo {
   TimePoint t_start{};
   TimePoint t_end{};
   Duration macro_step{};
+  // A resumed run (cosim_master --resume): load_checkpoint follows configure and the first step
+  // starts at resume_time = t_start + resume_steps_done macro steps. 0 for a fresh start.
+  int64_t resume_steps_done = 0;
+  TimePoint resume_time{};
 };
 
 // What a model sees of one macro step.
@@ -76,6 +80,13 @@ class Model {
   virtual std::string repeat_note() const { return ""; }
   virtual void save_snapshot() {}
   virtual void restore_snapshot() {}
+  // Checkpoints (docs/protocol.md#checkpoints-and-resume): a model that can write everything
+  // its future steps depend on to one file, between steps, and read it back after configure()
+  // so that the steps that follow are bit-identical to an uninterrupted run. Both raise
+  // std::exception with a message naming the file and the problem.
+  virtual bool can_checkpoint() const { return false; }
+  virtual void save_checkpoint(const std::string& path) {}
+  virtual void load_checkpoint(const std::string& path) {}
 };
 
 class ParticipantCore {
@@ -109,9 +120,21 @@ class ParticipantCore {
   std::optional<ready_t> configure(const configure_t& message);
   // nullopt for messages that are not for us (other session or participant) or stale.
   std::optional<step_reply_t> handle(const step_request_t& request);
+  // The session is over. finished: the run completed, so its checkpoints are of no further use
+  // and the ones this process wrote or restored are deleted (and their folder, if empty).
+  void end_session(bool finished);
+  // The file of the checkpoint after `steps_done` steps of run `run_id`:
+  // <folder>/<participant>_<run id, 16 hex digits>_<steps_done>.ckpt
+  static std::string checkpoint_path(const std::string& folder, const std::string& participant,
+                                     int64_t run_id, int64_t steps_done);
 
  private:
   step_reply_t run_step(const step_request_t& request);
+  // Restores the checkpoint a resuming configure names; raises ProtocolError naming the file.
+  void restore_checkpoint(const configure_t& m);
+  // Writes the checkpoint after the step just done (a temporary file renamed into place) and
+  // deletes this process's checkpoints older than the previous one; raises on failure.
+  void write_checkpoint();
   step_reply_t refuse(const step_request_t& request, int8_t status, const std::string& message);
 
   ready_t refusal(const configure_t& m, const std::string& error) const;
@@ -135,6 +158,9 @@ class ParticipantCore {
   std::atomic<int64_t> done_step_{-1};      // copies of last_step_, last_iteration_ for
   std::atomic<int32_t> done_iteration_{-1};  // the heartbeat thread
   uint64_t ignored_ = 0;
+  std::string checkpoint_folder_;  // "" : no checkpoints asked
+  int64_t run_id_ = 0;
+  std::vector<std::string> checkpoints_;  // written or restored by this process, oldest first
 };
 
 // Serves `model` on the bus until the master terminates the session. Command line:
