@@ -104,6 +104,10 @@ class WheelLoader {
   // One snapshot slot: the whole Simbody state.
   void save_snapshot();
   void restore_snapshot();
+  // Any number of saved states (the FMU's fmi2GetFMUstate): a copy of the whole Simbody state,
+  // opaque here (Simbody stays inside wheel_loader.cpp, compiled as Debian's Simbody was).
+  std::shared_ptr<const void> copy_state() const;
+  void set_state(const std::shared_ptr<const void>& saved);
 
   // Evaluated wrench at time t (zero if none).
   Wrench wrench_at(double t) const { return wrench_ ? wrench_(t) : Wrench{}; }
