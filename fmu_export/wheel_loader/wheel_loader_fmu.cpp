@@ -24,7 +24,7 @@ const char* const kWrench[] = {"force_x", "force_y", "force_z", "torque_x", "tor
 
 std::string number(double x) {
   char b[32];
-  std::snprintf(b, sizeof b, "%.17g", x);
+  std::snprintf(b, sizeof b, "%.12g", x);
   return b;
 }
 

@@ -565,7 +565,9 @@ Value FmuModel::read_output(const PortMap& p, const std::string& when) {
           throw FmuError("FMU " + label_ + ": output port '" + p.name + "': the quaternion " + when + " has norm " +
                          std::to_string(n) + ", not 1; check the order [w, x, y, z] in " + p.path +
                          ".kinematics.orientation.quaternion");
-        k.orientation = cosim::quat_normalized(q);
+        // Unit to rounding: as the FMU gives it (the numbers a native participant with the same
+        // model sends); else normalized.
+        k.orientation = std::abs(n - 1) <= 1e-12 ? q : cosim::quat_normalized(q);
       } else if (p.orientation == OrientationMap::Angles) {
         std::array<double, 3> a{};
         for (int i = 0; i < 3; ++i) a[i] = read(p.angles[i], when);
