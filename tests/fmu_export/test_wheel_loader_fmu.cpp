@@ -340,3 +340,35 @@ TEST(WheelLoaderFmu, UnderCosimMasterAgainstASoilRunTheRecordIsTheNativeAdapters
   EXPECT_GT(requests, 400);  // start-up iterations: repeated steps through FMU states
   EXPECT_EQ(replay_harness::number(b, "replay/requests_compared"), requests);
 }
+
+// fmu_adapter's mapping of the FMU's wrench input: the reference point as three FMU inputs (the
+// FMU takes the point with the wrench) must name all three; one input mixed with outputs or a
+// null is refused at start with the key, before any run.
+TEST(WheelLoaderFmu, AReferencePointOfFmuInputsMustNameAllThree) {
+  const std::string fmu = std::string(FMU_DIR) + "/wheel_loader.fmu";
+  auto adapter = [&](const std::string& point, const std::string& tag) {
+    const std::string mapping = harness::temp_path("_" + tag + ".yaml"), log = mapping + ".log";
+    std::FILE* f = std::fopen(mapping.c_str(), "w");
+    std::fprintf(f,
+                 "inputs:\n  - name: bucket_wrench\n    wrench: {force: [force_x, force_y, force_z], "
+                 "torque: [torque_x, torque_y, torque_z], frame: ground, reference_point: %s}\n"
+                 "outputs:\n  - {name: speed, scalar: speed}\n",
+                 point.c_str());
+    std::fclose(f);
+    harness::Process p = harness::spawn({harness::bin("fmu_adapter"), fmu, "--mapping", mapping, "--name", "wl",
+                                         "--bus", harness::bus_url()},
+                                        log);
+    const int code = harness::wait_for(p, 60);
+    return std::pair<int, std::string>(code, harness::read_text(log));
+  };
+  const auto mixed = adapter("[reference_point_x, position_y, reference_point_z]", "mixed");
+  EXPECT_EQ(mixed.first, 2) << mixed.second;
+  EXPECT_NE(mixed.second.find("inputs.0.wrench.reference_point.1: 'position_y' has causality output"),
+            std::string::npos)
+      << mixed.second;
+  const auto partial = adapter("[reference_point_x, null, reference_point_z]", "partial");
+  EXPECT_EQ(partial.first, 2) << partial.second;
+  EXPECT_NE(partial.second.find("inputs.0.wrench.reference_point.1: a reference point set as FMU inputs needs all three"),
+            std::string::npos)
+      << partial.second;
+}
