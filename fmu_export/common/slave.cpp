@@ -20,6 +20,13 @@ std::string quoted(const std::string& s) { return "'" + s + "'"; }
 
 }  // namespace
 
+std::int64_t whole_ns(double seconds, const std::string& what, const std::string& hint) {
+  const double ns = seconds * 1e9;
+  if (!std::isfinite(ns) || std::abs(ns) > 9e18 || std::abs(ns - std::llround(ns)) > 1e-3)
+    throw FmuError(what + " = " + std::to_string(seconds) + " s is not a whole number of nanoseconds" + hint);
+  return std::llround(ns);
+}
+
 // The base part of a saved FMU state.
 struct BaseState : SavedState {
   std::map<std::pair<int, fmi2ValueReference>, double> reals;

@@ -9,6 +9,7 @@
 #include <cosim_fmi2.h>
 
 #include <array>
+#include <cstdint>
 #include <map>
 #include <memory>
 #include <optional>
@@ -27,6 +28,11 @@ struct FmuError : std::runtime_error {
 struct SequenceError : FmuError {
   using FmuError::FmuError;
 };
+
+// Whole nanoseconds of `seconds` (time is counted in ns, as in the rest of the project, so steps
+// and inner steps divide exactly), or FmuError "<what> = x s is not a whole number of
+// nanoseconds" + hint.
+std::int64_t whole_ns(double seconds, const std::string& what, const std::string& hint = "");
 
 enum class Mode { Instantiated, Initialization, Step, Terminated, Error };
 

@@ -25,13 +25,6 @@ const char* kPose[] = {"position_x", "position_y", "position_z", "quaternion_w",
 const char* kWrench[] = {"force_x", "force_y", "force_z", "torque_x", "torque_y", "torque_z",
                          "reference_point_x", "reference_point_y", "reference_point_z"};
 
-std::int64_t whole_ns(double seconds, const std::string& what) {
-  const double ns = seconds * 1e9;
-  if (!std::isfinite(ns) || std::abs(ns) > 9e18 || std::abs(ns - std::llround(ns)) > 1e-3)
-    throw FmuError(what + " = " + std::to_string(seconds) + " s is not a whole number of nanoseconds");
-  return std::llround(ns);
-}
-
 // Where the FMU is in dem_service's step sequence (the part of an FMU state beyond values).
 struct Progress {
   std::int64_t next_step = 0;  // index of the next step request

@@ -17,14 +17,8 @@ namespace {
 constexpr oscillator::Side kSide =
     OSCILLATOR_FMU_SIDE == 1 ? oscillator::Side::Mass1 : oscillator::Side::Mass2;
 
-// Whole nanoseconds of `seconds`, or FmuError naming `what` (time is counted in ns as in
-// the rest of the project, so steps and inner steps divide exactly).
 std::int64_t whole_ns(double seconds, const std::string& what) {
-  const double ns = seconds * 1e9;
-  if (!std::isfinite(ns) || std::abs(ns) > 9e18 || std::abs(ns - std::llround(ns)) > 1e-3)
-    throw FmuError(what + " = " + std::to_string(seconds) +
-                   " s is not a whole number of nanoseconds (time is counted in ns; choose e.g. 5e-6)");
-  return std::llround(ns);
+  return fmu_export::whole_ns(seconds, what, " (time is counted in ns; choose e.g. 5e-6)");
 }
 
 struct ModelState {

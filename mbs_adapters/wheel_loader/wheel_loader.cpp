@@ -392,6 +392,10 @@ void WheelLoader::resolve_static() { impl_->solve_static(p_, impl_->state); }
 
 void WheelLoader::save_snapshot() { impl_->snapshot = impl_->state; }
 void WheelLoader::restore_snapshot() { impl_->state = impl_->snapshot; }
+std::shared_ptr<const void> WheelLoader::copy_state() const { return std::make_shared<const State>(impl_->state); }
+void WheelLoader::set_state(const std::shared_ptr<const void>& saved) {
+  impl_->state = *static_cast<const State*>(saved.get());
+}
 
 namespace {
 std::vector<double> to_std(const Vector& v) {

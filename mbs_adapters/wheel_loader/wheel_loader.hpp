@@ -111,6 +111,10 @@ class WheelLoader {
   // throws std::runtime_error for a file of another model or layout.
   void save_state(const std::string& path) const;
   void load_state(const std::string& path);
+  // Any number of saved states (the FMU's fmi2GetFMUstate): a copy of the whole Simbody state,
+  // opaque here (Simbody stays inside wheel_loader.cpp, compiled as Debian's Simbody was).
+  std::shared_ptr<const void> copy_state() const;
+  void set_state(const std::shared_ptr<const void>& saved);
 
   // Evaluated wrench at time t (zero if none).
   Wrench wrench_at(double t) const { return wrench_ ? wrench_(t) : Wrench{}; }

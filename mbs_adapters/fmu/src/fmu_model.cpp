@@ -215,7 +215,18 @@ PortMap FmuModel::parse_port(const YAML::Node& node, const std::string& path, bo
     if (rp.IsScalar() && !is_number(rp, &number)) {
       p.point_port = rp.Scalar();
     } else {
-      p.point = vec3(w, wp, "reference_point", true);
+      // An input port may name three FMU inputs: the FMU takes the point with the wrench.
+      if (input && rp.IsSequence())
+        for (const auto& e : rp)
+          if (e.IsScalar() && !is_number(e, &number) && md_->find(e.Scalar()) &&
+              md_->find(e.Scalar())->causality == Causality::Input)
+            p.point_is_input = true;
+      p.point = vec3(w, wp, "reference_point", !p.point_is_input);
+      if (p.point_is_input)
+        for (std::size_t i = 0; i < 3; ++i)
+          if (!p.point[i].var)
+            throw cfg::ConfigError(wp + ".reference_point." + std::to_string(i) +
+                                   ": a reference point set as FMU inputs needs all three (x, y, z) variables");
     }
   }
   return p;
@@ -369,7 +380,9 @@ void FmuModel::parse_mapping(const YAML::Node& root, const std::string& path) {
       }
       if (!p.input) continue;
       std::vector<const Component*> comps{&p.scalar};
-      for (auto* v : {&p.position, &p.velocity, &p.angular_velocity, &p.force, &p.torque})
+      std::vector<const Vec3Map*> vecs{&p.position, &p.velocity, &p.angular_velocity, &p.force, &p.torque};
+      if (p.point_is_input) vecs.push_back(&p.point);
+      for (const auto* v : vecs)
         for (auto& c : *v) comps.push_back(&c);
       for (auto& c : p.quaternion) comps.push_back(&c);
       for (auto& c : p.angles) comps.push_back(&c);
@@ -552,7 +565,9 @@ Value FmuModel::read_output(const PortMap& p, const std::string& when) {
           throw FmuError("FMU " + label_ + ": output port '" + p.name + "': the quaternion " + when + " has norm " +
                          std::to_string(n) + ", not 1; check the order [w, x, y, z] in " + p.path +
                          ".kinematics.orientation.quaternion");
-        k.orientation = cosim::quat_normalized(q);
+        // Unit to rounding: as the FMU gives it (the numbers a native participant with the same
+        // model sends); else normalized.
+        k.orientation = std::abs(n - 1) <= 1e-12 ? q : cosim::quat_normalized(q);
       } else if (p.orientation == OrientationMap::Angles) {
         std::array<double, 3> a{};
         for (int i = 0; i < 3; ++i) a[i] = read(p.angles[i], when);
@@ -609,11 +624,15 @@ void FmuModel::write_input(const PortMap& p, const Value& v, const std::string& 
     }
     case SignalKind::Wrench: {
       cosim::Wrench w = cosim::Wrench::from_value(v);
-      cosim::Vec3 point{};
-      if (!p.point_port.empty()) point = kinematics_of(p.point_port, when).position;
-      else
-        for (int i = 0; i < 3; ++i) point[i] = read(p.point[i], when);
-      w = w.shifted_to(point);  // the torque about the point the FMU expects
+      if (p.point_is_input) {  // the FMU takes the point: the torque as received, about it
+        for (int i = 0; i < 3; ++i) write(p.point[i], w.point[i], p, when);
+      } else {
+        cosim::Vec3 point{};
+        if (!p.point_port.empty()) point = kinematics_of(p.point_port, when).position;
+        else
+          for (int i = 0; i < 3; ++i) point[i] = read(p.point[i], when);
+        w = w.shifted_to(point);  // the torque about the point the FMU expects
+      }
       if (!p.frame_port.empty()) {
         const cosim::Quat q = kinematics_of(p.frame_port, when).orientation;
         w.force = rotate_back(q, w.force);

@@ -44,6 +44,9 @@ struct PortMap {
   Vec3Map force, torque, point;
   std::string frame_port;  // "" = ground axes, else the kinematics port whose body axes
   std::string point_port;  // "" = `point`, else the kinematics port whose position
+  // A wrench input whose reference_point names three FMU inputs: the received point is set
+  // there and the torque passed about it unshifted.
+  bool point_is_input = false;
 };
 
 class FmuModel final : public cosim::Model {
