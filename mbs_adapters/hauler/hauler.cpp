@@ -2,7 +2,7 @@
 
 #include <Simbody.h>
 
-#include "state_file.hpp"
+#include "simbody_state_file.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -500,31 +500,13 @@ void Hauler::resolve_static() { impl_->solve_static(p_, *this, impl_->state, fal
 void Hauler::save_snapshot() { impl_->snapshot = impl_->state; }
 void Hauler::restore_snapshot() { impl_->state = impl_->snapshot; }
 
-namespace {
-std::vector<double> to_std(const Vector& v) {
-  std::vector<double> out(static_cast<std::size_t>(v.size()));
-  for (int i = 0; i < v.size(); ++i) out[static_cast<std::size_t>(i)] = v[i];
-  return out;
-}
-void assign(Vector& v, const std::vector<double>& x) {
-  for (int i = 0; i < v.size(); ++i) v[i] = x[static_cast<std::size_t>(i)];
-}
-}  // namespace
-
 void Hauler::save_state(const std::string& path) const {
-  const State& s = impl_->state;
-  mbs::write_state_file(path, "hauler", {s.getTime(), to_std(s.getQ()), to_std(s.getU()), to_std(s.getZ())});
+  mbs::save_simbody_state(path, "hauler", impl_->state);
 }
 
 void Hauler::load_state(const std::string& path) {
-  State& s = impl_->state;
-  const mbs::StateVectors layout{0, to_std(s.getQ()), to_std(s.getU()), to_std(s.getZ())};
-  const mbs::StateVectors v = mbs::read_state_file(path, "hauler", layout);
-  s.setTime(v.t);
-  assign(s.updQ(), v.q);
-  assign(s.updU(), v.u);
-  assign(s.updZ(), v.z);
-  impl_->snapshot = s;
+  mbs::load_simbody_state(path, "hauler", impl_->state);
+  impl_->snapshot = impl_->state;
 }
 
 void Hauler::advance(double t_end, const std::function<void()>& after_inner_step) {

@@ -2,7 +2,7 @@
 
 #include <Simbody.h>
 
-#include "state_file.hpp"
+#include "simbody_state_file.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -397,31 +397,13 @@ void WheelLoader::set_state(const std::shared_ptr<const void>& saved) {
   impl_->state = *static_cast<const State*>(saved.get());
 }
 
-namespace {
-std::vector<double> to_std(const Vector& v) {
-  std::vector<double> out(static_cast<std::size_t>(v.size()));
-  for (int i = 0; i < v.size(); ++i) out[static_cast<std::size_t>(i)] = v[i];
-  return out;
-}
-void assign(Vector& v, const std::vector<double>& x) {
-  for (int i = 0; i < v.size(); ++i) v[i] = x[static_cast<std::size_t>(i)];
-}
-}  // namespace
-
 void WheelLoader::save_state(const std::string& path) const {
-  const State& s = impl_->state;
-  mbs::write_state_file(path, "wheel_loader", {s.getTime(), to_std(s.getQ()), to_std(s.getU()), to_std(s.getZ())});
+  mbs::save_simbody_state(path, "wheel_loader", impl_->state);
 }
 
 void WheelLoader::load_state(const std::string& path) {
-  State& s = impl_->state;
-  const mbs::StateVectors layout{0, to_std(s.getQ()), to_std(s.getU()), to_std(s.getZ())};
-  const mbs::StateVectors v = mbs::read_state_file(path, "wheel_loader", layout);
-  s.setTime(v.t);
-  assign(s.updQ(), v.q);
-  assign(s.updU(), v.u);
-  assign(s.updZ(), v.z);
-  impl_->snapshot = s;
+  mbs::load_simbody_state(path, "wheel_loader", impl_->state);
+  impl_->snapshot = impl_->state;
 }
 
 void WheelLoader::advance(double t_end, const std::function<void()>& after_inner_step) {

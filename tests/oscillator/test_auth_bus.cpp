@@ -23,6 +23,7 @@
 #include <regex>
 
 #include "harness.hpp"
+#include "replay_harness.hpp"
 
 namespace {
 
@@ -39,24 +40,7 @@ const std::vector<std::string> kRecorded{"time",
                                          "connections/mass2.x/sent",
                                          "connections/mass2.v/predicted"};
 
-// Sets (or clears, with "") an environment variable for the processes this test starts, and
-// puts the old value back at the end.
-class ScopedEnv {
- public:
-  ScopedEnv(const char* name, const std::string& value) : name_(name) {
-    if (const char* old = std::getenv(name)) old_ = old;
-    set(value);
-  }
-  void set(const std::string& value) {
-    if (value.empty()) unsetenv(name_);
-    else setenv(name_, value.c_str(), 1);
-  }
-  ~ScopedEnv() { set(old_.value_or("")); }
-
- private:
-  const char* name_;
-  std::optional<std::string> old_;
-};
+using replay_harness::ScopedEnv;
 
 double number(const std::string& h5, const std::string& name) {
   const auto v = harness::read_dataset(h5, name);
