@@ -27,6 +27,19 @@ std::int64_t whole_ns(double seconds, const std::string& what, const std::string
   return std::llround(ns);
 }
 
+std::int64_t step_ns(double t, double h, std::int64_t at_ns, std::int64_t inner_ns) {
+  const std::int64_t t_ns = whole_ns(t, "fmi2DoStep: currentCommunicationPoint");
+  if (t_ns != at_ns)
+    throw FmuError("fmi2DoStep: currentCommunicationPoint is " + std::to_string(t_ns) +
+                   " ns, but the FMU is at " + std::to_string(at_ns) + " ns");
+  const std::int64_t h_ns = whole_ns(h, "fmi2DoStep: communicationStepSize");
+  if (inner_ns > 0 && (h_ns <= 0 || h_ns % inner_ns != 0))
+    throw FmuError("fmi2DoStep: communicationStepSize " + std::to_string(h_ns) +
+                   " ns is not a multiple of the inner step " + std::to_string(inner_ns) +
+                   " ns (parameter 'inner_step')");
+  return h_ns;
+}
+
 // The base part of a saved FMU state.
 struct BaseState : SavedState {
   std::map<std::pair<int, fmi2ValueReference>, double> reals;

@@ -34,6 +34,11 @@ struct SequenceError : FmuError {
 // nanoseconds" + hint.
 std::int64_t whole_ns(double seconds, const std::string& what, const std::string& hint = "");
 
+// The step of an fmi2DoStep(t, h) in whole ns, checked: t must be where the FMU is (`at_ns`) and,
+// with `inner_ns` > 0, h a positive multiple of the inner step (parameter 'inner_step').
+// Throws FmuError naming the argument.
+std::int64_t step_ns(double t, double h, std::int64_t at_ns, std::int64_t inner_ns = 0);
+
 enum class Mode { Instantiated, Initialization, Step, Terminated, Error };
 
 // A saved FMU state: what a slave needs to go back, as an opaque object.

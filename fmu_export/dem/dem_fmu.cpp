@@ -173,11 +173,8 @@ class DemSlave final : public Slave {
   }
 
   void step(double t, double h) override {
-    const std::int64_t t_ns = whole_ns(t, "fmi2DoStep: currentCommunicationPoint");
-    if (t_ns != progress_.t_ns)
-      throw FmuError("fmi2DoStep: currentCommunicationPoint is " + std::to_string(t_ns) +
-                     " ns, but the FMU is at " + std::to_string(progress_.t_ns) + " ns");
-    const std::int64_t h_ns = whole_ns(h, "fmi2DoStep: communicationStepSize");
+    const std::int64_t t_ns = progress_.t_ns;
+    const std::int64_t h_ns = step_ns(t, h, progress_.t_ns);
     const bool redo = progress_.next_step == last_step_sent_;
     if (redo && !info_.can_repeat)
       throw FmuError(who() + " cannot repeat a step (its config has service.snapshot: false)");

@@ -80,15 +80,7 @@ class OscillatorSlave final : public Slave {
   }
 
   void step(double t, double h) override {
-    const std::int64_t t_ns = whole_ns(t, "fmi2DoStep: currentCommunicationPoint");
-    if (t_ns != t_ns_)
-      throw FmuError("fmi2DoStep: currentCommunicationPoint is " + std::to_string(t_ns) +
-                     " ns, but the FMU is at " + std::to_string(t_ns_) + " ns");
-    const std::int64_t h_ns = whole_ns(h, "fmi2DoStep: communicationStepSize");
-    if (h_ns <= 0 || h_ns % inner_ns_ != 0)
-      throw FmuError("fmi2DoStep: communicationStepSize " + std::to_string(h_ns) +
-                     " ns is not a multiple of the inner step " + std::to_string(inner_ns_) +
-                     " ns (parameter 'inner_step')");
+    const std::int64_t h_ns = step_ns(t, h, t_ns_, inner_ns_);
     const auto& names = input_names();
     const int m = static_cast<int>(names.size());
     // The native polynomial in s = (t' - t) / h: a_0 = u(t), a_j = u^(j)(t) h^j / j!.

@@ -13,6 +13,17 @@
 
 namespace master {
 
+void write_number(hid_t file, const std::string& group, const std::string& name, double value) {
+  if (H5Lexists(file, group.c_str(), H5P_DEFAULT) <= 0) {
+    const hid_t g = H5Gcreate2(file, group.c_str(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+    if (g >= 0) H5Gclose(g);
+  }
+  const hid_t g = H5Gopen2(file, group.c_str(), H5P_DEFAULT);
+  if (g < 0) return;
+  cosim::h5::write(g, name, std::vector<double>{value});
+  H5Gclose(g);
+}
+
 namespace {
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
@@ -32,17 +43,6 @@ std::string join(const std::vector<std::string>& v) {
   return s;
 }
 
-// One number as a 1-element dataset under an existing or new group.
-void write_number(hid_t file, const std::string& group, const std::string& name, double value) {
-  if (H5Lexists(file, group.c_str(), H5P_DEFAULT) <= 0) {
-    const hid_t g = H5Gcreate2(file, group.c_str(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
-    if (g >= 0) H5Gclose(g);
-  }
-  const hid_t g = H5Gopen2(file, group.c_str(), H5P_DEFAULT);
-  if (g < 0) return;
-  cosim::h5::write(g, name, std::vector<double>{value});
-  H5Gclose(g);
-}
 
 // The bus counters (docs/output.md): totals under /bus, per participant under its group.
 void write_bus_stats(hid_t file, const RunSetup& setup) {

@@ -2,6 +2,8 @@
 // export of the signals, and the progress line with the closing timing table.
 #pragma once
 
+#include <hdf5.h>
+
 #include <cstdio>
 #include <memory>
 #include <string>
@@ -11,6 +13,10 @@
 #include "cosimulation.hpp"
 
 namespace master {
+
+// One number as a 1-element dataset `name` under `group` of an open HDF5 file, the group made
+// if missing (run summaries: /bus, /bus/auth, /replay, ...). Does nothing if it cannot open it.
+void write_number(hid_t file, const std::string& group, const std::string& name, double value);
 
 class H5Recorder final : public Observer {
  public:

@@ -13,6 +13,7 @@
 #include <sstream>
 
 #include "bus_log.hpp"
+#include "recorder.hpp"
 
 namespace master::replay {
 
@@ -607,17 +608,6 @@ std::string summary(const Recording& rec, const Report& rep) {
 }
 
 namespace {
-
-void write_number(hid_t file, const std::string& group, const std::string& name, double value) {
-  if (H5Lexists(file, group.c_str(), H5P_DEFAULT) <= 0) {
-    const hid_t g = H5Gcreate2(file, group.c_str(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
-    if (g >= 0) H5Gclose(g);
-  }
-  const hid_t g = H5Gopen2(file, group.c_str(), H5P_DEFAULT);
-  if (g < 0) return;
-  cosim::h5::write(g, name, std::vector<double>{value});
-  H5Gclose(g);
-}
 
 void write_text(hid_t file, const std::string& group, const std::string& name, const std::string& value) {
   if (H5Lexists(file, group.c_str(), H5P_DEFAULT) <= 0) {
