@@ -1,0 +1,112 @@
+#!/usr/bin/python3
+"""Speed against accuracy for paper-scene runs (bench/paper/paper_scene.sh --out DIR): for each
+run its real-time factor over the whole maneuver (dem_run's loop times over simulated time) and
+the change of its bucket force against the reference run (compare.py's filtered RMS measure),
+printed as a table and drawn as a chart. Pass a scatter run (the reference setting with
+another thread count: only the summation order differs) to draw the scene's own scatter.
+
+usage: speed_accuracy.py --reference DIR [--scatter DIR] LABEL=DIR ... [--out PNG]
+"""
+import argparse
+import os
+import re
+import sys
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import compare  # noqa: E402
+
+
+def real_time_factor(folder, policy):
+    wall = sim = 0.0
+    for k, name in enumerate(compare.PHASES):
+        log = os.path.join(folder, f"{policy}_{k + 1}_{name}.log")
+        if not os.path.exists(log):
+            sys.exit(f"speed_accuracy: {log} is missing; run bench/paper/paper_scene.sh --out "
+                     f"{folder} --policies {policy} first")
+        text = open(log).read()
+        m = re.search(r"Loop time of ([0-9.]+) s for ([0-9]+) steps", text)
+        d = re.search(r"run\.duration=([0-9.eE+-]+)", text)
+        if not m or not d:
+            sys.exit(f"speed_accuracy: {log} has no loop time or run.duration (did the run end?)")
+        wall += float(m.group(1))
+        sim += float(d.group(1))
+    return wall / sim
+
+
+def change(reference, other, policy, window):
+    ts, fa, fb = [], [], []
+    for k, name in enumerate(compare.PHASES):
+        ta, a = compare.force(reference, policy, k, name)
+        tb, b = compare.force(other, policy, k, name)
+        m = min(len(ta), len(tb))
+        ts.append(ta[:m]); fa.append(a[:m]); fb.append(b[:m])
+    t = np.concatenate(ts)
+    _, raw, filt, _, _ = compare.measures(t, np.concatenate(fa), t, np.concatenate(fb), window)
+    return raw, filt
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("runs", nargs="+", metavar="LABEL=DIR")
+    p.add_argument("--reference", required=True)
+    p.add_argument("--scatter")
+    p.add_argument("--policy", default="needed")
+    p.add_argument("--filter", type=float, default=0.02)
+    p.add_argument("--out", default="results/paper_speed_accuracy.png")
+    a = p.parse_args()
+    runs = []
+    for spec in a.runs:
+        if "=" not in spec:
+            sys.exit(f"speed_accuracy: '{spec}' is not LABEL=DIR")
+        label, folder = spec.split("=", 1)
+        runs.append((label, folder))
+    ref_rtf = real_time_factor(a.reference, a.policy)
+    print(f"reference {a.reference}: real-time factor {ref_rtf:.0f}")
+    scatter = None
+    if a.scatter:
+        scatter = change(a.reference, a.scatter, a.policy, a.filter)
+        print(f"scatter {a.scatter}: force change raw {100 * scatter[0]:.2f} %, filtered "
+              f"{100 * scatter[1]:.2f} %")
+    print("| run | real-time factor | speed-up | force change raw | filtered | x scatter (filtered) |")
+    print("| --- | ---: | ---: | ---: | ---: | ---: |")
+    rows = []
+    for label, folder in runs:
+        rtf = real_time_factor(folder, a.policy)
+        raw, filt = change(a.reference, folder, a.policy, a.filter)
+        ratio = f"{filt / scatter[1]:.1f}" if scatter and scatter[1] > 0 else "-"
+        print(f"| {label} | {rtf:.0f} | {ref_rtf / rtf:.2f} | {100 * raw:.2f} % | "
+              f"{100 * filt:.2f} % | {ratio} |")
+        rows.append((label, ref_rtf / rtf, 100 * filt))  # speed-up, filtered change in %
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        print("speed_accuracy: no matplotlib (apt-get install python3-matplotlib); no chart")
+        return
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    ax.plot([0] + [f for _, _, f in rows], [1] + [s for _, s, _ in rows], "o")
+    ax.annotate("all active (reference)", (0, 1), textcoords="offset points", xytext=(5, 5))
+    for label, s, f in rows:
+        ax.annotate(label, (f, s), textcoords="offset points", xytext=(-10, -14), ha="right",
+                    fontsize=8)
+    ax.set_xlim(left=0, right=1.1 * max([f for _, _, f in rows] + [1e-9]))
+    if scatter:
+        ax.axvline(100 * scatter[1], color="grey", linestyle="--",
+                   label="scatter (1 vs 2 threads)")
+        ax.legend()
+    ax.set_xlabel(f"bucket force change, filtered {a.filter} s [%]")
+    ax.set_ylabel("speed-up against all active")
+    ax.set_title("paper scene: speed against accuracy")
+    ax.grid(True, alpha=0.3)
+    fig.tight_layout()
+    os.makedirs(os.path.dirname(a.out) or ".", exist_ok=True)
+    fig.savefig(a.out, dpi=120)
+    print(f"chart: {a.out}")
+
+
+if __name__ == "__main__":
+    main()
