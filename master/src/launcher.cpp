@@ -56,7 +56,7 @@ std::string find_program(const std::string& program) {
   return "";
 }
 
-Launcher::~Launcher() { stop(0.5); }
+Launcher::~Launcher() { stop(0.5, 2.0); }
 
 void Launcher::start(const ParticipantSpec& spec, const std::string& bus_url, int64_t session) {
   const std::string program = find_program(spec.launch[0]);
@@ -94,27 +94,57 @@ void Launcher::check() {
   }
 }
 
-void Launcher::stop(double grace) {
-  const cosim::Stopwatch waited;
-  for (int round = 0; round < 2; ++round) {
+void Launcher::stop(double grace, double term_grace) {
+  // Reaps every child that has exited; true when none is left.
+  auto reap = [&] {
+    bool all = true;
     for (auto& c : children_) {
-      while (!c.exited) {
-        int status = 0;
-        if (waitpid(c.pid, &status, WNOHANG) == c.pid) {
-          c.exited = true;
-          break;
-        }
-        if (waited.seconds() > grace) {
-          kill(c.pid, round == 0 ? SIGTERM : SIGKILL);
-          if (round == 0) { std::this_thread::sleep_for(std::chrono::milliseconds(200)); }
-          break;
-        }
-        std::this_thread::sleep_for(std::chrono::milliseconds(10));
+      if (c.exited) continue;
+      int status = 0;
+      if (waitpid(c.pid, &status, WNOHANG) == c.pid) {
+        c.exited = true;
+        c.status = status;
+      } else {
+        all = false;
       }
     }
-  }
+    return all;
+  };
+  // Polls until all have exited or `seconds` passed.
+  auto wait_all = [&](double seconds) {
+    const cosim::Stopwatch waited;
+    while (!reap()) {
+      if (waited.seconds() > seconds) return false;
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    return true;
+  };
+  if (wait_all(grace)) return;
+  // Still running: ask them to stop (the participants finish their outputs on SIGTERM), all at
+  // once, and give them term_grace to do it before they are killed.
   for (auto& c : children_)
-    if (!c.exited) waitpid(c.pid, nullptr, 0), c.exited = true;
+    if (!c.exited) {
+      std::cerr << "cosim_master: participant '" << c.name << "' (pid " << c.pid
+                << ") did not exit within " << grace << " s of the end; sending SIGTERM\n";
+      kill(c.pid, SIGTERM);
+    }
+  if (wait_all(term_grace)) return;
+  for (auto& c : children_)
+    if (!c.exited) {
+      std::cerr << "cosim_master: participant '" << c.name << "' (pid " << c.pid
+                << ") did not exit within " << term_grace << " s of SIGTERM; killing it\n";
+      kill(c.pid, SIGKILL);
+      int status = 0;
+      waitpid(c.pid, &status, 0);
+      c.exited = true;
+      c.status = status;
+    }
+}
+
+std::string Launcher::exit_description(const std::string& name) const {
+  for (const auto& c : children_)
+    if (c.name == name) return c.exited ? describe_status(c.status) : "still running";
+  return "not launched";
 }
 
 }  // namespace master

@@ -20,8 +20,13 @@ class Launcher {
   void start(const ParticipantSpec& spec, const std::string& bus_url, int64_t session);
   // Raises cosim::LinkError naming a launched participant that has exited.
   void check() ;
-  // Waits up to `grace` seconds for the participants to exit, then terminates them.
-  void stop(double grace);
+  // Waits up to `grace` seconds for the participants to exit, then sends SIGTERM to those
+  // left and waits up to `term_grace` seconds more (they finish their outputs on SIGTERM),
+  // then kills what is still running; each step is reported on stderr with the name.
+  void stop(double grace, double term_grace = 5.0);
+  // How a launched participant ended ("exited with code 0", "was killed by signal 9", "still
+  // running"), or "not launched".
+  std::string exit_description(const std::string& name) const;
 
  private:
   struct Child { std::string name; pid_t pid; bool exited = false; int status = 0; };

@@ -183,6 +183,8 @@ class LcmTransport final : public Transport {
     std::optional<Clock::time_point> heard;  // last message of any kind from it (this session)
     std::optional<heartbeat_t> beat;         // its last heartbeat
     Clock::time_point beat_at;
+    std::optional<int64_t> replied_step;     // the last step it answered (this session)
+    Clock::time_point replied_at;
     ResendTimer timer;
   };
   struct Pending {
@@ -214,13 +216,23 @@ class LcmTransport final : public Transport {
     return o.str();
   }
 
+  // What was last heard from a participant: its last heartbeat (one every kBeat seconds; a
+  // participant that died within its first kBeat sent none) and its last answered step (a
+  // heartbeat may be older than the last reply and name an earlier step).
   std::string last_beat_text(const Peer& peer) const {
     std::ostringstream o;
     o.precision(3);
-    if (!peer.beat) return "no heartbeat ever";
-    o << "last heartbeat " << seconds_since(peer.beat_at) << " s ago ("
-      << (peer.beat->state == heartbeat_t::BUSY ? "busy with step " : "idle after step ")
-      << peer.beat->step_index << ")";
+    if (!peer.beat)
+      o << "no heartbeat received (one is sent every " << kBeat << " s)";
+    else
+      o << "last heartbeat " << seconds_since(peer.beat_at) << " s ago ("
+        << (peer.beat->state == heartbeat_t::BUSY ? "busy with step " : "idle after step ")
+        << peer.beat->step_index << ")";
+    if (peer.replied_step)
+      o << ", last reply " << seconds_since(peer.replied_at) << " s ago (step " << *peer.replied_step
+        << ")";
+    else
+      o << ", no reply to any step";
     return o.str();
   }
 
@@ -447,6 +459,9 @@ class LcmTransport final : public Transport {
     if (p.request.attempt == 0)
       peers_[r->participant].timer.sample(p.round_trip, std::isfinite(r->compute_seconds) ? r->compute_seconds : 0);
     p.reply = *r;
+    Peer& peer = peers_[r->participant];
+    peer.replied_step = r->step_index;
+    peer.replied_at = Clock::now();
   }
 
   std::string url_;

@@ -1,0 +1,61 @@
+// Launcher::stop: a participant that is still running at the end gets SIGTERM and time to
+// finish its outputs (term_grace) before it is killed; one that ignores SIGTERM is killed.
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <thread>
+
+#include "launcher.hpp"
+
+namespace {
+
+master::ParticipantSpec shell(const std::string& name, const std::string& script) {
+  master::ParticipantSpec spec;
+  spec.name = name;
+  // sh -c SCRIPT takes the appended --name/--bus/--session as $0, $1, ...
+  spec.launch = {"/bin/sh", "-c", script};
+  return spec;
+}
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+}  // namespace
+
+TEST(Launcher, ParticipantThatExitsByItselfIsReaped) {
+  master::Launcher launcher;
+  launcher.start(shell("quick", "exit 0"), "udpm://239.255.76.67:7667?ttl=0", 1);
+  const auto t0 = std::chrono::steady_clock::now();
+  launcher.stop(5.0);
+  EXPECT_LT(seconds_since(t0), 2.0);
+  EXPECT_EQ(launcher.exit_description("quick"), "exited with code 0");
+  EXPECT_EQ(launcher.exit_description("other"), "not launched");
+}
+
+TEST(Launcher, SlowSigtermHandlerFinishesInsteadOfBeingKilled) {
+  // Finishing takes 0.6 s after SIGTERM (longer than the 200 ms the launcher used to allow).
+  master::Launcher launcher;
+  launcher.start(shell("slow", "trap 'kill $! 2>/dev/null; sleep 0.6; exit 3' TERM; sleep 30 & wait"),
+                 "udpm://239.255.76.67:7667?ttl=0", 1);
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));  // the trap is set
+  const auto t0 = std::chrono::steady_clock::now();
+  launcher.stop(0.2, 5.0);
+  const double took = seconds_since(t0);
+  EXPECT_EQ(launcher.exit_description("slow"), "exited with code 3");
+  EXPECT_GT(took, 0.7);  // 0.2 s grace + 0.6 s of the handler
+  EXPECT_LT(took, 4.0);
+}
+
+TEST(Launcher, ParticipantIgnoringSigtermIsKilledAfterTermGrace) {
+  master::Launcher launcher;
+  launcher.start(shell("stubborn", "trap '' TERM; while :; do sleep 0.05; done"),
+                 "udpm://239.255.76.67:7667?ttl=0", 1);
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  const auto t0 = std::chrono::steady_clock::now();
+  launcher.stop(0.1, 0.3);
+  const double took = seconds_since(t0);
+  EXPECT_EQ(launcher.exit_description("stubborn"), "was killed by signal 9");
+  EXPECT_GT(took, 0.4);
+  EXPECT_LT(took, 3.0);
+}
