@@ -44,8 +44,10 @@ Outputs cosimulate(const std::string& tag) {
        "participants.loader.parameters={initial_position: 1.8}",
        // The service checks its config file, checkpoint included, when it starts: the pile goes
        // on its command line; the rest may come with the master's parameters.
+       // The bucket mesh of this build (the config names build/meshes, the README's build).
        "participants.soil.launch=[dem_service, " + harness::source("configs/soil/pile.yaml") +
-           ", --set, 'particles.checkpoint=" + pile() + "']",
+           ", --set, 'particles.checkpoint=" + pile() + "', --set, 'tools.0.mesh=" +
+           std::string(BIN_DIR) + "/../meshes/bucket_r1.stl']",
        "participants.soil.parameters={output.file: " + r.soil_h5 +
            ", walls.1.point: [9.0, 0, 0], output.particles_every: 1.0, scene.threads: 1}"},
       r.master_h5, 600, "configs/wheel_loader.yaml");
