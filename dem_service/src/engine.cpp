@@ -124,6 +124,10 @@ Engine::Engine(const Scene& scene) : scene_(scene) {
     }
     tool_box_min_.push_back(lo);
     tool_box_max_.push_back(hi);
+    // The box's farthest corner from the reference point (the mesh frame's origin).
+    const Vec3 far{std::max(std::abs(lo.x), std::abs(hi.x)), std::max(std::abs(lo.y), std::abs(hi.y)),
+                   std::max(std::abs(lo.z), std::abs(hi.z))};
+    tool_box_radius_.push_back(norm(far));
   }
 }
 
@@ -588,6 +592,11 @@ void Engine::integrate_impl(State& s) {
           if (norm2(d) < reach * reach) return true;
           continue;
         }
+        // Farther from the reference point than the box's farthest corner plus the reach: not
+        // near the box (the exact test below would say the same; a margin of 1e-9 covers its
+        // rounding). Spares the rotation for most of a large bed.
+        const double bound = (tool_box_radius_[m] + reach) * (1 + 1e-9);
+        if (norm2(d) > bound * bound) continue;
         // d in the tool frame (R^T d), then its distance to the mesh's box
         const Mat3& R = tool_rotation_[m];
         const Vec3 q{R.m[0][0] * d.x + R.m[1][0] * d.y + R.m[2][0] * d.z,

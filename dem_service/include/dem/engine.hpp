@@ -114,6 +114,7 @@ class Engine {
   std::vector<std::vector<Vec3>> tool_vertices_;  // world frame, current pose
   std::vector<Mat3> tool_rotation_;
   std::vector<Vec3> tool_box_min_, tool_box_max_;  // mesh frame, for scene.sleep.neighbourhood
+  std::vector<double> tool_box_radius_;             // farthest box corner from the reference point
   struct Remote {
     std::int32_t j;
     Vec3 f;
