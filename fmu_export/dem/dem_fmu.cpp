@@ -76,7 +76,7 @@ class DemSlave final : public Slave {
                                         : t0 + 1'000'000'000'000'000LL;
     url_ = cosim::resolve_bus_url(string("bus_url"));
     try {
-      transport_ = cosim::make_lcm_transport(url_, session, {{name, link}}, key);
+      transport_ = cosim::make_lcm_transport(url_, session, {{name, link}}, key, "dem_fmu");
       cosim::configure_t c{};
       c.protocol_version = cosim::kProtocolVersion;
       c.session_id = session;

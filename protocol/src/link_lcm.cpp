@@ -31,9 +31,9 @@ using Clock = WallClock;
 class LcmTransport final : public Transport {
  public:
   LcmTransport(const std::string& url, int64_t session, std::map<std::string, LinkSettings> links,
-               std::optional<auth::Key> key)
-      : url_(url), lcm_(url), session_(session), links_(std::move(links)),
-        bus_(lcm_, std::move(key), envelope_sender("master", session), "cosim_master") {
+               std::optional<auth::Key> key, std::string program)
+      : url_(url), lcm_(url), session_(session), links_(std::move(links)), program_(std::move(program)),
+        bus_(lcm_, std::move(key), envelope_sender("master", session), program_) {
     stats_.auth = bus_.stats();
     if (!lcm_.good())
       throw LinkError("", "cannot open the bus '" + url +
@@ -399,7 +399,7 @@ class LcmTransport final : public Transport {
       taken_.insert(r->instance_id);
       if (chosen_.count(r->participant) && chosen_[r->participant] == r->instance_id)
         chosen_.erase(r->participant);
-      std::cerr << "cosim_master: " << r->error << "\n";
+      std::cerr << program_ << ": " << r->error << "\n";
       return;
     }
     if (r->ok) check_instance(r->participant, r->instance_id, r->host, r->pid);
@@ -468,6 +468,7 @@ class LcmTransport final : public Transport {
   lcm::LCM lcm_;
   int64_t session_;
   std::map<std::string, LinkSettings> links_;
+  std::string program_;  // names this side in its messages (cosim_master, dem_fmu)
   std::map<std::string, Peer> peers_;
   std::map<std::string, ready_t> ready_;
   std::map<std::string, ParticipantInfo> infos_;
@@ -501,8 +502,9 @@ class LcmTransport final : public Transport {
 
 std::unique_ptr<Transport> make_lcm_transport(const std::string& url, int64_t session,
                                               std::map<std::string, LinkSettings> links,
-                                              std::optional<auth::Key> key) {
-  return std::make_unique<LcmTransport>(url, session, std::move(links), std::move(key));
+                                              std::optional<auth::Key> key,
+                                              const std::string& program) {
+  return std::make_unique<LcmTransport>(url, session, std::move(links), std::move(key), program);
 }
 
 }  // namespace cosim

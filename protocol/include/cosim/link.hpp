@@ -141,10 +141,12 @@ class Transport {
 };
 
 // With a key every message is sealed and only authentic ones of this session are taken
-// (docs/security.md); without one the bus is unauthenticated.
+// (docs/security.md); without one the bus is unauthenticated. `program` names this side in the
+// messages the transport prints itself.
 std::unique_ptr<Transport> make_lcm_transport(const std::string& url, int64_t session,
                                               std::map<std::string, LinkSettings> links,
-                                              std::optional<auth::Key> key = std::nullopt);
+                                              std::optional<auth::Key> key = std::nullopt,
+                                              const std::string& program = "cosim_master");
 // participants: name -> core; the cores must outlive the transport.
 std::unique_ptr<Transport> make_in_process_transport(
     int64_t session, std::map<std::string, ParticipantCore*> participants);
