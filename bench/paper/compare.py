@@ -53,6 +53,22 @@ def measures(t_a, f_a, t_b, f_b, window):
     return rel_imp, raw, filt, np.linalg.norm(imp_a), m
 
 
+def compare_runs(reference, other, policy, window):
+    """Per phase and over the whole maneuver: (name, impulse change, raw, filtered, reference
+    impulse, samples), the whole maneuver last."""
+    rows, ts, fa_all, fb_all = [], [], [], []
+    for k, name in enumerate(PHASES):
+        ta, fa = force(reference, policy, k, name)
+        tb, fb = force(other, policy, k, name)
+        imp, raw, filt, ref, m = measures(ta, fa, tb, fb, window)
+        rows.append((name, imp, raw, filt, ref, m))
+        ts.append(ta[:m]); fa_all.append(fa[:m]); fb_all.append(fb[:m])
+    t = np.concatenate(ts)
+    imp, raw, filt, ref, m = measures(t, np.concatenate(fa_all), t, np.concatenate(fb_all), window)
+    rows.append(("whole maneuver", imp, raw, filt, ref, m))
+    return rows
+
+
 def main():
     p = argparse.ArgumentParser(description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -66,19 +82,9 @@ def main():
     print("| phase | samples | impulse of the reference [N s] | impulse change | force change raw "
           "| force change filtered |")
     print("| --- | ---: | ---: | ---: | ---: | ---: |")
-    ts, fa_all, fb_all = [], [], []
-    for k, name in enumerate(PHASES):
-        ta, fa = force(a.reference, a.policy, k, name)
-        tb, fb = force(a.other, a.policy, k, name)
-        imp, raw, filt, ref, m = measures(ta, fa, tb, fb, a.filter)
+    for name, imp, raw, filt, ref, m in compare_runs(a.reference, a.other, a.policy, a.filter):
         print(f"| {name} | {m} | {ref:.4g} | {100 * imp:.2f} % | {100 * raw:.2f} % | "
               f"{100 * filt:.2f} % |")
-        ts.append(ta[:m]); fa_all.append(fa[:m]); fb_all.append(fb[:m])
-    t = np.concatenate(ts)
-    imp, raw, filt, ref, m = measures(t, np.concatenate(fa_all), t, np.concatenate(fb_all),
-                                      a.filter)
-    print(f"| whole maneuver | {m} | {ref:.4g} | {100 * imp:.2f} % | {100 * raw:.2f} % | "
-          f"{100 * filt:.2f} % |")
 
 
 if __name__ == "__main__":

@@ -12,8 +12,6 @@ import os
 import re
 import sys
 
-import numpy as np
-
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import compare  # noqa: E402
 
@@ -36,14 +34,8 @@ def real_time_factor(folder, policy):
 
 
 def change(reference, other, policy, window):
-    ts, fa, fb = [], [], []
-    for k, name in enumerate(compare.PHASES):
-        ta, a = compare.force(reference, policy, k, name)
-        tb, b = compare.force(other, policy, k, name)
-        m = min(len(ta), len(tb))
-        ts.append(ta[:m]); fa.append(a[:m]); fb.append(b[:m])
-    t = np.concatenate(ts)
-    _, raw, filt, _, _ = compare.measures(t, np.concatenate(fa), t, np.concatenate(fb), window)
+    """Raw and filtered bucket force change over the whole maneuver."""
+    _, _, raw, filt, _, _ = compare.compare_runs(reference, other, policy, window)[-1]
     return raw, filt
 
 
