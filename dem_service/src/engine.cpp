@@ -364,7 +364,7 @@ void Engine::pair_forces_impl(State& s) {
         const Vec3 urel = ui - U[j];
         if (d2 >= rsum * rsum && surely_apart(d2, rsum, norm2(urel), dt)) {
           // Contact ended: history is forgotten (write only if there is something to clear).
-          if (spring[k].x != 0 || spring[k].y != 0 || spring[k].z != 0) {
+          if (nonzero(spring[k])) {
             // A sleeper whose contact with an awake particle ends may have lost its support.
             if (Sleep && (si || sj)) wake(si ? i : static_cast<std::size_t>(j));
             spring[k] = Vec3{};

@@ -3,6 +3,8 @@
 #pragma once
 
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 
 namespace dem {
 
@@ -33,6 +35,32 @@ inline Vec3 cross(Vec3 a, Vec3 b) {
 }
 inline double norm2(Vec3 a) { return dot(a, a); }
 inline double norm(Vec3 a) { return std::sqrt(dot(a, a)); }
+
+// Any component != 0 (NaN counts as nonzero, -0 as zero), as one integer test: the three
+// floating-point compares cost six branches.
+inline bool nonzero(Vec3 a) {
+  std::uint64_t ix, iy, iz;
+  std::memcpy(&ix, &a.x, sizeof ix);
+  std::memcpy(&iy, &a.y, sizeof iy);
+  std::memcpy(&iz, &a.z, sizeof iz);
+  return ((ix | iy | iz) << 1) != 0;
+}
+
+// a if pick else b, by bit masks (no branch): for tests that the branch predictor cannot learn
+// at the end of a long chain of arithmetic. Exact: the bits of the chosen operand.
+inline double select(bool pick, double a, double b) {
+  std::uint64_t ia, ib;
+  std::memcpy(&ia, &a, sizeof ia);
+  std::memcpy(&ib, &b, sizeof ib);
+  const std::uint64_t mask = -static_cast<std::uint64_t>(pick);
+  const std::uint64_t r = (ia & mask) | (ib & ~mask);
+  double out;
+  std::memcpy(&out, &r, sizeof out);
+  return out;
+}
+inline Vec3 select(bool pick, Vec3 a, Vec3 b) {
+  return {select(pick, a.x, b.x), select(pick, a.y, b.y), select(pick, a.z, b.z)};
+}
 
 // Row-major 3x3 rotation matrix.
 struct Mat3 {
