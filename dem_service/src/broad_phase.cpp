@@ -10,7 +10,107 @@
 
 #include "dem/mesh_contact.hpp"
 
+#if defined(__x86_64__) && defined(__GNUC__)
+#include <immintrin.h>
+#endif
+
 namespace dem {
+
+namespace detail {
+
+std::int32_t row_hits_scalar(const RowData& d, Vec3 xa, double ra, double skin, std::int32_t a,
+                             const std::int32_t* row_begin, const std::int32_t* row_end,
+                             int rows, std::int32_t* out, std::int32_t& touching) {
+  std::int32_t hits = 0, touch = 0;
+  for (int q = 0; q < rows; ++q) {
+    const std::int32_t b0 = std::max(row_begin[q], a + 1), b1 = row_end[q];
+    for (std::int32_t b = b0; b < b1; ++b) {
+      const double rsum = ra + d.r[b], cut = rsum + skin;
+      const double dx = xa.x - d.x[b], dy = xa.y - d.y[b], dz = xa.z - d.z[b];
+      const double d2 = dx * dx + dy * dy + dz * dz;
+      out[hits] = b;  // branch-free append: a hit is rare enough that a branch mispredicts
+      hits += d2 < cut * cut;
+      touch += d2 < rsum * rsum;
+    }
+  }
+  touching += touch;
+  return hits;
+}
+
+#if defined(__x86_64__) && defined(__GNUC__)
+__attribute__((target("avx512f,avx512vl"))) static std::int32_t row_hits_avx512(
+    const RowData& d, Vec3 xa, double ra, double skin, std::int32_t a,
+    const std::int32_t* row_begin, const std::int32_t* row_end, int rows, std::int32_t* out,
+    std::int32_t& touching) {
+  const __m512d ax = _mm512_set1_pd(xa.x), ay = _mm512_set1_pd(xa.y), az = _mm512_set1_pd(xa.z);
+  const __m512d vr = _mm512_set1_pd(ra), vs = _mm512_set1_pd(skin);
+  const __m256i iota = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+  std::int32_t hits = 0, touch = 0;
+  for (int q = 0; q < rows; ++q) {
+    const std::int32_t b0 = std::max(row_begin[q], a + 1), b1 = row_end[q];
+    for (std::int32_t b = b0; b < b1; b += 8) {
+      const int left = b1 - b;
+      const __mmask8 live = left >= 8 ? 0xFF : static_cast<__mmask8>((1u << left) - 1);
+      const __m512d bx = _mm512_maskz_loadu_pd(live, d.x + b);
+      const __m512d by = _mm512_maskz_loadu_pd(live, d.y + b);
+      const __m512d bz = _mm512_maskz_loadu_pd(live, d.z + b);
+      const __m512d br = _mm512_maskz_loadu_pd(live, d.r + b);
+      const __m512d rsum = _mm512_add_pd(vr, br), cut = _mm512_add_pd(rsum, vs);
+      const __m512d dx = _mm512_sub_pd(ax, bx), dy = _mm512_sub_pd(ay, by),
+                    dz = _mm512_sub_pd(az, bz);
+      const __m512d d2 = _mm512_add_pd(
+          _mm512_add_pd(_mm512_mul_pd(dx, dx), _mm512_mul_pd(dy, dy)), _mm512_mul_pd(dz, dz));
+      const __mmask8 hit =
+          _mm512_mask_cmp_pd_mask(live, d2, _mm512_mul_pd(cut, cut), _CMP_LT_OQ);
+      const __mmask8 tch =
+          _mm512_mask_cmp_pd_mask(live, d2, _mm512_mul_pd(rsum, rsum), _CMP_LT_OQ);
+      const __m256i idx = _mm256_add_epi32(_mm256_set1_epi32(b), iota);
+      _mm256_mask_compressstoreu_epi32(out + hits, hit, idx);
+      hits += __builtin_popcount(hit);
+      touch += __builtin_popcount(tch);
+    }
+  }
+  touching += touch;
+  return hits;
+}
+#endif
+
+bool row_hits_vector_available() {
+#if defined(__x86_64__) && defined(__GNUC__)
+  __builtin_cpu_init();
+  return __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl");
+#else
+  return false;
+#endif
+}
+
+std::int32_t row_hits_vector(const RowData& d, Vec3 xa, double ra, double skin, std::int32_t a,
+                             const std::int32_t* row_begin, const std::int32_t* row_end,
+                             int rows, std::int32_t* out, std::int32_t& touching) {
+#if defined(__x86_64__) && defined(__GNUC__)
+  if (row_hits_vector_available())
+    return row_hits_avx512(d, xa, ra, skin, a, row_begin, row_end, rows, out, touching);
+#endif
+  return row_hits_scalar(d, xa, ra, skin, a, row_begin, row_end, rows, out, touching);
+}
+
+}  // namespace detail
+
+namespace {
+
+using detail::RowData;
+using RowHits = std::int32_t (*)(const RowData&, Vec3, double, double, std::int32_t,
+                                 const std::int32_t*, const std::int32_t*, int, std::int32_t*,
+                                 std::int32_t&);
+#if defined(__x86_64__) && defined(__GNUC__)
+const RowHits row_hits =
+    detail::row_hits_vector_available() ? detail::row_hits_avx512 : detail::row_hits_scalar;
+#else
+const RowHits row_hits = detail::row_hits_scalar;
+#endif
+
+}  // namespace
+
 
 template <class T>
 void BroadPhase::permute(std::vector<T>& a, std::size_t p0, std::size_t p1) {
@@ -41,7 +141,8 @@ std::size_t BroadPhase::workspace_bytes() const {
   std::size_t b = held(cell_of_) + held(cell_start_) + held(fill_) + held(order_) +
                   held(new_index_) + held(scratch_) + held(old_offset_) + held(old_j_) +
                   held(old_spring_) + held(pool_key_) + held(pool_spring_) +
-                  held(tri_candidates_) + held(tri_count_);
+                  held(tri_candidates_) + held(tri_count_) + held(px_) + held(py_) +
+                  held(pz_) + held(pr_);
   for (const auto& v : thread_j_) b += held(v);
   for (const auto& v : thread_tri_) b += held(v);
   return b;
@@ -140,10 +241,24 @@ void BroadPhase::build(const Scene& scene, State& s,
   s.pair_work.resize(n + 1);
   s.pair_work[0] = 0;
   work_base_.assign(T + 1, 0);
+  px_.resize(n);
+  py_.resize(n);
+  pz_.resize(n);
+  pr_.resize(n);
+  const RowData rd{px_.data(), py_.data(), pz_.data(), pr_.data()};
 #pragma omp parallel num_threads(T)
   {
     const int t = omp_get_thread_num();
     const std::size_t a0 = n * t / T, a1 = n * (t + 1) / T;
+    // Positions and radii as separate arrays in the new order, for the distance test of whole
+    // stencil rows at once (row_hits).
+    for (std::size_t a = a0; a < a1; ++a) {
+      px_[a] = s.x[a].x;
+      py_[a] = s.x[a].y;
+      pz_[a] = s.x[a].z;
+      pr_[a] = s.radius[a];
+    }
+#pragma omp barrier
     // Work on a local vector: the vector headers of neighbouring threads share a cache line.
     // J is used as a raw buffer: its first `used` entries are this thread's list.
     std::vector<std::int32_t> J;
@@ -160,6 +275,7 @@ void BroadPhase::build(const Scene& scene, State& s,
     long cell = -1;
     std::int32_t row_begin[5], row_end[5];
     int rows = 0;
+    std::int32_t span = 0;  // candidates in the rows: at most this many hits
     for (std::size_t a = a0; a < a1; ++a) {
       if (cell_of_[a] != cell) {  // the rows are the same for every particle of a cell
         cell = cell_of_[a];
@@ -175,30 +291,15 @@ void BroadPhase::build(const Scene& scene, State& s,
           row_end[rows] = start[row + x1 + 1];
           if (row_end[rows] > row_begin[rows]) ++rows;
         }
+        span = 0;
+        for (int r = 0; r < rows; ++r) span += row_end[r] - row_begin[r];
       }
-      const Vec3 xa = X[a];
-      const double ra = R[a];
-      std::int32_t count = 0, touching = 0;
-      for (int r = 0; r < rows; ++r) {
-        const std::int32_t b0 = std::max<std::int32_t>(row_begin[r], static_cast<std::int32_t>(a) + 1);
-        const std::int32_t b1 = row_end[r];
-        if (b1 <= b0) continue;
-        // Branch-free append: write every candidate, advance only on a hit (a hit is rare
-        // enough that a branch would mispredict often).
-        const std::size_t need = used + static_cast<std::size_t>(b1 - b0);
-        if (need > J.size()) J.resize(std::max(need, 2 * J.size()));  // rare: grows once
-        std::int32_t* out = J.data() + used;
-        std::int32_t hits = 0;
-        for (std::int32_t b = b0; b < b1; ++b) {
-          const double rsum = ra + R[b], cut = rsum + skin;
-          const double d2 = norm2(xa - X[b]);
-          out[hits] = b;
-          hits += d2 < cut * cut;
-          touching += d2 < rsum * rsum;
-        }
-        used += static_cast<std::size_t>(hits);
-        count += hits;
-      }
+      const std::size_t need = used + static_cast<std::size_t>(span);
+      if (need > J.size()) J.resize(std::max(need, 2 * J.size()));  // rare: grows once
+      std::int32_t touching = 0;
+      const std::int32_t count = row_hits(rd, X[a], R[a], skin, static_cast<std::int32_t>(a),
+                                          row_begin, row_end, rows, J.data() + used, touching);
+      used += static_cast<std::size_t>(count);
       offset[a + 1] = count;
       // Work of the row for the threads of the pair forces: a touching pair costs about four
       // times a candidate that is not (docs/performance.md).
@@ -237,7 +338,7 @@ void BroadPhase::build(const Scene& scene, State& s,
     for (std::size_t oa = 0; oa < n; ++oa) {
       for (std::int32_t k = old_offset_[oa]; k < old_offset_[oa + 1]; ++k) {
         const Vec3 sp = old_spring_[k];
-        if (sp.x == 0 && sp.y == 0 && sp.z == 0) continue;
+        if (!nonzero(sp)) continue;
         const std::int32_t na = new_index_[oa], nb = new_index_[old_j_[k]];
         const bool swap = na > nb;  // the spring is stored on the lower index of the pair
         const std::int32_t row = swap ? nb : na, col = swap ? na : nb;

@@ -155,3 +155,80 @@ TEST(dem_BroadPhase, StrictGuardThrowsNamingIntervalAndSkin) {
 }
 
 }  // namespace
+
+// The pair list's distance test, 8 candidates at a time with AVX-512 where the processor has
+// it, makes exactly the scalar test's decisions: same candidates in the same order, same count
+// of touching ones, including distances that equal the cut-off or the contact distance in
+// floating point (those are not hits: both compare with <) and rows of every length 0..19.
+TEST(dem_BroadPhase, VectorRowTestMakesTheScalarDecisions) {
+  if (!dem::detail::row_hits_vector_available())
+    GTEST_SKIP() << "this processor has no AVX-512F/VL: the pair list uses the scalar test";
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(-1, 1), ur(0.4, 0.6);
+  const double skin = 0.2;
+  const int n = 4000;
+  std::vector<double> x(n), y(n), z(n), r(n);
+  for (int k = 0; k < n; ++k) {
+    x[k] = 1.5 * u(rng);
+    y[k] = 1.5 * u(rng);
+    z[k] = 1.5 * u(rng);
+    r[k] = ur(rng);
+  }
+  const dem::detail::RowData d{x.data(), y.data(), z.data(), r.data()};
+  int boundary_cases = 0, hits_total = 0, touching_total = 0;
+  for (int trial = 0; trial < 400; ++trial) {
+    const std::int32_t a = trial * 7;
+    const dem::Vec3 xa{x[a], y[a], z[a]};
+    const double ra = r[a];
+    // Some candidates exactly at the cut-off or at contact along x (d2 == cut^2 in doubles).
+    bool exact[3];
+    for (int e = 0; e < 3; ++e) {
+      const std::int32_t b = a + 1 + e;
+      const double rsum = ra + r[b];
+      const double dist = e == 0 ? rsum + skin : (e == 1 ? rsum : 0.5 * rsum);
+      x[b] = xa.x + dist;
+      y[b] = xa.y;
+      z[b] = xa.z;
+      exact[e] = (x[b] - xa.x) == dist;
+      boundary_cases += exact[e];
+    }
+    std::int32_t begin[5], end[5];
+    int rows = 0;
+    std::int32_t next = a - 3;  // the first row starts before a: only b > a count
+    for (int q = 0; q < 5; ++q) {
+      const std::int32_t len = (trial + 3 * q) % 20;
+      if (next + len >= n) break;
+      begin[q] = next;
+      end[q] = next + len;
+      next += len + (trial % 5);
+      ++rows;
+    }
+    std::vector<std::int32_t> out_s(200, -1), out_v(200, -1);
+    std::int32_t touch_s = 0, touch_v = 0;
+    const std::int32_t hs =
+        dem::detail::row_hits_scalar(d, xa, ra, skin, a, begin, end, rows, out_s.data(), touch_s);
+    const std::int32_t hv =
+        dem::detail::row_hits_vector(d, xa, ra, skin, a, begin, end, rows, out_v.data(), touch_v);
+    ASSERT_EQ(hs, hv) << "trial " << trial;
+    ASSERT_EQ(touch_s, touch_v) << "trial " << trial;
+    for (std::int32_t k = 0; k < hs; ++k) {
+      ASSERT_EQ(out_s[k], out_v[k]) << "trial " << trial << " hit " << k;
+      ASSERT_GT(out_s[k], a);
+    }
+    // The scalar decisions against the definition, for the three placed candidates.
+    std::set<std::int32_t> listed(out_s.begin(), out_s.begin() + hs);
+    for (int e = 0; e < 3; ++e) {
+      const std::int32_t b = a + 1 + e;
+      bool in_rows = false;
+      for (int q = 0; q < rows; ++q) in_rows |= b >= begin[q] && b < end[q];
+      if (in_rows && exact[e]) {
+        EXPECT_EQ(listed.count(b), e == 0 ? 0u : 1u) << "trial " << trial;
+      }
+    }
+    hits_total += hs;
+    touching_total += touch_s;
+  }
+  EXPECT_GT(boundary_cases, 600);  // most placed distances were exact in floating point
+  EXPECT_GT(hits_total, 400);
+  EXPECT_GT(touching_total, 400);
+}

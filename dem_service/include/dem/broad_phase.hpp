@@ -26,6 +26,30 @@ enum : std::size_t {
 };
 }  // namespace stage
 
+namespace detail {
+// The distance test of the pair list for particle a over its stencil rows: the candidates b in
+// [max(row_begin[q], a + 1), row_end[q]) for q < rows whose centre distance is below
+// r_a + r_b + skin, written to `out` in order; their number is returned, and those already
+// touching (distance below r_a + r_b) are added to `touching`. Positions and radii come as
+// separate arrays in cell order. row_hits_vector does it 8 candidates at a time with AVX-512
+// where the processor has it (row_hits_vector_available) and makes exactly the decisions of
+// row_hits_scalar (same operations in the same order, no contraction), so the list does not
+// depend on the processor; without AVX-512 it is row_hits_scalar.
+struct RowData {
+  const double* x;
+  const double* y;
+  const double* z;
+  const double* r;
+};
+std::int32_t row_hits_scalar(const RowData& d, Vec3 xa, double ra, double skin, std::int32_t a,
+                             const std::int32_t* row_begin, const std::int32_t* row_end,
+                             int rows, std::int32_t* out, std::int32_t& touching);
+std::int32_t row_hits_vector(const RowData& d, Vec3 xa, double ra, double skin, std::int32_t a,
+                             const std::int32_t* row_begin, const std::int32_t* row_end,
+                             int rows, std::int32_t* out, std::int32_t& touching);
+bool row_hits_vector_available();
+}  // namespace detail
+
 class BroadPhase {
  public:
   // tool_vertices[m]: world positions of tool m's mesh vertices at the current pose.
@@ -55,6 +79,7 @@ class BroadPhase {
   std::vector<std::int64_t> work_base_;
   std::vector<std::int32_t> old_offset_, old_j_;
   std::vector<Vec3> old_spring_;
+  std::vector<double> px_, py_, pz_, pr_;  // positions and radii in cell order, for the pair list
   std::vector<std::uint64_t> pool_key_;  // the next boundary slot pool, swapped in
   std::vector<Vec3> pool_spring_;
   struct TriCandidate {
