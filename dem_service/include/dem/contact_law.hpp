@@ -51,6 +51,7 @@ struct ContactCoefficients {
   double eta = 0;   // normal damping, N s/m
   double kt = 0;    // tangential stiffness, N/m
   double etat = 0;  // tangential damping, N s/m
+  double neg_inv_kt = 0;  // -1 / kt (kt > 0), for the spring reset when the cap binds
 };
 
 // length: r_i r_j / (r_i + r_j) for two spheres, r_i against a wall or tool.
@@ -62,6 +63,7 @@ inline ContactCoefficients coefficients(const ContactLaw& law, double length, do
                                        : law.normal_damping;
   c.kt = law.tangential_stiffness_ratio * c.k;
   c.etat = law.tangential_damping_ratio * c.eta;
+  c.neg_inv_kt = c.kt > 0 ? -1.0 / c.kt : 0.0;
   return c;
 }
 
@@ -115,7 +117,7 @@ inline bool contact_force(const ContactLaw& law, const ContactCoefficients& c, d
   // what the branch gave; the unselected quotient may be inf or NaN and is dropped).
   const bool binds = ft2 > cap * cap;
   const Vec3 capped = (cap / std::sqrt(ft2)) * ft;
-  const Vec3 reset = c.kt > 0 ? (-1.0 / c.kt) * capped : Vec3{};
+  const Vec3 reset = c.kt > 0 ? c.neg_inv_kt * capped : Vec3{};
   ft = select(binds, capped, ft);
   spring = select(binds, reset, spring);
   force = fn * n + ft;
@@ -128,7 +130,7 @@ inline bool surely_apart(double d2, double rsum, double urel2, double dt) {
   if (d2 < rsum * rsum) return false;
   const double g2 = 0.25 * dt * dt * urel2;
   const double q = d2 - rsum * rsum - g2;
-  return q >= 0 && q * q >= 4 * rsum * rsum * g2;
+  return (q >= 0) & (q * q >= 4 * rsum * rsum * g2);  // one branch for the caller, not two
 }
 
 // Period used by the dt check: the shortest of the damped and undamped normal contact
