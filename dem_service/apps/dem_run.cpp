@@ -57,6 +57,15 @@ std::string extent(const dem::State& s) {
 
 void print_timing(const dem::Engine& engine, const dem::State& s, double sim_time, long long steps,
                   double wall, long long rebuilds, long long early, double asleep_share) {
+  if (steps == 0) {
+    // A settle-only run (run.duration 0, e.g. a pile preparation): a table of zeros and a
+    // "real-time factor 0" would read as a measurement.
+    std::printf("\nNo run steps (run.duration is 0): no loop timing. Memory: %.0f B per particle "
+                "in State, peak resident %.0f MB\n",
+                static_cast<double>(dem::bytes(s)) / std::max<double>(1.0, s.size()),
+                static_cast<double>(cosim::peak_resident_bytes()) / 1e6);
+    return;
+  }
   std::vector<cosim::TimingRow> rows = engine.timing().rows();
   rows.push_back({"other", std::max(0.0, wall - engine.timing().sum())});
   char title[160], rtf[96], rate[96], phases[128];
