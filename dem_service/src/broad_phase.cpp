@@ -3,6 +3,7 @@
 #include <omp.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -102,14 +103,19 @@ using detail::RowData;
 using RowHits = std::int32_t (*)(const RowData&, Vec3, double, double, std::int32_t,
                                  const std::int32_t*, const std::int32_t*, int, std::int32_t*,
                                  std::int32_t&);
+RowHits choose_row_hits(bool vector) {
 #if defined(__x86_64__) && defined(__GNUC__)
-const RowHits row_hits =
-    detail::row_hits_vector_available() ? detail::row_hits_avx512 : detail::row_hits_scalar;
-#else
-const RowHits row_hits = detail::row_hits_scalar;
+  if (vector && detail::row_hits_vector_available()) return detail::row_hits_avx512;
 #endif
+  return detail::row_hits_scalar;
+}
+
+// Chosen once at start; tests switch it (detail::use_vector_row_test).
+std::atomic<RowHits> row_hits_choice{choose_row_hits(true)};
 
 }  // namespace
+
+void detail::use_vector_row_test(bool vector) { row_hits_choice = choose_row_hits(vector); }
 
 
 template <class T>
@@ -246,6 +252,7 @@ void BroadPhase::build(const Scene& scene, State& s,
   pz_.resize(n);
   pr_.resize(n);
   const RowData rd{px_.data(), py_.data(), pz_.data(), pr_.data()};
+  const RowHits row_hits = row_hits_choice.load(std::memory_order_relaxed);
 #pragma omp parallel num_threads(T)
   {
     const int t = omp_get_thread_num();

@@ -48,6 +48,9 @@ std::int32_t row_hits_vector(const RowData& d, Vec3 xa, double ra, double skin, 
                              const std::int32_t* row_begin, const std::int32_t* row_end,
                              int rows, std::int32_t* out, std::int32_t& touching);
 bool row_hits_vector_available();
+// Which test the broad phase uses from now on: the vector one where available (the default) or
+// the scalar one everywhere (tests compare whole runs with both).
+void use_vector_row_test(bool vector);
 }  // namespace detail
 
 class BroadPhase {
