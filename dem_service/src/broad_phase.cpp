@@ -85,14 +85,22 @@ bool row_hits_vector_available() {
 #endif
 }
 
+using RowHits = std::int32_t (*)(const RowData&, Vec3, double, double, std::int32_t,
+                                 const std::int32_t*, const std::int32_t*, int, std::int32_t*,
+                                 std::int32_t&);
+
+// The one place that picks the test: the vector one when asked for and available.
+static RowHits choose_row_hits(bool vector) {
+#if defined(__x86_64__) && defined(__GNUC__)
+  if (vector && row_hits_vector_available()) return row_hits_avx512;
+#endif
+  return row_hits_scalar;
+}
+
 std::int32_t row_hits_vector(const RowData& d, Vec3 xa, double ra, double skin, std::int32_t a,
                              const std::int32_t* row_begin, const std::int32_t* row_end,
                              int rows, std::int32_t* out, std::int32_t& touching) {
-#if defined(__x86_64__) && defined(__GNUC__)
-  if (row_hits_vector_available())
-    return row_hits_avx512(d, xa, ra, skin, a, row_begin, row_end, rows, out, touching);
-#endif
-  return row_hits_scalar(d, xa, ra, skin, a, row_begin, row_end, rows, out, touching);
+  return choose_row_hits(true)(d, xa, ra, skin, a, row_begin, row_end, rows, out, touching);
 }
 
 }  // namespace detail
@@ -100,18 +108,10 @@ std::int32_t row_hits_vector(const RowData& d, Vec3 xa, double ra, double skin, 
 namespace {
 
 using detail::RowData;
-using RowHits = std::int32_t (*)(const RowData&, Vec3, double, double, std::int32_t,
-                                 const std::int32_t*, const std::int32_t*, int, std::int32_t*,
-                                 std::int32_t&);
-RowHits choose_row_hits(bool vector) {
-#if defined(__x86_64__) && defined(__GNUC__)
-  if (vector && detail::row_hits_vector_available()) return detail::row_hits_avx512;
-#endif
-  return detail::row_hits_scalar;
-}
+using detail::RowHits;
 
 // Chosen once at start; tests switch it (detail::use_vector_row_test).
-std::atomic<RowHits> row_hits_choice{choose_row_hits(true)};
+std::atomic<RowHits> row_hits_choice{detail::choose_row_hits(true)};
 
 }  // namespace
 
