@@ -54,6 +54,7 @@ void save_checkpoint(const State& s, const std::string& path) {
                                            s.rebuilds, s.early_rebuilds};
   h5::write(file, "counters", counters);
   h5::write(file, "max_displacement", std::vector<double>{s.max_displacement});
+  h5::write(file, "second_displacement", std::vector<double>{s.second_displacement});
   h5::write(file, "removed_count", std::vector<std::int64_t>{s.removed_count});
   h5::write(file, "removed_mass", std::vector<double>{s.removed_mass});
   for_each_array(s, [&](const char* name, const auto& array, Field) {
@@ -79,6 +80,11 @@ State load_checkpoint(const std::string& path) {
     s.rebuilds = counters[3];
     s.early_rebuilds = counters[4];
     s.max_displacement = h5::read<double>(file, "max_displacement").at(0);
+    // Written since the guard uses the two largest displacements; before, it assumed both
+    // particles of a pair moved the largest.
+    s.second_displacement = H5Lexists(file, "second_displacement", H5P_DEFAULT) > 0
+                                ? h5::read<double>(file, "second_displacement").at(0)
+                                : s.max_displacement;
     // Written since the region of interest exists; older checkpoints removed nothing.
     if (H5Lexists(file, "removed_count", H5P_DEFAULT) > 0) {
       s.removed_count = h5::read<std::int64_t>(file, "removed_count").at(0);
@@ -89,7 +95,7 @@ State load_checkpoint(const std::string& path) {
       // the first step then rebuilds the lists.
       const std::string_view key(name);
       if ((key == "wall_mask" || key == "slot_block" || key == "slot_particle" ||
-           key == "pair_work") &&
+           key == "pair_work" || key == "pair_reach") &&
           H5Lexists(file, name, H5P_DEFAULT) <= 0) {
         s.lists_valid = false;
         return;
