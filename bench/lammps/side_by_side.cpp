@@ -11,8 +11,6 @@
 //       "rate <particle-steps/s> seconds <wall> rebuilds <broad phases in the timed steps>
 //       threads <used> cpu_share <process CPU time / (wall * threads)>".
 //       --interval 0 rebuilds only when needed (the skin guard), like LAMMPS `check yes`.
-//   run takes --fused 1|0: scene.fused_step (default 1; 0 runs the step's three passes
-//   separately, each timed).
 //   run and trace take --thread-wait passive|brief|spin (default: scene.thread_wait's default),
 //   applied as dem_run applies scene.thread_wait (docs/dem.md); OMP_WAIT_POLICY or
 //   GOMP_SPINCOUNT in the environment win over it.
@@ -266,10 +264,9 @@ void prepare(const std::string& kind, long n, const std::string& dir) {
 
 
 int run(const std::string& kind, long n, const std::string& dir, int threads, int interval,
-        int steps, bool fused) {
+        int steps) {
   const Box b = read_box(base(dir, kind, n) + ".box");
-  dem::Scene scene = make_scene(b, threads, interval);
-  scene.fused_step = fused;
+  const dem::Scene scene = make_scene(b, threads, interval);
   dem::State st = load(dir, kind, n);
   dem::Engine engine(scene);
   for (int k = 0; k < 20; ++k) engine.step(st);  // warm-up, like LAMMPS `run 20` before
@@ -330,7 +327,7 @@ int main(int argc, char** argv) {
   if (argc < 2) {
     std::fprintf(stderr, "usage: dem_side_by_side prepare|run|trace --kind bed|gas --n N "
                          "--dir DIR [--threads T --interval I --steps S --duration D --every E]"
-                         " [--thread-wait passive|brief|spin] [--fused 1|0]"
+                         " [--thread-wait passive|brief|spin]"
                          "\n(see the header of bench/lammps/side_by_side.cpp)\n");
     return 2;
   }
@@ -339,7 +336,7 @@ int main(int argc, char** argv) {
                                          {"--dir", "results/bench_lammps"},
                                          {"--threads", "1"}, {"--interval", "5"},
                                          {"--steps", "200"}, {"--duration", "0.1"},
-                                         {"--every", "0.002"}, {"--fused", "1"},
+                                         {"--every", "0.002"},
                                          {"--thread-wait",
                                           dem::thread_wait_name(dem::Scene{}.thread_wait)}};
   if (!bench::parse_options(argc, argv, 2, "dem_side_by_side", opt)) return 2;
@@ -358,11 +355,7 @@ int main(int argc, char** argv) {
         dem::apply_thread_wait(dem::read_thread_wait(scene_node), argv);
     std::fprintf(stderr, "dem_side_by_side: idle threads wait %s\n", wait.c_str());
     const int threads = std::stoi(opt["--threads"]), interval = std::stoi(opt["--interval"]);
-    if (opt["--fused"] != "1" && opt["--fused"] != "0")
-      throw std::runtime_error("--fused is 1 (scene.fused_step, the default) or 0, not '" +
-                               opt["--fused"] + "'");
-    if (cmd == "run")
-      return run(kind, n, dir, threads, interval, std::stoi(opt["--steps"]), opt["--fused"] == "1");
+    if (cmd == "run") return run(kind, n, dir, threads, interval, std::stoi(opt["--steps"]));
     if (cmd == "trace")
       return trace(kind, n, dir, threads, interval, std::stod(opt["--duration"]),
                    std::stod(opt["--every"]));

@@ -246,8 +246,6 @@ void BroadPhase::build(const Scene& scene, State& s,
   s.pair_offset[0] = 0;
   s.pair_work.resize(n + 1);
   s.pair_work[0] = 0;
-  s.pair_reach.resize(n);
-  thread_reach_.assign(T, -1);
   work_base_.assign(T + 1, 0);
   px_.resize(n);
   py_.resize(n);
@@ -278,8 +276,6 @@ void BroadPhase::build(const Scene& scene, State& s,
     const std::int32_t* const start = cell_start_.data();
     std::int32_t* const offset = s.pair_offset.data();
     std::int64_t* const work = s.pair_work.data();
-    std::int32_t* const reach = s.pair_reach.data();
-    std::int32_t reach_run = -1;  // running maximum of the partners in this thread's rows
     // The cells after a particle's own in the numbering, within one cell: its own row (from
     // the particle itself on) and four more rows of three cells (x-1..x+1 are one contiguous
     // index range). The earlier rows list their pairs with this one themselves.
@@ -310,9 +306,6 @@ void BroadPhase::build(const Scene& scene, State& s,
       std::int32_t touching = 0;
       const std::int32_t count = row_hits(rd, X[a], R[a], skin, static_cast<std::int32_t>(a),
                                           row_begin, row_end, rows, J.data() + used, touching);
-      std::int32_t far = static_cast<std::int32_t>(a);
-      for (std::int32_t q = 0; q < count; ++q) far = std::max(far, J[used + q]);
-      reach[a] = reach_run = std::max(reach_run, far);
       used += static_cast<std::size_t>(count);
       offset[a + 1] = count;
       // Work of the row for the threads of the pair forces: a touching pair costs about four
@@ -320,7 +313,6 @@ void BroadPhase::build(const Scene& scene, State& s,
       work[a + 1] = 1 + count + 4 * touching;
     }
     thread_used_[t] = used;
-    thread_reach_[t] = reach_run;
     std::int64_t wsum = 0;
     for (std::size_t a = a0; a < a1; ++a) work[a + 1] = wsum += work[a + 1];
     work_base_[t + 1] = wsum;
@@ -335,10 +327,6 @@ void BroadPhase::build(const Scene& scene, State& s,
     std::int32_t run = static_cast<std::int32_t>(thread_base_[t]);
     for (std::size_t a = a0; a < a1; ++a) offset[a + 1] = run += offset[a + 1];
     for (std::size_t a = a0; a < a1; ++a) work[a + 1] += work_base_[t];
-    std::int32_t before = -1;  // the earlier threads' rows reach this far
-    for (int k = 0; k < t; ++k) before = std::max(before, thread_reach_[k]);
-    if (before > 0)
-      for (std::size_t a = a0; a < a1; ++a) reach[a] = std::max(reach[a], before);
     std::copy(J.begin(), J.begin() + used, s.pair_j.begin() + thread_base_[t]);
     std::fill(s.pair_spring.begin() + thread_base_[t],
               s.pair_spring.begin() + thread_base_[t] + used, Vec3{});

@@ -80,8 +80,8 @@ State load_checkpoint(const std::string& path) {
     s.rebuilds = counters[3];
     s.early_rebuilds = counters[4];
     s.max_displacement = h5::read<double>(file, "max_displacement").at(0);
-    // Written since the guard uses the two largest displacements; before, it assumed both
-    // particles of a pair moved the largest.
+    // Written since the guard uses the two largest displacements; an older checkpoint's guard
+    // assumed both particles of a pair moved the largest.
     s.second_displacement = H5Lexists(file, "second_displacement", H5P_DEFAULT) > 0
                                 ? h5::read<double>(file, "second_displacement").at(0)
                                 : s.max_displacement;
@@ -95,7 +95,7 @@ State load_checkpoint(const std::string& path) {
       // the first step then rebuilds the lists.
       const std::string_view key(name);
       if ((key == "wall_mask" || key == "slot_block" || key == "slot_particle" ||
-           key == "pair_work" || key == "pair_reach") &&
+           key == "pair_work") &&
           H5Lexists(file, name, H5P_DEFAULT) <= 0) {
         s.lists_valid = false;
         return;

@@ -166,8 +166,8 @@ void parse_region(const YAML::Node& r, RegionOptions& o) {
 void parse_scene_options(const YAML::Node& s, Scene& sc) {
   if (!s) throw ConfigError("scene: missing (expected a map with dt, gravity, ...)");
   cfg::check_keys(s, "scene", {"dt", "gravity", "broad_phase_interval", "skin", "guard", "threads",
-                               "min_particles_per_thread", "thread_wait", "fused_step", "stability",
-                               "sleep", "region"});
+                               "min_particles_per_thread", "thread_wait", "stability", "sleep",
+                               "region"});
   sc.dt = cfg::get_positive(s, "scene", "dt");
   if (s["gravity"]) sc.gravity = vec3(s, "scene", "gravity");
   sc.broad_phase_interval =
@@ -188,7 +188,6 @@ void parse_scene_options(const YAML::Node& s, Scene& sc) {
   if (sc.min_particles_per_thread < 1)
     throw ConfigError("scene.min_particles_per_thread: must be >= 1 (1 = always use scene.threads)");
   sc.thread_wait = parse_thread_wait(s, sc.thread_wait);
-  sc.fused_step = cfg::get_bool_or(s, "scene", "fused_step", sc.fused_step);
   if (const YAML::Node st = s["stability"]) parse_stability(st, sc.stability);
   if (const YAML::Node sl = s["sleep"]) parse_sleep(sl, sc, sc.sleep);
   if (const YAML::Node r = s["region"]) parse_region(r, sc.region);

@@ -99,16 +99,6 @@ bool shares_vertex(const Scene& scene, std::uint64_t a, std::uint64_t b) {
 
 }  // namespace
 
-// Room for one particle's wall and mesh contacts (boundary_contacts), one per thread.
-// The step's per-particle parts are lambdas in one parallel region; they must be inlined into
-// their loops, or everything they capture by reference lives in memory instead of registers.
-#define DEM_INLINE __attribute__((always_inline))
-
-struct Engine::BoundaryScratch {
-  BoundaryContact contacts[kBoundarySlots];
-  TriangleHit hits[kMaxHits];
-};
-
 Timing make_timing() {
   return Timing({"broad_phase", "pair_forces", "mesh_contacts", "integration", "output"});
 }
@@ -118,7 +108,8 @@ Engine::Engine(const Scene& scene) : scene_(scene) {
   remote_.resize(max_threads_);
   remote_wake_.resize(max_threads_);
   thread_tool_wrench_.assign(max_threads_, std::vector<Wrench>(scene.tools.size()));
-  sums_.assign(max_threads_, StepSums{});
+  thread_stats_.assign(max_threads_, ContactStats{});
+  boundary_stats_.assign(max_threads_, ContactStats{});
   thread_wall_force_.assign(max_threads_, std::vector<Vec3>(scene.walls.size()));
   tool_wrench_.resize(scene.tools.size());
   wall_force_.resize(scene.walls.size());
@@ -159,9 +150,10 @@ void Engine::update_tool_geometry(const State& s) {
 bool Engine::guard_fires(const State& s, double* moved) const {
   // A pair not in the list was more than `skin` apart at the last broad phase; it can touch
   // only after the two bodies together moved more than that.
-  // So the two largest displacements bound what any pair moved together (they belong to two
-  // different particles); one particle alone reaches a wall or mesh triangle not among its
-  // candidates only after moving the whole skin.
+  // The two largest displacements belong to two different particles, so their sum bounds what
+  // any pair moved together (twice the largest, the usual bound, waits for half the skin when
+  // one grain flies); one particle alone reaches a wall or mesh triangle not among its
+  // candidates only after moving the whole skin, which the sum covers too.
   double worst = s.max_displacement + s.second_displacement;
   for (std::size_t m = 0; m < scene_.tools.size(); ++m) {
     const ToolPose& now = s.tool_pose[m];
@@ -228,7 +220,7 @@ void Engine::prepare(State& s) {
   const bool due = !s.lists_valid || s.steps_since_rebuild >= scene_.broad_phase_interval ||
                    s.pair_offset.size() != s.size() + 1 || s.slot_block.size() != s.size() ||
                    s.slot_particle.size() * kBoundarySlots != s.slot_key.size() ||
-                   s.pair_work.size() != s.size() + 1 || s.pair_reach.size() != s.size();
+                   s.pair_work.size() != s.size() + 1;
   double moved = 0;
   if (due) {
     remove_outside(s);
@@ -255,65 +247,52 @@ void Engine::prepare(State& s) {
 
 void Engine::step(State& s) {
   prepare(s);
-  if (scene_.sleep.enabled)
-    step_impl<true>(s);
-  else
-    step_impl<false>(s);
+  cosim::Stopwatch watch;
+  pair_forces(s);
+  timing_.lap(section::pair_forces, watch);
+  boundary_forces(s);
+  timing_.lap(section::mesh_contacts, watch);
+
+  stats_ = ContactStats{};
+  for (int t = 0; t < threads_; ++t)
+    for (const ContactStats* c : {&thread_stats_[t], &boundary_stats_[t]}) {
+      stats_.particle_contacts += c->particle_contacts;
+      stats_.boundary_contacts += c->boundary_contacts;
+      stats_.max_overlap = std::max(stats_.max_overlap, c->max_overlap);
+      stats_.max_overlap_ratio = std::max(stats_.max_overlap_ratio, c->max_overlap_ratio);
+    }
+
+  watch.restart();
+  integrate(s);
+  timing_.lap(section::integration, watch);
 }
 
-// One parallel region per step (docs/performance.md, "One pass per step"). Each thread takes a
-// contiguous particle range of equal pair work (State::pair_work) and walks its rows of the
-// half list. The forces on a particle are complete once its own row is done, apart from what
-// the rows of earlier threads add to it; those reach only the particles below the thread's
-// guard (State::pair_reach). And a particle whose row is done is never read again by a later
-// row (rows read partners j > i only). So with scene.fused_step each particle at or above the
-// guard gets its wall and mesh contacts and its integration right after its row, while its
-// data is in the cache; the few below wait for the barrier and the earlier threads' remote
-// forces. Every particle sums its forces in the same order either way (gravity, the rows in
-// order, the remote forces in thread order, the wall and mesh contacts), so particle states are
-// bit-identical with and without fusing; only the tools' and walls' wrench sums are grouped
-// differently. Without fusing the three passes run one after the other in the same region,
-// each timed on its own.
-//
+void Engine::pair_forces(State& s) {
+  if (scene_.sleep.enabled)
+    pair_forces_impl<true>(s);
+  else
+    pair_forces_impl<false>(s);
+}
+
 // Sleep = false is the all-active loop; Sleep = true adds the sleeper rules (Scene::sleep) and
 // computes every force that the all-active loop computes between awake particles in the same
 // order, so the awake part of the bed sees the same sums.
 template <bool Sleep>
-void Engine::step_impl(State& s) {
-  cosim::Stopwatch watch;
+void Engine::pair_forces_impl(State& s) {
   const std::size_t n = s.size();
-  const int T = threads_;
-  const bool fused = scene_.fused_step;
   if (Sleep) wake_.resize(n);
-  force_.resize(n);
   const std::int32_t S = scene_.sleep.steps;
   const double wake_speed2 = scene_.sleep.speed * scene_.sleep.speed;
+  const std::int32_t* const REST = s.rest_steps.data();
+  std::uint8_t* const WAKE = wake_.data();
+  force_.resize(n);
+  const int T = threads_;
   const ContactLaw law = scene_.particle_particle;  // a local copy: no reloads after stores
   const double dt = scene_.dt;
   const Vec3 g = scene_.gravity;
-  const std::size_t ntools = scene_.tools.size(), nwalls = scene_.walls.size();
-  const bool boundaries = ntools > 0 || nwalls > 0;
-
-  // Sleeping: a tool's neighbourhood is, with neighbourhood: sphere, the sphere around its
-  // reference point with the mesh's bounding radius plus scene.sleep.tool_distance (plus the
-  // particle radius below); with neighbourhood: box, the points within tool_distance (plus the
-  // particle radius) of the mesh's box in the tool frame.
-  const bool box = scene_.sleep.neighbourhood == SleepNeighbourhood::box;
-  std::vector<Vec3> tool_centre(Sleep ? ntools : 0);
-  std::vector<double> tool_reach(Sleep ? ntools : 0);
-  if (Sleep)
-    for (std::size_t m = 0; m < ntools; ++m) {
-      tool_centre[m] = s.tool_pose[m].position;
-      tool_reach[m] =
-          (box ? 0.0 : scene_.tools[m].mesh.bounding_radius) + scene_.sleep.tool_distance;
-    }
-  const double rest_speed2 = scene_.sleep.speed * scene_.sleep.speed;
-  const double vmax2 = scene_.stability.max_speed * scene_.stability.max_speed;
-
   // Threads take contiguous particle ranges of equal work (State::pair_work), not of equal
   // length: the bottom of a bed has about twice the contacts of its top half.
   bounds_.resize(T + 1);
-  guards_.resize(T + 1);
   {
     const std::int64_t* const work = s.pair_work.data();
     bounds_[0] = 0;
@@ -323,24 +302,13 @@ void Engine::step_impl(State& s) {
       bounds_[t] = static_cast<std::size_t>(
           std::lower_bound(work + bounds_[t - 1], work + n, target) - work);
     }
-    // The guard of a thread: one past the farthest partner of the earlier threads' rows.
-    for (int t = 0; t < T; ++t) {
-      std::size_t gt = bounds_[t];
-      if (t > 0 && bounds_[t] > 0)
-        gt = std::max(gt, static_cast<std::size_t>(s.pair_reach[bounds_[t] - 1]) + 1);
-      guards_[t] = fused ? std::min(gt, bounds_[t + 1]) : bounds_[t + 1];
-    }
   }
-  sums_.resize(std::max<std::size_t>(sums_.size(), T));
-  std::int64_t overflow = -1, bad = -1, sleeping = 0;
-  double max_d2 = 0, second_d2 = 0;  // the two largest squared displacements (distinct particles)
-  double seconds_rows = 0, seconds_boundary = 0;
-
 #pragma omp parallel num_threads(T)
   {
     const int t = omp_get_thread_num();
-    const std::size_t a0 = bounds_[t], a1 = bounds_[t + 1], guard = guards_[t];
-    StepSums sum;
+    const std::size_t a0 = bounds_[t], a1 = bounds_[t + 1];
+    std::int64_t contacts = 0;
+    double max_overlap = 0, max_overlap_ratio = 0;
     std::vector<Remote> remote;  // local for the loop (no false sharing), capacity kept
     remote.swap(remote_[t]);
     remote.clear();
@@ -349,35 +317,13 @@ void Engine::step_impl(State& s) {
       remote_wake.swap(remote_wake_[t]);
       remote_wake.clear();
     }
-    Wrench* const tw = thread_tool_wrench_[t].data();
-    Vec3* const wf = thread_wall_force_[t].data();
-    std::fill(tw, tw + ntools, Wrench{});
-    std::fill(wf, wf + nwalls, Vec3{});
-    BoundaryScratch scratch;
-
-    // Raw pointers: the compiler cannot prove that writing a spring leaves the vectors'
-    // data pointers alone, and would reload them for every pair.
-    std::int32_t* const REST = s.rest_steps.data();
-    std::uint8_t* const WAKE = wake_.data();
-    Vec3* const X = s.x.data();
-    Vec3* const U = s.u.data();
-    Vec3* const V = s.v.data();
-    const Vec3* const X0 = s.x_at_rebuild.data();
-    const double* const R = s.radius.data();
-    const double* const M = s.mass.data();
-    const std::int32_t* const off = s.pair_offset.data();
-    const std::int32_t* const J = s.pair_j.data();
-    const std::int32_t* const block = s.slot_block.data();
-    Vec3* const spring = s.pair_spring.data();
-    Vec3* const F = force_.data();
-
     if (Sleep) {
       for (std::size_t i = a0; i < a1; ++i) {
-        F[i] = REST[i] >= S ? Vec3{} : M[i] * g;  // a sleeper feels no gravity
+        force_[i] = REST[i] >= S ? Vec3{} : s.mass[i] * g;  // a sleeper feels no gravity
         WAKE[i] = 0;
       }
     } else {
-      for (std::size_t i = a0; i < a1; ++i) F[i] = M[i] * g;
+      for (std::size_t i = a0; i < a1; ++i) force_[i] = s.mass[i] * g;
     }
     // Wake a sleeper: directly in this thread's range, queued otherwise (the partner j > i
     // of a pair in this range is never in an earlier thread's range).
@@ -389,11 +335,17 @@ void Engine::step_impl(State& s) {
     };
     ContactCoefficients c;
     double last_ri = -1, last_mi = -1, last_rj = -1, last_mj = -1;
-
-    // The pair forces of row i (its pairs with partners j > i).
-    std::int64_t contacts = 0;  // plain locals: the compiler keeps them in registers
-    double max_overlap = 0, max_overlap_ratio = 0;
-    auto row = [&](std::size_t i) DEM_INLINE {
+    // Raw pointers: the compiler cannot prove that writing a spring leaves the vectors'
+    // data pointers alone, and would reload them for every pair.
+    const Vec3* const X = s.x.data();
+    const Vec3* const U = s.u.data();
+    const double* const R = s.radius.data();
+    const double* const M = s.mass.data();
+    const std::int32_t* const off = s.pair_offset.data();
+    const std::int32_t* const J = s.pair_j.data();
+    Vec3* const spring = s.pair_spring.data();
+    Vec3* const F = force_.data();
+    for (std::size_t i = a0; i < a1; ++i) {
       const Vec3 xi = X[i], ui = U[i];
       const double ri = R[i], mi = M[i];
       if (ri != last_ri || mi != last_mi) {
@@ -455,176 +407,134 @@ void Engine::step_impl(State& s) {
           continue;
         }
         fi += f;
-        // Partner in this thread's range: write directly; otherwise defer, applied in fixed
-        // thread order so the sums do not depend on scheduling.
+        // Partner in this thread's range: write directly; otherwise defer, applied below in
+        // fixed thread order so the sums do not depend on scheduling.
         if (static_cast<std::size_t>(j) < a1)
           F[j] -= f;
         else
           remote.push_back({j, f});
       }
       F[i] += fi;
-    };
-
-    // Wall and mesh contacts of particle i (it has a slot block: only those can touch one).
-    // A sleeper has none; its boundary history stays as it was.
-    ContactStats bstats;
-    std::int64_t boverflow = -1;
-    auto boundary = [&](std::size_t i) DEM_INLINE {
-      if (Sleep && REST[i] >= S) return;
-      boundary_contacts(s, i, static_cast<std::size_t>(block[i]), scratch, bstats, boverflow, tw,
-                        wf);
-    };
-
-    auto near_tool = [&](std::size_t i) DEM_INLINE {
-      for (std::size_t m = 0; m < tool_centre.size(); ++m) {
-        const double reach = tool_reach[m] + R[i];
-        const Vec3 d = X[i] - tool_centre[m];
-        if (!box) {
-          if (norm2(d) < reach * reach) return true;
-          continue;
-        }
-        // Farther from the reference point than the box's farthest corner plus the reach: not
-        // near the box (the exact test below would say the same; a margin of 1e-9 covers its
-        // rounding). Spares the rotation for most of a large bed.
-        const double bound = (tool_box_radius_[m] + reach) * (1 + 1e-9);
-        if (norm2(d) > bound * bound) continue;
-        // d in the tool frame (R^T d), then its distance to the mesh's box
-        const Mat3& Rt = tool_rotation_[m];
-        const Vec3 q{Rt.m[0][0] * d.x + Rt.m[1][0] * d.y + Rt.m[2][0] * d.z,
-                     Rt.m[0][1] * d.x + Rt.m[1][1] * d.y + Rt.m[2][1] * d.z,
-                     Rt.m[0][2] * d.x + Rt.m[1][2] * d.y + Rt.m[2][2] * d.z};
-        const Vec3 lo = tool_box_min_[m], hi = tool_box_max_[m];
-        const Vec3 out{std::max({lo.x - q.x, 0.0, q.x - hi.x}),
-                       std::max({lo.y - q.y, 0.0, q.y - hi.y}),
-                       std::max({lo.z - q.z, 0.0, q.z - hi.z})};
-        if (norm2(out) < reach * reach) return true;
-      }
-      return false;
-    };
-
-    // Semi-implicit Euler: the new velocity moves the particle (symplectic, one force
-    // evaluation per step); see docs/physics.md.
-    std::int64_t bad_i = -1, asleep = 0;
-    double d2max = 0, d2second = 0;  // this thread's two largest squared displacements
-    auto moved = [&](double d2) DEM_INLINE {
-      if (d2 > d2second) {
-        d2second = std::min(d2, d2max);
-        d2max = std::max(d2, d2max);
-      }
-    };
-    auto integrate = [&](std::size_t i) DEM_INLINE {
-      if (Sleep && REST[i] >= S) {
-        // Asleep: not integrated. Woken by the pair loop or a tool, it is integrated from
-        // the next step on, with all its forces.
-        if (WAKE[i] || near_tool(i))
-          REST[i] = 0;
-        else
-          ++asleep;
-        moved(norm2(X[i] - X0[i]));
-        return;
-      }
-      const Vec3 dv = (dt / M[i]) * F[i];
-      const Vec3 v = V[i] + dv;
-      const Vec3 x = X[i] + dt * v;
-      V[i] = v;
-      U[i] = v + 0.5 * dv;  // velocity at the next force time
-      X[i] = x;
-      const double v2 = norm2(v);
-      if (!(v2 <= vmax2) && (bad_i < 0 || static_cast<std::int64_t>(i) < bad_i))
-        bad_i = static_cast<std::int64_t>(i);
-      moved(norm2(x - X0[i]));
-      if (Sleep) {
-        std::int32_t r = REST[i];
-        if (v2 < rest_speed2 && !near_tool(i)) {
-          if (++r >= S) {  // falls asleep where it is
-            V[i] = U[i] = Vec3{};
-            ++asleep;
-          }
-        } else {
-          r = 0;
-        }
-        REST[i] = r;
-      }
-    };
-
-    // Pass 1: the rows; with fusing, each particle at or above the guard is finished at once.
-    if (boundaries) {
-      for (std::size_t i = a0; i < a1; ++i) {
-        row(i);
-        if (i >= guard && block[i] < 0) integrate(i);
-      }
-    } else {
-      for (std::size_t i = a0; i < a1; ++i) {
-        row(i);
-        if (i >= guard) integrate(i);
-      }
     }
     remote.swap(remote_[t]);
     if (Sleep) remote_wake.swap(remote_wake_[t]);
-#pragma omp barrier
-    // The earlier threads' forces (and wakes) on this thread's particles, in thread order.
-    for (int u = 0; u < t; ++u)
-      for (const Remote& r : remote_[u])
-        if (static_cast<std::size_t>(r.j) >= a0 && static_cast<std::size_t>(r.j) < a1)
-          F[r.j] -= r.f;
-    if (Sleep)
-      for (int u = 0; u < t; ++u)
-        for (const std::int32_t p : remote_wake_[u])
-          if (static_cast<std::size_t>(p) >= a0 && static_cast<std::size_t>(p) < a1) WAKE[p] = 1;
-    if (fused) {
-      // Pass 2: the particles below the guard.
-      for (std::size_t i = a0; i < guard; ++i) {
-        if (boundaries && block[i] >= 0) boundary(i);
-        integrate(i);
+    thread_stats_[t] = ContactStats{contacts, 0, max_overlap, max_overlap_ratio};
+
+  }
+  for (int t = 0; t < T; ++t)
+    for (const Remote& r : remote_[t]) force_[r.j] -= r.f;
+  if (Sleep)
+    for (int t = 0; t < T; ++t)
+      for (const std::int32_t p : remote_wake_[t]) wake_[p] = 1;
+}
+
+void Engine::boundary_forces(State& s) {
+  const int T = threads_;
+  const ContactLaw& law = scene_.particle_wall;
+  const double dt = scene_.dt;
+  const std::size_t ntools = scene_.tools.size(), nwalls = scene_.walls.size();
+  std::fill(boundary_stats_.begin(), boundary_stats_.end(), ContactStats{});
+  if (ntools == 0 && nwalls == 0) return;
+  std::int64_t overflow = -1;
+#pragma omp parallel num_threads(T)
+  {
+    const int t = omp_get_thread_num();
+    auto& tw = thread_tool_wrench_[t];
+    auto& wf = thread_wall_force_[t];
+    std::fill(tw.begin(), tw.end(), Wrench{});
+    std::fill(wf.begin(), wf.end(), Vec3{});
+    BoundaryContact cs[kBoundarySlots];
+    TriangleHit hits[kMaxHits];
+    std::int64_t my_overflow = -1;
+    ContactStats my_stats;
+    // Only particles with a slot block can touch a wall or a tool (the broad phase handed the
+    // blocks out): threads share those equally, wherever they are in the bed.
+    const std::size_t nb = s.slot_particle.size();
+    const std::size_t k0 = nb * t / T, k1 = nb * (t + 1) / T;
+    const bool sleep_on = scene_.sleep.enabled;
+    const std::int32_t S = scene_.sleep.steps;
+    for (std::size_t k = k0; k < k1; ++k) {
+      const std::size_t i = static_cast<std::size_t>(s.slot_particle[k]);
+      // A sleeper has no wall or mesh forces; its boundary history stays as it was.
+      if (sleep_on && s.rest_steps[i] >= S) continue;
+      // Nothing near and nothing remembered.
+      if (s.wall_mask[i] == 0 && s.tri_offset[i] == s.tri_offset[i + 1] && s.slot_count[i] == 0)
+        continue;
+      const int nc = gather_boundary(scene_, s, i, tool_vertices_, cs, hits, dt);
+      if (nc < 0) {
+        if (my_overflow < 0) my_overflow = static_cast<std::int64_t>(i);
+        continue;
       }
-      if (boundaries)
-        for (std::size_t i = guard; i < a1; ++i)
-          if (block[i] >= 0) {
-            boundary(i);
-            integrate(i);
+      const int nold = s.slot_count[i];
+      if (nc == 0 && nold == 0) continue;
+      const std::size_t base = k * kBoundarySlots;  // this particle's block
+      std::uint64_t old_key[kBoundarySlots];
+      Vec3 old_spring[kBoundarySlots], spring[kBoundarySlots];
+      bool used[kBoundarySlots] = {}, matched[kBoundarySlots] = {};
+      for (int o = 0; o < nold; ++o) {
+        old_key[o] = s.slot_key[base + o];
+        old_spring[o] = s.slot_spring[base + o];
+      }
+      for (int c = 0; c < nc; ++c)
+        for (int o = 0; o < nold; ++o)
+          if (!used[o] && old_key[o] == cs[c].key) {
+            spring[c] = old_spring[o];
+            used[o] = matched[c] = true;
+            break;
           }
-    } else {
-#pragma omp barrier
-#pragma omp master
-      seconds_rows = watch.lap();
-      // Only particles with a slot block can touch a wall or a tool (the broad phase handed the
-      // blocks out): threads share those equally, wherever they are in the bed.
-      const std::size_t nb = boundaries ? s.slot_particle.size() : 0;
-      for (std::size_t k = nb * t / T; k < nb * (t + 1) / T; ++k)
-        boundary(static_cast<std::size_t>(s.slot_particle[k]));
-#pragma omp barrier
-#pragma omp master
-      seconds_boundary = watch.lap();
-      for (std::size_t i = n * t / T; i < n * (t + 1) / T; ++i) integrate(i);
+      // A sphere sliding from a face onto an edge or vertex (or on to the next face) keeps its
+      // tangential spring: the new feature inherits from an adjacent one that just ended.
+      for (int c = 0; c < nc; ++c) {
+        if (matched[c]) continue;
+        spring[c] = Vec3{};
+        for (int o = 0; o < nold; ++o)
+          if (!used[o] && shares_vertex(scene_, old_key[o], cs[c].key)) {
+            spring[c] = old_spring[o];
+            used[o] = true;
+            break;
+          }
+      }
+      const double ri = s.radius[i], mi = s.mass[i];
+      const ContactCoefficients coef = coefficients(law, ri, mi);
+      Vec3 fi{};
+      int active = 0;
+      for (int c = 0; c < nc; ++c) {
+        Vec3 f;
+        if (!contact_force(law, coef, cs[c].overlap, cs[c].normal, s.u[i] - cs[c].body_velocity,
+                           spring[c], dt, f))
+          continue;
+        ++my_stats.boundary_contacts;
+        my_stats.max_overlap = std::max(my_stats.max_overlap, cs[c].overlap);
+        my_stats.max_overlap_ratio = std::max(my_stats.max_overlap_ratio, cs[c].overlap / ri);
+        fi += f;
+        const std::uint32_t body = key_body(cs[c].key);
+        if (key_kind(cs[c].key) == FeatureKind::wall) {
+          wf[body] -= f;
+        } else {
+          tw[body].force -= f;
+          tw[body].torque -= cross(cs[c].point - s.tool_pose[body].position, f);
+        }
+        s.slot_key[base + active] = cs[c].key;
+        s.slot_spring[base + active] = spring[c];
+        ++active;
+      }
+      s.slot_count[i] = static_cast<std::uint8_t>(active);
+      force_[i] += fi;
     }
-    sum.pair = ContactStats{contacts, 0, max_overlap, max_overlap_ratio};
-    sum.boundary = bstats;
-    sum.overflow = boverflow;
-    sum.bad = bad_i;
-    sum.sleeping = asleep;
-    sum.max_d2 = d2max;
-    sum.second_d2 = d2second;
-    sums_[t] = sum;
+    boundary_stats_[t] = my_stats;
+#pragma omp critical(dem_overflow)
+    if (my_overflow >= 0 && (overflow < 0 || my_overflow < overflow)) overflow = my_overflow;
+  }
+  if (overflow >= 0) {
+    const std::size_t i = static_cast<std::size_t>(overflow);
+    std::ostringstream msg;
+    msg << "step " << s.step << " (t = " << s.step * scene_.dt << " s): particle id " << s.id[i]
+        << " at (" << s.x[i].x << ", " << s.x[i].y << ", " << s.x[i].z << ") touches more than "
+        << kBoundarySlots << " walls and mesh features at once; the tool mesh is probably finer "
+        << "than the particles (coarsen it) or the particle was pushed through it (lower dt)";
+    throw SimulationError(msg.str());
   }
   // Reduce per-thread sums in fixed thread order.
-  stats_ = ContactStats{};
-  for (int t = 0; t < T; ++t) {
-    const StepSums& u = sums_[t];
-    for (const ContactStats* c : {&u.pair, &u.boundary}) {
-      stats_.particle_contacts += c->particle_contacts;
-      stats_.boundary_contacts += c->boundary_contacts;
-      stats_.max_overlap = std::max(stats_.max_overlap, c->max_overlap);
-      stats_.max_overlap_ratio = std::max(stats_.max_overlap_ratio, c->max_overlap_ratio);
-    }
-    if (u.overflow >= 0 && (overflow < 0 || u.overflow < overflow)) overflow = u.overflow;
-    if (u.bad >= 0 && (bad < 0 || u.bad < bad)) bad = u.bad;
-    sleeping += u.sleeping;
-    for (const double d2 : {u.max_d2, u.second_d2})
-      if (d2 > second_d2) {
-        second_d2 = std::min(d2, max_d2);
-        max_d2 = std::max(d2, max_d2);
-      }
-  }
   for (std::size_t m = 0; m < ntools; ++m) {
     Wrench w{};
     for (int t = 0; t < T; ++t) {
@@ -638,29 +548,129 @@ void Engine::step_impl(State& s) {
     for (int t = 0; t < T; ++t) f += thread_wall_force_[t][w];
     wall_force_[w] = f;
   }
-  if (fused) {
-    // Boundary contacts and integration run inside the rows: the pass is pair_forces.
-    timing_.lap(section::pair_forces, watch);
-  } else {
-    timing_.add(section::pair_forces, seconds_rows);
-    timing_.add(section::mesh_contacts, seconds_boundary);
-    timing_.lap(section::integration, watch);
+}
+
+void Engine::integrate(State& s) {
+  if (scene_.sleep.enabled)
+    integrate_impl<true>(s);
+  else
+    integrate_impl<false>(s);
+}
+
+template <bool Sleep>
+void Engine::integrate_impl(State& s) {
+  const std::size_t n = s.size();
+  // Sleeping: a tool's neighbourhood is, with neighbourhood: sphere, the sphere around its
+  // reference point with the mesh's bounding radius plus scene.sleep.tool_distance (plus the
+  // particle radius below); with neighbourhood: box, the points within tool_distance (plus the
+  // particle radius) of the mesh's box in the tool frame.
+  const std::size_t ntools = scene_.tools.size();
+  const bool box = scene_.sleep.neighbourhood == SleepNeighbourhood::box;
+  std::vector<Vec3> tool_centre(Sleep ? ntools : 0);
+  std::vector<double> tool_reach(Sleep ? ntools : 0);
+  if (Sleep)
+    for (std::size_t m = 0; m < ntools; ++m) {
+      tool_centre[m] = s.tool_pose[m].position;
+      tool_reach[m] = (box ? 0.0 : scene_.tools[m].mesh.bounding_radius) + scene_.sleep.tool_distance;
+    }
+  const std::int32_t S = scene_.sleep.steps;
+  const double rest_speed2 = scene_.sleep.speed * scene_.sleep.speed;
+  std::int64_t sleeping = 0;
+  const int T = threads_;
+  const double dt = scene_.dt;
+  const double vmax2 = scene_.stability.max_speed * scene_.stability.max_speed;
+  double max_d2 = 0, second_d2 = 0;  // the two largest squared displacements (two particles)
+  std::int64_t bad = -1;
+#pragma omp parallel num_threads(T)
+  {
+    const int t = omp_get_thread_num();
+    const std::size_t a0 = n * t / T, a1 = n * (t + 1) / T;
+    double my_d2 = 0, my_second = 0;  // this thread's two largest
+    // Keeps the two largest squared displacements of distinct particles.
+    auto moved = [&](double d2) {
+      if (d2 > my_second) {
+        my_second = std::min(d2, my_d2);
+        my_d2 = std::max(d2, my_d2);
+      }
+    };
+    std::int64_t my_bad = -1;
+    std::int64_t my_sleeping = 0;
+    auto near_tool = [&](std::size_t i) {
+      for (std::size_t m = 0; m < tool_centre.size(); ++m) {
+        const double reach = tool_reach[m] + s.radius[i];
+        const Vec3 d = s.x[i] - tool_centre[m];
+        if (!box) {
+          if (norm2(d) < reach * reach) return true;
+          continue;
+        }
+        // Farther from the reference point than the box's farthest corner plus the reach: not
+        // near the box (the exact test below would say the same; a margin of 1e-9 covers its
+        // rounding). Spares the rotation for most of a large bed.
+        const double bound = (tool_box_radius_[m] + reach) * (1 + 1e-9);
+        if (norm2(d) > bound * bound) continue;
+        // d in the tool frame (R^T d), then its distance to the mesh's box
+        const Mat3& R = tool_rotation_[m];
+        const Vec3 q{R.m[0][0] * d.x + R.m[1][0] * d.y + R.m[2][0] * d.z,
+                     R.m[0][1] * d.x + R.m[1][1] * d.y + R.m[2][1] * d.z,
+                     R.m[0][2] * d.x + R.m[1][2] * d.y + R.m[2][2] * d.z};
+        const Vec3 lo = tool_box_min_[m], hi = tool_box_max_[m];
+        const Vec3 out{std::max({lo.x - q.x, 0.0, q.x - hi.x}), std::max({lo.y - q.y, 0.0, q.y - hi.y}),
+                       std::max({lo.z - q.z, 0.0, q.z - hi.z})};
+        if (norm2(out) < reach * reach) return true;
+      }
+      return false;
+    };
+    for (std::size_t i = a0; i < a1; ++i) {
+      if (Sleep && s.rest_steps[i] >= S) {
+        // Asleep: not integrated. Woken by the pair loop or a tool, it is integrated from
+        // the next step on, with all its forces.
+        if (wake_[i] || near_tool(i))
+          s.rest_steps[i] = 0;
+        else
+          ++my_sleeping;
+        moved(norm2(s.x[i] - s.x_at_rebuild[i]));
+        continue;
+      }
+      // Semi-implicit Euler: the new velocity moves the particle (symplectic, one force
+      // evaluation per step); see docs/physics.md.
+      const Vec3 dv = (dt / s.mass[i]) * force_[i];
+      const Vec3 v = s.v[i] + dv;
+      const Vec3 x = s.x[i] + dt * v;
+      s.v[i] = v;
+      s.u[i] = v + 0.5 * dv;  // velocity at the next force time
+      s.x[i] = x;
+      const double v2 = norm2(v);
+      if (!(v2 <= vmax2) && my_bad < 0) my_bad = static_cast<std::int64_t>(i);
+      moved(norm2(x - s.x_at_rebuild[i]));
+      if (Sleep) {
+        std::int32_t r = s.rest_steps[i];
+        if (v2 < rest_speed2 && !near_tool(i)) {
+          if (++r >= S) {  // falls asleep where it is
+            s.v[i] = s.u[i] = Vec3{};
+            ++my_sleeping;
+          }
+        } else {
+          r = 0;
+        }
+        s.rest_steps[i] = r;
+      }
+    }
+#pragma omp critical(dem_integrate)
+    {
+      for (const double d2 : {my_d2, my_second})
+        if (d2 > second_d2) {
+          second_d2 = std::min(d2, max_d2);
+          max_d2 = std::max(d2, max_d2);
+        }
+      sleeping += my_sleeping;
+      if (my_bad >= 0 && (bad < 0 || my_bad < bad)) bad = my_bad;
+    }
   }
   s.max_displacement = std::sqrt(max_d2);
   s.second_displacement = std::sqrt(second_d2);
   sleeping_ = sleeping;
   ++s.step;
   ++s.steps_since_rebuild;
-  if (overflow >= 0) {
-    const std::size_t i = static_cast<std::size_t>(overflow);
-    std::ostringstream msg;
-    msg << "step " << s.step - 1 << " (t = " << (s.step - 1) * dt << " s): particle id "
-        << s.id[i] << " at (" << s.x[i].x << ", " << s.x[i].y << ", " << s.x[i].z
-        << ") touches more than " << kBoundarySlots << " walls and mesh features at once; the "
-        << "tool mesh is probably finer than the particles (coarsen it) or the particle was "
-        << "pushed through it (lower dt)";
-    throw SimulationError(msg.str());
-  }
   if (bad >= 0) {
     const std::size_t i = static_cast<std::size_t>(bad);
     std::ostringstream msg;
@@ -672,82 +682,6 @@ void Engine::step_impl(State& s) {
         << ") or soften contact normal_stiffness";
     throw SimulationError(msg.str());
   }
-}
-
-// The wall and mesh contacts of particle i, whose boundary history is slot block `k`: finds
-// them (gather_boundary), carries their tangential springs over from the block, adds their
-// forces to force_[i] and the opposite to the tool wrenches tw and wall forces wf of the
-// thread.
-void Engine::boundary_contacts(State& s, std::size_t i, std::size_t k, BoundaryScratch& scratch,
-                               ContactStats& stats, std::int64_t& overflow, Wrench* tw,
-                               Vec3* wf) {
-  // Nothing near and nothing remembered.
-  if (s.wall_mask[i] == 0 && s.tri_offset[i] == s.tri_offset[i + 1] && s.slot_count[i] == 0)
-    return;
-  const ContactLaw& law = scene_.particle_wall;
-  const double dt = scene_.dt;
-  BoundaryContact* const cs = scratch.contacts;
-  const int nc = gather_boundary(scene_, s, i, tool_vertices_, cs, scratch.hits, dt);
-  if (nc < 0) {
-    if (overflow < 0 || static_cast<std::int64_t>(i) < overflow)
-      overflow = static_cast<std::int64_t>(i);
-    return;
-  }
-  const int nold = s.slot_count[i];
-  if (nc == 0 && nold == 0) return;
-  const std::size_t base = k * kBoundarySlots;  // this particle's block
-  std::uint64_t old_key[kBoundarySlots];
-  Vec3 old_spring[kBoundarySlots], spring[kBoundarySlots];
-  bool used[kBoundarySlots] = {}, matched[kBoundarySlots] = {};
-  for (int o = 0; o < nold; ++o) {
-    old_key[o] = s.slot_key[base + o];
-    old_spring[o] = s.slot_spring[base + o];
-  }
-  for (int c = 0; c < nc; ++c)
-    for (int o = 0; o < nold; ++o)
-      if (!used[o] && old_key[o] == cs[c].key) {
-        spring[c] = old_spring[o];
-        used[o] = matched[c] = true;
-        break;
-      }
-  // A sphere sliding from a face onto an edge or vertex (or on to the next face) keeps its
-  // tangential spring: the new feature inherits from an adjacent one that just ended.
-  for (int c = 0; c < nc; ++c) {
-    if (matched[c]) continue;
-    spring[c] = Vec3{};
-    for (int o = 0; o < nold; ++o)
-      if (!used[o] && shares_vertex(scene_, old_key[o], cs[c].key)) {
-        spring[c] = old_spring[o];
-        used[o] = true;
-        break;
-      }
-  }
-  const double ri = s.radius[i], mi = s.mass[i];
-  const ContactCoefficients coef = coefficients(law, ri, mi);
-  Vec3 fi{};
-  int active = 0;
-  for (int c = 0; c < nc; ++c) {
-    Vec3 f;
-    if (!contact_force(law, coef, cs[c].overlap, cs[c].normal, s.u[i] - cs[c].body_velocity,
-                       spring[c], dt, f))
-      continue;
-    ++stats.boundary_contacts;
-    stats.max_overlap = std::max(stats.max_overlap, cs[c].overlap);
-    stats.max_overlap_ratio = std::max(stats.max_overlap_ratio, cs[c].overlap / ri);
-    fi += f;
-    const std::uint32_t body = key_body(cs[c].key);
-    if (key_kind(cs[c].key) == FeatureKind::wall) {
-      wf[body] -= f;
-    } else {
-      tw[body].force -= f;
-      tw[body].torque -= cross(cs[c].point - s.tool_pose[body].position, f);
-    }
-    s.slot_key[base + active] = cs[c].key;
-    s.slot_spring[base + active] = spring[c];
-    ++active;
-  }
-  s.slot_count[i] = static_cast<std::uint8_t>(active);
-  force_[i] += fi;
 }
 
 std::vector<std::pair<std::int64_t, std::int64_t>> Engine::particle_contacts(

@@ -32,18 +32,6 @@ void add_particle(State& s, Vec3 x, Vec3 v, double radius, double mass, int spec
 
 namespace dem {
 
-void compute_pair_reach(State& s) {
-  const std::size_t n = s.size();
-  s.pair_reach.resize(n);
-  std::int32_t run = -1;
-  for (std::size_t i = 0; i < n; ++i) {
-    run = std::max(run, static_cast<std::int32_t>(i));
-    for (std::int32_t k = s.pair_offset[i]; k < s.pair_offset[i + 1]; ++k)
-      run = std::max(run, s.pair_j[k]);
-    s.pair_reach[i] = run;
-  }
-}
-
 std::size_t remove_particles(State& s, const std::vector<std::uint8_t>& remove) {
   const std::size_t n = s.size();
   std::vector<std::int32_t> new_index(n, -1);
@@ -58,8 +46,7 @@ std::size_t remove_particles(State& s, const std::vector<std::uint8_t>& remove) 
   if (m == n) return 0;
   // The lists read the old numbering: compact them first. Rows of removed particles and
   // entries naming one go; the rest keep their order (so i < j still holds).
-  const bool lists = s.pair_offset.size() == n + 1;
-  if (lists) {
+  if (s.pair_offset.size() == n + 1) {
     std::vector<std::int32_t> off(m + 1, 0), J;
     std::vector<Vec3> spring;
     J.reserve(s.pair_j.size());
@@ -106,11 +93,6 @@ std::size_t remove_particles(State& s, const std::vector<std::uint8_t>& remove) 
     const std::string_view key(name);
     if (field != Field::derived || key == "x_at_rebuild" || key == "wall_mask") compact(a);
   });
-  // The running maximum of the renumbered rows (an empty one makes the next step rebuild).
-  if (lists)
-    compute_pair_reach(s);
-  else
-    s.pair_reach.clear();
   s.removed_count += static_cast<std::int64_t>(n - m);
   s.removed_mass += mass;
   return n - m;

@@ -80,7 +80,7 @@ std::string describe(const dem::RunConfig& rc) {
   v(s.gravity);
   o << s.broad_phase_interval << ' ' << s.skin << ' ' << static_cast<int>(s.guard) << ' '
     << s.threads << ' ' << s.min_particles_per_thread << ' ' << static_cast<int>(s.thread_wait)
-    << ' ' << s.fused_step << '\n';
+    << '\n';
   o << "stability " << s.stability.min_steps_per_contact << ' '
     << static_cast<int>(s.stability.on_violation) << ' ' << s.stability.max_speed << ' '
     << s.stability.overlap_tolerance << '\n';

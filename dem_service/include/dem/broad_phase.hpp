@@ -80,7 +80,6 @@ class BroadPhase {
   std::vector<std::vector<std::int32_t>> thread_j_;
   std::vector<std::size_t> thread_used_, thread_base_;
   std::vector<std::int64_t> work_base_;
-  std::vector<std::int32_t> thread_reach_;  // per thread: largest partner index of its rows
   std::vector<std::int32_t> old_offset_, old_j_;
   std::vector<Vec3> old_spring_;
   std::vector<double> px_, py_, pz_, pr_;  // positions and radii in cell order, for the pair list

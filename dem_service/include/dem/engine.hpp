@@ -96,22 +96,13 @@ class Engine {
   void update_tool_geometry(const State& s);
   void choose_threads(const State& s);
   bool guard_fires(const State& s, double* moved) const;
-  // What one thread of a step sums: contact statistics, the smallest particle index with too
-  // many boundary contacts and over the speed limit (-1: none), sleepers, largest squared
-  // displacement since the last broad phase and the largest of any other particle.
-  struct StepSums {
-    ContactStats pair, boundary;
-    std::int64_t overflow = -1;
-    std::int64_t bad = -1;
-    std::int64_t sleeping = 0;
-    double max_d2 = 0, second_d2 = 0;
-  };
-  struct BoundaryScratch;
-  // Pair forces, wall and mesh contacts, integration: one parallel region (engine.cpp).
+  void pair_forces(State& s);
   template <bool Sleep>
-  void step_impl(State& s);
-  void boundary_contacts(State& s, std::size_t i, std::size_t block, BoundaryScratch& scratch,
-                         ContactStats& stats, std::int64_t& overflow, Wrench* tw, Vec3* wf);
+  void pair_forces_impl(State& s);
+  void boundary_forces(State& s);
+  void integrate(State& s);
+  template <bool Sleep>
+  void integrate_impl(State& s);
   void remove_outside(State& s);
   void size_sleep_arrays(State& s);
 
@@ -129,10 +120,7 @@ class Engine {
     Vec3 f;
   };
   std::vector<std::vector<Remote>> remote_;              // per thread
-  std::vector<std::size_t> bounds_;  // particle ranges of the threads in the step
-  // Per thread: its particles from here on are partners of no earlier thread's rows
-  // (State::pair_reach); with scene.fused_step they are finished right after their rows.
-  std::vector<std::size_t> guards_;
+  std::vector<std::size_t> bounds_;  // particle ranges of the threads in pair_forces
   // Sleeping: wake_[i] set by the pair loop when a sleeper is to wake; wakes of particles in
   // another thread's range are queued per thread and applied after the loop.
   std::vector<std::uint8_t> wake_;
@@ -142,7 +130,7 @@ class Engine {
   std::int64_t removed_last_ = 0;
   std::vector<std::vector<Wrench>> thread_tool_wrench_;  // per thread
   std::vector<std::vector<Vec3>> thread_wall_force_;     // per thread
-  std::vector<StepSums> sums_;  // per thread
+  std::vector<ContactStats> thread_stats_, boundary_stats_;  // per thread
   ContactStats stats_;
   std::vector<Wrench> tool_wrench_;
   std::vector<Vec3> wall_force_;

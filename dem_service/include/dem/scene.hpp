@@ -100,11 +100,6 @@ struct Scene {
   // How idle OpenMP threads wait (dem/thread_wait.hpp). Fixed when the program starts:
   // dem_run, dem_service and dem_side_by_side apply it with apply_thread_wait.
   ThreadWait thread_wait = ThreadWait::passive;
-  // true: a particle's wall and mesh contacts and its integration follow right after its row of
-  // pair forces, in one pass over the particles (faster; the timing table's pair_forces then
-  // holds all three for most particles). false: three passes, each timed on its own. Particle
-  // states are bit-identical either way (Engine::step).
-  bool fused_step = true;
   StabilityOptions stability;
   SleepOptions sleep;
   RegionOptions region;

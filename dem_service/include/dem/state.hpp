@@ -59,10 +59,6 @@ struct State {
   // Work of the pair rows before each particle (candidates, plus 4 per pair touching at the
   // broad phase, plus 1 per particle), n + 1 entries: threads split the pair forces by it.
   std::vector<std::int64_t> pair_work;
-  // Per particle i: the largest index among i and the partners of rows 0..i (a running maximum).
-  // Particles above pair_reach[a - 1] are partners of no row below a: the step finishes them as
-  // soon as their own row is done (Engine, scene.fused_step). compute_pair_reach fills it.
-  std::vector<std::int32_t> pair_reach;
   // Particle-triangle candidates in CSR form: tool index and triangle index.
   std::vector<std::int32_t> tri_offset, tri_tool, tri_index;
   // Walls within r + skin at the last broad phase, one bit per wall (all bits if > 32 walls).
@@ -115,7 +111,6 @@ void for_each_array(S& s, F&& f) {
   f("pair_j", s.pair_j, Field::derived);
   f("pair_spring", s.pair_spring, Field::derived);
   f("pair_work", s.pair_work, Field::derived);
-  f("pair_reach", s.pair_reach, Field::derived);
   f("tri_offset", s.tri_offset, Field::derived);
   f("tri_tool", s.tri_tool, Field::derived);
   f("tri_index", s.tri_index, Field::derived);
@@ -136,9 +131,6 @@ inline std::size_t bytes(const State& s) {
   });
   return b;
 }
-
-// Fills State::pair_reach from pair_offset and pair_j (after the lists changed).
-void compute_pair_reach(State& s);
 
 // Appends one particle; radius and mass must already be validated.
 void add_particle(State& s, Vec3 x, Vec3 v, double radius, double mass, int species,

@@ -1,0 +1,79 @@
+// The guard that rebuilds the lists "when needed" uses the two largest displacements (of two
+// different particles) instead of twice the largest: one fast particle alone moves a whole skin
+// before it fires, two fast particles flying at each other are caught, and no contact is missed
+// on the way (dem_broad_phase_test checks the lists against a brute-force search in general).
+#include <gtest/gtest.h>
+
+#include <algorithm>
+
+#include "dem_test_util.hpp"
+
+namespace {
+
+using namespace demtest;
+using dem::State;
+
+
+// Particles at rest on a lattice (no gravity, no walls) and one fast particle flying along a
+// free lane between them: the guard fires when that particle alone has moved the skin (the
+// others did not move), not half of it as a bound of twice the largest displacement would.
+TEST(dem_Guard, GuardWaitsForTheTwoLargestDisplacements) {
+  const double r = 1e-3;
+  dem::Scene scene = one_species_scene(r, r);
+  scene.particle_particle = scene.particle_wall = law_n_per_m(100, 0.5, true, 0.5);
+  scene.broad_phase_interval = 1 << 30;
+  scene.skin = 0.5;  // 0.5 mm
+  scene.dt = 1e-5;
+  State st;
+  const double pitch = 2.6 * r;
+  for (int ix = 0; ix < 12; ++ix)
+    for (int iy = 0; iy < 3; ++iy)
+      if (iy != 1) add(st, {ix * pitch, iy * pitch, 0}, {}, r);
+  const double speed = 1.0;  // 1e-5 m a step: the skin in 50 steps
+  add(st, {0, pitch, 0}, {speed, 0, 0}, r);
+  dem::Engine engine(scene);
+  engine.step(st);  // the first broad phase
+  ASSERT_EQ(st.early_rebuilds, 0);
+  const double per_step = speed * scene.dt, skin = scene.skin_distance();
+  int first = -1;
+  for (int k = 1; k < 200 && first < 0; ++k) {
+    engine.step(st);
+    if (st.early_rebuilds > 0) first = k;
+  }
+  ASSERT_GT(first, 0) << "the guard never fired";
+  // Fired after the fast particle moved the skin (within a step), not half of it.
+  EXPECT_GT(first * per_step, skin - 2 * per_step) << first;
+  EXPECT_LT(first * per_step, skin + 2 * per_step) << first;
+}
+
+// Two fast particles flying at each other, starting just beyond the skin, in a bed at rest:
+// the guard sees both displacements and the lists hold their contact when it comes.
+TEST(dem_Guard, GuardCatchesTwoFastParticlesMeetingHeadOn) {
+  const double r = 1e-3;
+  dem::Scene scene = one_species_scene(r, r);
+  scene.particle_particle = scene.particle_wall = law_n_per_m(100, 0.5, true, 0.5);
+  scene.broad_phase_interval = 1 << 30;
+  scene.skin = 0.5;
+  scene.dt = 1e-5;
+  State st;
+  for (int ix = 0; ix < 6; ++ix) add(st, {ix * 2.6 * r, 0, 0}, {}, r);
+  const double gap = scene.skin_distance() * 1.01;
+  add(st, {0, 4 * r, 0}, {0.5, 0, 0}, r);
+  add(st, {2 * r + gap, 4 * r, 0}, {-0.5, 0, 0}, r);
+  dem::Engine engine(scene);
+  bool touched = false;
+  for (int k = 0; k < 400; ++k) {
+    engine.prepare(st);
+    const auto c = engine.particle_contacts(st);
+    const std::size_t a = index_of(st, 6), b = index_of(st, 7);
+    const bool overlap = norm2(st.x[a] - st.x[b]) < 4 * r * r;
+    const bool listed = std::find(c.begin(), c.end(), std::make_pair<std::int64_t, std::int64_t>(6, 7)) != c.end();
+    ASSERT_EQ(overlap, listed) << "step " << k;
+    touched |= overlap;
+    engine.step(st);
+  }
+  EXPECT_TRUE(touched);
+  EXPECT_GT(st.early_rebuilds, 0);
+}
+
+}  // namespace
