@@ -394,6 +394,12 @@ void BroadPhase::build(const Scene& scene, State& s,
           for (long y = y0; y <= y1; ++y) {
             const long row = (z * ny + y) * nx;
             for (std::int32_t p = cell_start_[row + x0]; p < cell_start_[row + x1 + 1]; ++p) {
+              // Outside the triangle's box grown by r_max + skin: farther than r + skin from
+              // the triangle, so not a candidate (the cells reach beyond the box).
+              const Vec3 xp = s.x[p];
+              if (xp.x < bmin.x || xp.x > bmax.x || xp.y < bmin.y || xp.y > bmax.y ||
+                  xp.z < bmin.z || xp.z > bmax.z)
+                continue;
               const double cut = s.radius[p] + skin;
               if (closest_on_triangle(mesh, wv, t, s.x[p]).dist2 < cut * cut)
                 out.push_back({p, static_cast<std::int32_t>(m), t});
