@@ -429,6 +429,8 @@ void BroadPhase::build(const Scene& scene, State& s,
   stages_.lap(stage::wall_masks, watch);
   s.max_displacement = 0;
   s.second_displacement = 0;
+  s.pair_row_offset.clear();  // the lists by partner: built again when sleeping needs them
+  s.pair_row.clear();
   s.steps_since_rebuild = 0;
   s.lists_valid = true;
   ++s.rebuilds;

@@ -102,6 +102,9 @@ State load_checkpoint(const std::string& path) {
       }
       // Older checkpoints lack the rest counters of sleeping: every particle starts awake.
       if (key == "rest_steps" && H5Lexists(file, name, H5P_DEFAULT) <= 0) return;
+      // ... and the lists by partner: the first step with sleeping builds them.
+      if ((key == "pair_row_offset" || key == "pair_row") && H5Lexists(file, name, H5P_DEFAULT) <= 0)
+        return;
       read_array(file, name, array);
     });
   } catch (const std::exception& e) {

@@ -3,7 +3,9 @@
 #include <omp.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
+#include <limits>
 #include <sstream>
 
 #include "dem/contact_law.hpp"
@@ -97,7 +99,11 @@ bool shares_vertex(const Scene& scene, std::uint64_t a, std::uint64_t b) {
   return false;
 }
 
+std::atomic<bool> sleeper_row_skip{true};
+
 }  // namespace
+
+void detail::use_sleeper_row_skip(bool skip) { sleeper_row_skip = skip; }
 
 Timing make_timing() {
   return Timing({"broad_phase", "pair_forces", "mesh_contacts", "integration", "output"});
@@ -303,10 +309,42 @@ void Engine::pair_forces_impl(State& s) {
           std::lower_bound(work + bounds_[t - 1], work + n, target) - work);
     }
   }
+  // Sleeping: a sleeper's row is scanned only if an awake particle is among its partners (the
+  // rows of two sleepers compute nothing). The awake particles mark the rows of the sleepers
+  // that hold them (State::pair_rows) with this step's stamp before the loop.
+  std::int32_t* MARK = nullptr;
+  std::int32_t stamp = 0;
+  const bool skip_rows = Sleep && sleeper_row_skip.load(std::memory_order_relaxed);
+  if (skip_rows) {
+    // Built by the first step with sleeping after a broad phase (and again if a loaded
+    // checkpoint's copy does not fit the lists).
+    if (s.pair_row_offset.size() != n + 1 || s.pair_row.size() != s.pair_j.size() ||
+        static_cast<std::size_t>(s.pair_row_offset[n]) != s.pair_row.size())
+      build_pair_rows(s);
+    if (row_mark_.size() != n || row_stamp_ == std::numeric_limits<std::int32_t>::max()) {
+      row_mark_.assign(n, 0);
+      row_stamp_ = 0;
+    }
+    stamp = ++row_stamp_;
+    MARK = row_mark_.data();
+  }
 #pragma omp parallel num_threads(T)
   {
     const int t = omp_get_thread_num();
     const std::size_t a0 = bounds_[t], a1 = bounds_[t + 1];
+    if (skip_rows) {
+      const std::int32_t* const ro = s.pair_row_offset.data();
+      const std::int32_t* const rr = s.pair_row.data();
+      for (std::size_t j = a0; j < a1; ++j) {
+        if (REST[j] >= S) continue;
+        for (std::int32_t q = ro[j]; q < ro[j + 1]; ++q) {
+          const std::int32_t i = rr[q];
+          // Another thread may mark the same row: the same value, stored atomically.
+          if (REST[i] >= S) __atomic_store_n(&MARK[i], stamp, __ATOMIC_RELAXED);
+        }
+      }
+#pragma omp barrier
+    }
     std::int64_t contacts = 0;
     double max_overlap = 0, max_overlap_ratio = 0;
     std::vector<Remote> remote;  // local for the loop (no false sharing), capacity kept
@@ -353,8 +391,12 @@ void Engine::pair_forces_impl(State& s) {
         last_mi = mi;
         last_rj = last_mj = -1;
       }
-      Vec3 fi{};
       const bool si = Sleep && REST[i] >= S;
+      // A sleeper with only sleepers in its row: nothing to compute (the loop below would skip
+      // every pair), so its row is not read at all.
+      if (Sleep && si && skip_rows && __atomic_load_n(&MARK[i], __ATOMIC_RELAXED) != stamp)
+        continue;
+      Vec3 fi{};
       for (std::int32_t k = off[i]; k < off[i + 1]; ++k) {
         const std::int32_t j = J[k];
         bool sj = false;
@@ -713,7 +755,8 @@ std::vector<Engine::MeshContact> Engine::mesh_contacts(const State& s) {
 }
 
 std::size_t Engine::workspace_bytes() const {
-  std::size_t b = broad_.workspace_bytes() + force_.capacity() * sizeof(Vec3);
+  std::size_t b = broad_.workspace_bytes() + force_.capacity() * sizeof(Vec3) +
+                  row_mark_.capacity() * sizeof(std::int32_t);
   for (const auto& v : tool_vertices_) b += v.capacity() * sizeof(Vec3);
   for (const auto& v : remote_) b += v.capacity() * sizeof(Remote);
   return b;

@@ -32,6 +32,18 @@ void add_particle(State& s, Vec3 x, Vec3 v, double radius, double mass, int spec
 
 namespace dem {
 
+void build_pair_rows(State& s) {
+  const std::size_t n = s.size();
+  s.pair_row_offset.assign(n + 1, 0);
+  for (const std::int32_t j : s.pair_j) ++s.pair_row_offset[j + 1];
+  for (std::size_t j = 0; j < n; ++j) s.pair_row_offset[j + 1] += s.pair_row_offset[j];
+  s.pair_row.resize(s.pair_j.size());
+  std::vector<std::int32_t> next(s.pair_row_offset.begin(), s.pair_row_offset.end() - 1);
+  for (std::size_t i = 0; i < n; ++i)
+    for (std::int32_t k = s.pair_offset[i]; k < s.pair_offset[i + 1]; ++k)
+      s.pair_row[next[s.pair_j[k]]++] = static_cast<std::int32_t>(i);
+}
+
 std::size_t remove_particles(State& s, const std::vector<std::uint8_t>& remove) {
   const std::size_t n = s.size();
   std::vector<std::int32_t> new_index(n, -1);
@@ -93,6 +105,8 @@ std::size_t remove_particles(State& s, const std::vector<std::uint8_t>& remove) 
     const std::string_view key(name);
     if (field != Field::derived || key == "x_at_rebuild" || key == "wall_mask") compact(a);
   });
+  s.pair_row_offset.clear();  // the lists changed: built again when sleeping needs it
+  s.pair_row.clear();
   s.removed_count += static_cast<std::int64_t>(n - m);
   s.removed_mass += mass;
   return n - m;

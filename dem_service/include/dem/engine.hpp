@@ -126,6 +126,9 @@ class Engine {
   std::vector<std::uint8_t> wake_;
   std::vector<std::vector<std::int32_t>> remote_wake_;  // per thread
   std::vector<std::uint8_t> remove_;                    // region of interest workspace
+  // Sleeping: row_mark_[i] == row_stamp_ when sleeper i's row holds an awake partner this step.
+  std::vector<std::int32_t> row_mark_;
+  std::int32_t row_stamp_ = 0;
   std::int64_t sleeping_ = 0;
   std::int64_t removed_last_ = 0;
   std::vector<std::vector<Wrench>> thread_tool_wrench_;  // per thread
@@ -136,6 +139,12 @@ class Engine {
   std::vector<Vec3> wall_force_;
   Timing timing_ = make_timing();
 };
+
+namespace detail {
+// Whether the pair loop skips the rows of sleepers that hold no awake partner (the default) or
+// scans every row as before; tests compare whole runs both ways.
+void use_sleeper_row_skip(bool skip);
+}  // namespace detail
 
 // Kinetic energy of all particles.
 double kinetic_energy(const State& s);

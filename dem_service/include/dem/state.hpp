@@ -59,6 +59,10 @@ struct State {
   // Work of the pair rows before each particle (candidates, plus 4 per pair touching at the
   // broad phase, plus 1 per particle), n + 1 entries: threads split the pair forces by it.
   std::vector<std::int64_t> pair_work;
+  // The half list read by partner, for sleeping (Scene::sleep): pair_row[pair_row_offset[j] ..
+  // pair_row_offset[j + 1]) are the rows i < j that hold j, ascending. Empty until a step with
+  // sleeping needs it (build_pair_rows); every change of the lists empties it.
+  std::vector<std::int32_t> pair_row_offset, pair_row;
   // Particle-triangle candidates in CSR form: tool index and triangle index.
   std::vector<std::int32_t> tri_offset, tri_tool, tri_index;
   // Walls within r + skin at the last broad phase, one bit per wall (all bits if > 32 walls).
@@ -111,6 +115,8 @@ void for_each_array(S& s, F&& f) {
   f("pair_j", s.pair_j, Field::derived);
   f("pair_spring", s.pair_spring, Field::derived);
   f("pair_work", s.pair_work, Field::derived);
+  f("pair_row_offset", s.pair_row_offset, Field::derived);
+  f("pair_row", s.pair_row, Field::derived);
   f("tri_offset", s.tri_offset, Field::derived);
   f("tri_tool", s.tri_tool, Field::derived);
   f("tri_index", s.tri_index, Field::derived);
@@ -131,6 +137,9 @@ inline std::size_t bytes(const State& s) {
   });
   return b;
 }
+
+// Fills pair_row_offset and pair_row from pair_offset and pair_j.
+void build_pair_rows(State& s);
 
 // Appends one particle; radius and mass must already be validated.
 void add_particle(State& s, Vec3 x, Vec3 v, double radius, double mass, int species,
