@@ -141,6 +141,60 @@ TEST(dem_BroadPhase, GuardRebuildsEarlyWhenIntervalIsTooLong) {
   EXPECT_EQ(st.rebuilds, st.early_rebuilds + 1);  // only the first one was due
 }
 
+// A folded sheet of triangles much smaller than the spheres (a fine tool mesh: edges a quarter of
+// a radius), turned and shifted, with spheres at random heights from 0.3 r to 1.2 r over it: the
+// contacts through the candidate lists and the triangles' bounding-sphere test equal a brute-force
+// search over every triangle. A bound that dropped a triangle within the reach would miss the
+// contacts near their edge.
+TEST(dem_BroadPhase, FineMeshContactsMatchBruteForce) {
+  const double r = 0.5e-3;
+  dem::Scene scene = one_species_scene(r, r);
+  scene.particle_particle = scene.particle_wall = law_n_per_m(50, 0.5, true, 0.3);
+  scene.skin = 0.4;
+  std::vector<Vec3> c;
+  const int cells = 48;
+  const double w = 0.006, h = w / cells;  // 0.125 mm squares: edges of a quarter radius
+  for (int side = 0; side < 2; ++side)
+    for (int a = 0; a < cells; ++a)
+      for (int b = 0; b < 2 * cells; ++b) {
+        auto at = [&](int u, int v) {
+          const double x = side == 0 ? -w + u * h : u * h;
+          const double z = side == 0 ? 0.3 * (x + w) : 0.3 * (w - x);
+          return Vec3{x, -w + v * h, z * 0.5};
+        };
+        quad(c, at(a, b), at(a + 1, b), at(a + 1, b + 1), at(a, b + 1));
+      }
+  dem::Tool tool = static_tool("fine", c);
+  tool.motion.keyframes = {{0, {0.01, 0.01, 0.002}, {0.9238795, 0.3826834, 0, 0}}};
+  scene.tools.push_back(tool);
+  State st;
+  std::mt19937_64 rng(21);
+  std::uniform_real_distribution<double> U(0, 1);
+  const dem::ToolPose pose = tool.motion.evaluate(0);
+  const dem::Mat3 R = dem::to_matrix(pose.orientation);
+  for (int k = 0; k < 1500; ++k) {
+    // A point on the sheet (mesh frame), lifted along the sheet's normal by 0.3-1.2 r.
+    const double x = -w + 2 * w * U(rng), y = -w + 2 * w * U(rng);
+    const double z = 0.5 * (x < 0 ? 0.3 * (x + w) : 0.3 * (w - x));
+    const Vec3 nrm = x < 0 ? Vec3{-0.15, 0, 1} : Vec3{0.15, 0, 1};
+    const Vec3 p = Vec3{x, y, z} + ((0.3 + 0.9 * U(rng)) * r / norm(nrm)) * nrm;
+    const Vec3 world = pose.position + R * p;
+    bool free = true;
+    for (std::size_t q = 0; q < st.size() && free; ++q) free = norm2(st.x[q] - world) > 4 * r * r;
+    if (free) add(st, world, {}, r);
+  }
+  st.tool_pose = {pose};
+  dem::Engine engine(scene);
+  engine.prepare(st);
+  const auto want = brute_mesh(scene, st);
+  std::set<std::tuple<std::int64_t, int, std::uint64_t>> got;
+  for (const auto& m : engine.mesh_contacts(st)) got.emplace(m.particle, m.tool, m.key);
+  EXPECT_EQ(got, want);
+  std::printf("%zu spheres, %zu triangles, %zu mesh contacts\n", st.size(),
+              scene.tools[0].mesh.triangles.size(), want.size());
+  EXPECT_GT(want.size(), 50u);  // not vacuous
+}
+
 TEST(dem_BroadPhase, StrictGuardThrowsNamingIntervalAndSkin) {
   auto [scene, st] = random_scene(1000, 0.1, 3, 1.0);
   scene.guard = dem::GuardMode::strict;
