@@ -401,7 +401,7 @@ void BroadPhase::build(const Scene& scene, State& s,
                   xp.z < bmin.z || xp.z > bmax.z)
                 continue;
               const double cut = s.radius[p] + skin;
-              if (closest_on_triangle(mesh, wv, t, s.x[p]).dist2 < cut * cut)
+              if (closest_on_triangle(mesh, wv, t, xp).dist2 < cut * cut)
                 out.push_back({p, static_cast<std::int32_t>(m), t});
             }
           }

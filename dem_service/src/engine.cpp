@@ -101,6 +101,15 @@ bool shares_vertex(const Scene& scene, std::uint64_t a, std::uint64_t b) {
 
 std::atomic<bool> sleeper_row_skip{true};
 
+// Keeps the two largest of the squared displacements seen so far (first >= second), each of
+// another particle: what the guard adds up.
+inline void keep_two_largest(double& first, double& second, double d2) {
+  if (d2 > second) {
+    second = std::min(d2, first);
+    first = std::max(d2, first);
+  }
+}
+
 }  // namespace
 
 void detail::use_sleeper_row_skip(bool skip) { sleeper_row_skip = skip; }
@@ -311,10 +320,12 @@ void Engine::pair_forces_impl(State& s) {
   }
   // Sleeping: a sleeper's row is scanned only if an awake particle is among its partners (the
   // rows of two sleepers compute nothing). The awake particles mark the rows of the sleepers
-  // that hold them (State::pair_rows) with this step's stamp before the loop.
+  // that hold them (State::pair_row) with this step's stamp before the loop. Without sleepers
+  // in the last step (sleeping_) every row is read and nothing is marked or built; the pairs
+  // computed are the same either way.
   std::int32_t* MARK = nullptr;
   std::int32_t stamp = 0;
-  const bool skip_rows = Sleep && sleeper_row_skip.load(std::memory_order_relaxed);
+  const bool skip_rows = Sleep && sleeping_ > 0 && sleeper_row_skip.load(std::memory_order_relaxed);
   if (skip_rows) {
     // Built by the first step with sleeping after a broad phase (and again if a loaded
     // checkpoint's copy does not fit the lists).
@@ -628,13 +639,7 @@ void Engine::integrate_impl(State& s) {
     const int t = omp_get_thread_num();
     const std::size_t a0 = n * t / T, a1 = n * (t + 1) / T;
     double my_d2 = 0, my_second = 0;  // this thread's two largest
-    // Keeps the two largest squared displacements of distinct particles.
-    auto moved = [&](double d2) {
-      if (d2 > my_second) {
-        my_second = std::min(d2, my_d2);
-        my_d2 = std::max(d2, my_d2);
-      }
-    };
+    auto moved = [&](double d2) { keep_two_largest(my_d2, my_second, d2); };
     std::int64_t my_bad = -1;
     std::int64_t my_sleeping = 0;
     auto near_tool = [&](std::size_t i) {
@@ -699,11 +704,8 @@ void Engine::integrate_impl(State& s) {
     }
 #pragma omp critical(dem_integrate)
     {
-      for (const double d2 : {my_d2, my_second})
-        if (d2 > second_d2) {
-          second_d2 = std::min(d2, max_d2);
-          max_d2 = std::max(d2, max_d2);
-        }
+      keep_two_largest(max_d2, second_d2, my_d2);
+      keep_two_largest(max_d2, second_d2, my_second);
       sleeping += my_sleeping;
       if (my_bad >= 0 && (bad < 0 || my_bad < bad)) bad = my_bad;
     }
