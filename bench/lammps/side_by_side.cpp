@@ -13,7 +13,9 @@
 //       --interval 0 rebuilds only when needed (the skin guard), like LAMMPS `check yes`.
 //   run and trace take --thread-wait passive|brief|spin (default: scene.thread_wait's default),
 //   applied as dem_run applies scene.thread_wait (docs/dem.md); OMP_WAIT_POLICY or
-//   GOMP_SPINCOUNT in the environment win over it.
+//   GOMP_SPINCOUNT in the environment win over it. --pair-kernel vector|scalar (default vector)
+//   picks the pair forces' AVX-512 kernel (where the processor has it) or the scalar loop; both
+//   give the same bits (dem/pair_kernel.hpp), the option is there to time one against the other.
 //   dem_side_by_side trace --kind K --n N --dir DIR --threads T --interval I
 //                          --duration D --every E
 //       Prints "t kinetic_energy contacts_per_particle" at t = 0, E, 2E, ... D (contacts: touching
@@ -327,7 +329,7 @@ int main(int argc, char** argv) {
   if (argc < 2) {
     std::fprintf(stderr, "usage: dem_side_by_side prepare|run|trace --kind bed|gas --n N "
                          "--dir DIR [--threads T --interval I --steps S --duration D --every E]"
-                         " [--thread-wait passive|brief|spin]"
+                         " [--thread-wait passive|brief|spin] [--pair-kernel vector|scalar]"
                          "\n(see the header of bench/lammps/side_by_side.cpp)\n");
     return 2;
   }
@@ -338,7 +340,8 @@ int main(int argc, char** argv) {
                                          {"--steps", "200"}, {"--duration", "0.1"},
                                          {"--every", "0.002"},
                                          {"--thread-wait",
-                                          dem::thread_wait_name(dem::Scene{}.thread_wait)}};
+                                          dem::thread_wait_name(dem::Scene{}.thread_wait)},
+                                         {"--pair-kernel", "vector"}};
   if (!bench::parse_options(argc, argv, 2, "dem_side_by_side", opt)) return 2;
   try {
     const std::string kind = opt["--kind"], dir = opt["--dir"];
@@ -347,6 +350,13 @@ int main(int argc, char** argv) {
       prepare(kind, n, dir);
       return 0;
     }
+    const std::string kernel = opt["--pair-kernel"];
+    if (kernel != "vector" && kernel != "scalar") {
+      std::fprintf(stderr, "dem_side_by_side: --pair-kernel %s: use vector or scalar\n",
+                   kernel.c_str());
+      return 2;
+    }
+    dem::detail::use_vector_pairs(kernel == "vector");
     // How idle OpenMP threads wait, as dem_run and dem_service do (scene.thread_wait; may
     // execute this program again, once, with the OpenMP wait variables set).
     YAML::Node scene_node;

@@ -10,6 +10,7 @@
 
 #include "cosim/timer.hpp"
 #include "dem/broad_phase.hpp"
+#include "dem/pair_kernel.hpp"
 #include "dem/scene.hpp"
 #include "dem/state.hpp"
 
@@ -115,11 +116,7 @@ class Engine {
   std::vector<Mat3> tool_rotation_;
   std::vector<Vec3> tool_box_min_, tool_box_max_;  // mesh frame, for scene.sleep.neighbourhood
   std::vector<double> tool_box_radius_;             // farthest box corner from the reference point
-  struct Remote {
-    std::int32_t j;
-    Vec3 f;
-  };
-  std::vector<std::vector<Remote>> remote_;              // per thread
+  std::vector<std::vector<detail::PairRemote>> remote_;  // per thread
   std::vector<std::size_t> bounds_;  // particle ranges of the threads in pair_forces
   // Sleeping: wake_[i] set by the pair loop when a sleeper is to wake; wakes of particles in
   // another thread's range are queued per thread and applied after the loop.
@@ -144,6 +141,9 @@ namespace detail {
 // Whether the pair loop skips the rows of sleepers that hold no awake partner (the default) or
 // scans every row as before; tests compare whole runs both ways.
 void use_sleeper_row_skip(bool skip);
+// Whether the all-awake pair forces use the AVX-512 kernel where the processor has it (the
+// default) or the scalar loop; both give the same bits (dem/pair_kernel.hpp), tests compare.
+void use_vector_pairs(bool vector);
 }  // namespace detail
 
 // Kinetic energy of all particles.

@@ -1,0 +1,427 @@
+#include "dem/pair_kernel.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#if defined(__x86_64__) && defined(__GNUC__)
+#include <immintrin.h>
+#endif
+
+namespace dem::detail {
+
+namespace {
+
+void pair_rows_scalar(const PairRows& p, std::size_t a0, std::size_t a1,
+                      std::vector<PairRemote>& remote, PairRowStats& stats) {
+  const ContactLaw law = p.law;  // a local copy: no reloads after stores
+  const double dt = p.dt;
+  const Vec3* const X = p.x;
+  const Vec3* const U = p.u;
+  const double* const R = p.radius;
+  const double* const M = p.mass;
+  const std::int32_t* const off = p.offset;
+  const std::int32_t* const J = p.partner;
+  Vec3* const spring = p.spring;
+  Vec3* const F = p.force;
+  std::int64_t contacts = 0;
+  double max_overlap = 0, max_overlap_ratio = 0;
+  ContactCoefficients c;
+  double last_ri = -1, last_mi = -1, last_rj = -1, last_mj = -1;
+  for (std::size_t i = a0; i < a1; ++i) {
+    const Vec3 xi = X[i], ui = U[i];
+    const double ri = R[i], mi = M[i];
+    if (ri != last_ri || mi != last_mi) {
+      last_ri = ri;
+      last_mi = mi;
+      last_rj = last_mj = -1;
+    }
+    Vec3 fi{};
+    for (std::int32_t k = off[i]; k < off[i + 1]; ++k) {
+      const std::int32_t j = J[k];
+      const Vec3 d = xi - X[j];
+      const double rsum = ri + R[j];
+      const double d2 = norm2(d);
+      const Vec3 urel = ui - U[j];
+      if (d2 >= rsum * rsum && surely_apart(d2, rsum, norm2(urel), dt)) {
+        // Contact ended: history is forgotten (write only if there is something to clear).
+        if (nonzero(spring[k])) spring[k] = Vec3{};
+        continue;
+      }
+      const double dist = std::sqrt(d2);
+      const Vec3 nrm = dist > 0 ? (1.0 / dist) * d : Vec3{0, 0, 1};
+      const double rj = R[j], mj = M[j];
+      // Monodisperse beds repeat the same pair: reuse the coefficients (saves a sqrt).
+      if (rj != last_rj || mj != last_mj) {
+        c = coefficients(law, ri * rj / rsum, mi * mj / (mi + mj));
+        last_rj = rj;
+        last_mj = mj;
+      }
+      Vec3 f;
+      if (!contact_force(law, c, rsum - dist, nrm, urel, spring[k], dt, f)) {
+        spring[k] = Vec3{};
+        continue;
+      }
+      ++contacts;
+      max_overlap = std::max(max_overlap, rsum - dist);
+      max_overlap_ratio = std::max(max_overlap_ratio, (rsum - dist) / std::min(ri, rj));
+      fi += f;
+      if (static_cast<std::size_t>(j) < a1)
+        F[j] -= f;
+      else
+        remote.push_back({j, f});
+    }
+    F[i] += fi;
+  }
+  stats.contacts += contacts;
+  stats.max_overlap = std::max(stats.max_overlap, max_overlap);
+  stats.max_overlap_ratio = std::max(stats.max_overlap_ratio, max_overlap_ratio);
+}
+
+#if defined(__x86_64__) && defined(__GNUC__)
+#define DEM_AVX512 __attribute__((target("avx512f,avx512vl,avx512dq")))
+
+// The lanes of a mask blend: pick ? a : b.
+DEM_AVX512 inline __m512d pick(__mmask8 m, __m512d a, __m512d b) {
+  return _mm512_mask_blend_pd(m, b, a);
+}
+
+// Lane l of the result holds component c of the Vec3 at base + 3 j[l] (j = 0 in dead lanes):
+// 8 loads of 3 doubles (masked: no read past the array) and a transpose, cheaper than three
+// gathers.
+struct Lanes3 {
+  __m512d x, y, z;
+};
+DEM_AVX512 inline __m512d load_two(const double* base, const std::int32_t* j) {
+  return _mm512_insertf64x4(_mm512_castpd256_pd512(_mm256_maskz_loadu_pd(0x7, base + 3 * j[0])),
+                            _mm256_maskz_loadu_pd(0x7, base + 3 * j[1]), 1);
+}
+DEM_AVX512 inline Lanes3 load_vec3(const double* base, const std::int32_t* j) {
+  const __m512d p0 = load_two(base, j), p1 = load_two(base, j + 2), p2 = load_two(base, j + 4),
+                p3 = load_two(base, j + 6);
+  // p0 = x0 y0 z0 _ x1 y1 z1 _, ...: x and y of 4 Vec3 from two, then z.
+  const __m512i xy = _mm512_setr_epi64(0, 4, 8, 12, 1, 5, 9, 13);
+  const __m512i zz = _mm512_setr_epi64(2, 6, 10, 14, 2, 6, 10, 14);
+  const __m512d a = _mm512_permutex2var_pd(p0, xy, p1), b = _mm512_permutex2var_pd(p2, xy, p3);
+  const __m512d c = _mm512_permutex2var_pd(p0, zz, p1), d = _mm512_permutex2var_pd(p2, zz, p3);
+  return {_mm512_shuffle_f64x2(a, b, 0x44), _mm512_shuffle_f64x2(a, b, 0xEE),
+          _mm512_shuffle_f64x2(c, d, 0x44)};
+}
+
+// The 8 Vec3 stored contiguously at `base` (lanes beyond the row read as 0) as components: 3
+// loads and 6 permutes instead of three gathers.
+struct Interleave {
+  __m512i first[3], second[3];  // component c
+};
+DEM_AVX512 inline Interleave make_interleave() {
+  Interleave t;
+  alignas(64) long long a[8], b[8];
+  for (int c = 0; c < 3; ++c) {
+    for (int l = 0; l < 8; ++l) {
+      const int f = 3 * l + c;  // flat index of component c of lane l
+      a[l] = f < 16 ? f : 0;
+      b[l] = f < 16 ? l : 8 + (f - 16);
+    }
+    t.first[c] = _mm512_load_si512(a);
+    t.second[c] = _mm512_load_si512(b);
+  }
+  return t;
+}
+// Masks of the doubles of the first `left` Vec3 (left <= 8) in the 3 registers.
+DEM_AVX512 inline void vec3_masks(int left, __mmask8 m[3]) {
+  for (int r = 0; r < 3; ++r) {
+    const int n = std::min(std::max(3 * left - 8 * r, 0), 8);
+    m[r] = static_cast<__mmask8>((1u << n) - 1);
+  }
+}
+DEM_AVX512 inline Lanes3 load_contiguous(const Interleave& t, const double* base,
+                                         const __mmask8 m[3]) {
+  const __m512d l0 = _mm512_maskz_loadu_pd(m[0], base), l1 = _mm512_maskz_loadu_pd(m[1], base + 8),
+                l2 = _mm512_maskz_loadu_pd(m[2], base + 16);
+  __m512d v[3];
+  for (int c = 0; c < 3; ++c)
+    v[c] = _mm512_permutex2var_pd(_mm512_permutex2var_pd(l0, t.first[c], l1), t.second[c], l2);
+  return {v[0], v[1], v[2]};
+}
+// 8 candidates of a row at a time: every lane computes the screen and the whole contact force
+// (the scalar version's branches become masks), then the forces of the active lanes are summed
+// and applied in pair order by scalar code, exactly as the scalar loop does.
+DEM_AVX512 void pair_rows_avx512(const PairRows& p, std::size_t a0, std::size_t a1,
+                                 std::vector<PairRemote>& remote, PairRowStats& stats) {
+  const ContactLaw& law = p.law;
+  const double dt = p.dt;
+  const double* const X = reinterpret_cast<const double*>(p.x);
+  const double* const U = reinterpret_cast<const double*>(p.u);
+  const double* const R = p.radius;
+  const double* const M = p.mass;
+  const std::int32_t* const off = p.offset;
+  const std::int32_t* const J = p.partner;
+  Vec3* const spring = p.spring;
+  Vec3* const F = p.force;
+
+  const __m512d zero = _mm512_setzero_pd(), one = _mm512_set1_pd(1.0);
+  const __m512d two = _mm512_set1_pd(2.0), four = _mm512_set1_pd(4.0);
+  const __m512d half = _mm512_set1_pd(0.5), tiny = _mm512_set1_pd(1e-6);
+  const __m512d minus_one = _mm512_set1_pd(-1.0);
+  const __m512d vdt = _mm512_set1_pd(dt);
+  const __m512d quarter_dt2 = _mm512_set1_pd(0.25 * dt * dt);  // surely_apart's (0.25 dt) dt
+  const __m512d half_dt = _mm512_set1_pd(0.5 * dt);
+  const __m512d kn = _mm512_set1_pd(law.normal_stiffness);
+  const __m512d two_zeta = _mm512_set1_pd(2.0 * law.zeta);
+  const __m512d eta_fixed = _mm512_set1_pd(law.normal_damping);
+  const __m512d kt_ratio = _mm512_set1_pd(law.tangential_stiffness_ratio);
+  const __m512d etat_ratio = _mm512_set1_pd(law.tangential_damping_ratio);
+  const __m512d mu = _mm512_set1_pd(law.friction);
+  const __mmask8 per_length = law.stiffness_per_length ? 0xFF : 0;
+  const __mmask8 from_restitution = law.damping_from_restitution ? 0xFF : 0;
+  const __mmask8 clip = law.clip_attractive ? 0xFF : 0;
+  const __m512i sign = _mm512_set1_epi64(static_cast<long long>(0x8000000000000000ull));
+  const Interleave mix = make_interleave();
+
+  alignas(64) double fx[8], fy[8], fz[8];
+  alignas(32) std::int32_t jl[8];
+  const std::int32_t kend = off[a1];
+  constexpr int pfd = 24;  // candidates ahead (24-96 measured alike; 400 too far)
+  std::int64_t contacts = 0;
+  __m512d max_overlap = zero, max_ratio = zero;
+  // No radius or mass is negative: nothing matches before the first uniform chunk.
+  double cached_ri = -1, cached_mi = -1;
+  __m512d cached_rj = minus_one, cached_mj = minus_one, cached_k = zero, cached_eta = zero;
+
+  for (std::size_t i = a0; i < a1; ++i) {
+    const std::int32_t k1 = off[i + 1];
+    Vec3 fi{};
+    if (off[i] < k1) {
+      const __m512d xix = _mm512_set1_pd(X[3 * i]), xiy = _mm512_set1_pd(X[3 * i + 1]),
+                    xiz = _mm512_set1_pd(X[3 * i + 2]);
+      const __m512d uix = _mm512_set1_pd(U[3 * i]), uiy = _mm512_set1_pd(U[3 * i + 1]),
+                    uiz = _mm512_set1_pd(U[3 * i + 2]);
+      const __m512d ri = _mm512_set1_pd(R[i]), mi = _mm512_set1_pd(M[i]);
+      for (std::int32_t k = off[i]; k < k1; k += 8) {
+        const int left = k1 - k;
+        const __mmask8 live = left >= 8 ? 0xFF : static_cast<__mmask8>((1u << left) - 1);
+        const __m256i j = _mm256_maskz_loadu_epi32(live, J + k);
+        _mm256_store_si256(reinterpret_cast<__m256i*>(jl), j);
+        const Lanes3 xj = load_vec3(X, jl), uj = load_vec3(U, jl);
+        const __m512d xjx = xj.x, xjy = xj.y, xjz = xj.z, ujx = uj.x, ujy = uj.y, ujz = uj.z;
+        const __m512d rj = _mm512_mask_i32gather_pd(one, live, j, R, 8);
+        double* const sk = reinterpret_cast<double*>(spring + k);
+        __mmask8 smask[3];
+        vec3_masks(std::min(left, 8), smask);
+        // The springs and partners of the rows ahead (the hardware's prefetcher does not keep
+        // up with this stream here).
+        if (k + pfd + 8 < kend) {
+          for (int line = 0; line < 3; ++line)
+            _mm_prefetch(reinterpret_cast<const char*>(sk + 3 * pfd + 8 * line), _MM_HINT_T0);
+          _mm_prefetch(reinterpret_cast<const char*>(J + k + pfd), _MM_HINT_T0);
+        }
+        const Lanes3 s0 = load_contiguous(mix, sk, smask);
+        __m512d sx = s0.x, sy = s0.y, sz = s0.z;
+
+        // The screen (surely_apart, after the d2 >= rsum^2 test).
+        const __m512d dx = _mm512_sub_pd(xix, xjx), dy = _mm512_sub_pd(xiy, xjy),
+                      dz = _mm512_sub_pd(xiz, xjz);
+        const __m512d rsum = _mm512_add_pd(ri, rj);
+        const __m512d d2 = _mm512_add_pd(
+            _mm512_add_pd(_mm512_mul_pd(dx, dx), _mm512_mul_pd(dy, dy)), _mm512_mul_pd(dz, dz));
+        const __m512d ux = _mm512_sub_pd(uix, ujx), uy = _mm512_sub_pd(uiy, ujy),
+                      uz = _mm512_sub_pd(uiz, ujz);
+        const __m512d urel2 = _mm512_add_pd(
+            _mm512_add_pd(_mm512_mul_pd(ux, ux), _mm512_mul_pd(uy, uy)), _mm512_mul_pd(uz, uz));
+        const __m512d rs2 = _mm512_mul_pd(rsum, rsum);
+        const __m512d g2 = _mm512_mul_pd(quarter_dt2, urel2);
+        const __m512d q = _mm512_sub_pd(_mm512_sub_pd(d2, rs2), g2);
+        const __m512d q4 = _mm512_mul_pd(_mm512_mul_pd(_mm512_mul_pd(four, rsum), rsum), g2);
+        __mmask8 apart = _mm512_mask_cmp_pd_mask(live, d2, rs2, _CMP_GE_OQ);
+        apart = _mm512_mask_cmp_pd_mask(apart, q, zero, _CMP_GE_OQ);
+        apart = _mm512_mask_cmp_pd_mask(apart, _mm512_mul_pd(q, q), q4, _CMP_GE_OQ);
+        // Ended contacts: a held spring is cleared.
+        const __m512i sbits = _mm512_slli_epi64(
+            _mm512_or_si512(_mm512_or_si512(_mm512_castpd_si512(sx), _mm512_castpd_si512(sy)),
+                            _mm512_castpd_si512(sz)),
+            1);
+        const __mmask8 clear = _mm512_mask_test_epi64_mask(apart, sbits, sbits);
+        const __mmask8 cand = live & static_cast<__mmask8>(~apart);
+        if (cand == 0) {
+          for (unsigned m = clear; m != 0; m &= m - 1) spring[k + __builtin_ctz(m)] = Vec3{};
+          continue;
+        }
+
+        // The normal, the coefficients, contact_force.
+        const __m512d dist = _mm512_sqrt_pd(d2);
+        const __m512d inv = _mm512_div_pd(one, dist);
+        const __mmask8 positive = _mm512_cmp_pd_mask(dist, zero, _CMP_GT_OQ);
+        const __m512d nx = pick(positive, _mm512_mul_pd(inv, dx), zero);
+        const __m512d ny = pick(positive, _mm512_mul_pd(inv, dy), zero);
+        const __m512d nz = pick(positive, _mm512_mul_pd(inv, dz), one);
+        const __m512d mj = _mm512_mask_i32gather_pd(one, cand, j, M, 8);
+        // The contact coefficients of the pair. A monodisperse bed repeats one pair: the
+        // coefficients of the last uniform chunk are reused when every candidate lane has its
+        // radii and masses (the same bits as computing them again).
+        __m512d ck, ceta;
+        const __mmask8 same = _mm512_mask_cmp_pd_mask(cand, rj, cached_rj, _CMP_EQ_OQ) &
+                              _mm512_mask_cmp_pd_mask(cand, mj, cached_mj, _CMP_EQ_OQ);
+        if (same == cand && R[i] == cached_ri && M[i] == cached_mi) {
+          ck = cached_k;
+          ceta = cached_eta;
+        } else {
+          const __m512d length = _mm512_div_pd(_mm512_mul_pd(ri, rj), rsum);
+          const __m512d m_eff = _mm512_div_pd(_mm512_mul_pd(mi, mj), _mm512_add_pd(mi, mj));
+          ck = pick(per_length, _mm512_mul_pd(kn, length), kn);
+          ceta = pick(from_restitution,
+                      _mm512_mul_pd(two_zeta, _mm512_sqrt_pd(_mm512_mul_pd(m_eff, ck))), eta_fixed);
+          // Remember them if the chunk itself is uniform.
+          const __m512i first = _mm512_set1_epi64(__builtin_ctz(cand));
+          const __m512d rj0 = _mm512_permutexvar_pd(first, rj),
+                        mj0 = _mm512_permutexvar_pd(first, mj);
+          if ((_mm512_mask_cmp_pd_mask(cand, rj, rj0, _CMP_EQ_OQ) &
+               _mm512_mask_cmp_pd_mask(cand, mj, mj0, _CMP_EQ_OQ)) == cand) {
+            cached_rj = rj0;
+            cached_mj = mj0;
+            cached_ri = R[i];
+            cached_mi = M[i];
+            cached_k = _mm512_permutexvar_pd(first, ck);
+            cached_eta = _mm512_permutexvar_pd(first, ceta);
+          }
+        }
+        const __m512d ckt = _mm512_mul_pd(kt_ratio, ck);
+        const __m512d cetat = _mm512_mul_pd(etat_ratio, ceta);
+        const __mmask8 kt_positive = _mm512_cmp_pd_mask(ckt, zero, _CMP_GT_OQ);
+
+        const __m512d overlap = _mm512_sub_pd(rsum, dist);
+        const __m512d vn = _mm512_add_pd(
+            _mm512_add_pd(_mm512_mul_pd(ux, nx), _mm512_mul_pd(uy, ny)), _mm512_mul_pd(uz, nz));
+        const __m512d abs_vn =
+            _mm512_castsi512_pd(_mm512_andnot_si512(sign, _mm512_castpd_si512(vn)));
+        const __m512d hv = _mm512_mul_pd(half_dt, abs_vn);
+        const __m512d neg_hv = _mm512_castsi512_pd(_mm512_xor_si512(sign, _mm512_castpd_si512(hv)));
+        // active: not (overlap <= -half)
+        const __mmask8 act = _mm512_mask_cmp_pd_mask(cand, overlap, neg_hv, _CMP_NLE_UQ);
+        const __mmask8 full = _mm512_cmp_pd_mask(overlap, hv, _CMP_GE_OQ);
+        __m512d active = one, fn = _mm512_mul_pd(ck, overlap);
+        if (act & ~full) {  // a contact starting or ending inside the step's window: rare
+          const __m512d w = _mm512_add_pd(overlap, hv);
+          active = pick(full, one, _mm512_div_pd(w, _mm512_mul_pd(two, hv)));
+          fn = pick(full, fn,
+                    _mm512_div_pd(_mm512_mul_pd(_mm512_mul_pd(ck, w), w), _mm512_mul_pd(four, hv)));
+        }
+        fn = _mm512_sub_pd(fn, _mm512_mul_pd(_mm512_mul_pd(active, ceta), vn));
+        fn = pick(clip & _mm512_cmp_pd_mask(fn, zero, _CMP_LT_OQ), zero, fn);
+        const __m512d vtx = _mm512_sub_pd(ux, _mm512_mul_pd(vn, nx));
+        const __m512d vty = _mm512_sub_pd(uy, _mm512_mul_pd(vn, ny));
+        const __m512d vtz = _mm512_sub_pd(uz, _mm512_mul_pd(vn, nz));
+
+        // The spring turned into the tangent plane, its length kept.
+        const __m512d s2 = _mm512_add_pd(
+            _mm512_add_pd(_mm512_mul_pd(sx, sx), _mm512_mul_pd(sy, sy)), _mm512_mul_pd(sz, sz));
+        const __mmask8 held = _mm512_cmp_pd_mask(s2, zero, _CMP_GT_OQ);
+        if (held) {
+          const __m512d sn = _mm512_add_pd(
+              _mm512_add_pd(_mm512_mul_pd(sx, nx), _mm512_mul_pd(sy, ny)), _mm512_mul_pd(sz, nz));
+          const __m512d spx = _mm512_sub_pd(sx, _mm512_mul_pd(sn, nx));
+          const __m512d spy = _mm512_sub_pd(sy, _mm512_mul_pd(sn, ny));
+          const __m512d spz = _mm512_sub_pd(sz, _mm512_mul_pd(sn, nz));
+          const __m512d xs = _mm512_div_pd(_mm512_mul_pd(sn, sn), s2);
+          const __mmask8 small = _mm512_cmp_pd_mask(xs, tiny, _CMP_LT_OQ);
+          const __mmask8 below_one = _mm512_cmp_pd_mask(xs, one, _CMP_LT_OQ);
+          __m512d fl = zero;
+          if (below_one & ~small & held)
+            fl = pick(below_one, _mm512_div_pd(one, _mm512_sqrt_pd(_mm512_sub_pd(one, xs))), zero);
+          fl = pick(small, _mm512_add_pd(one, _mm512_mul_pd(half, xs)), fl);
+          sx = pick(held, _mm512_mul_pd(fl, spx), sx);
+          sy = pick(held, _mm512_mul_pd(fl, spy), sy);
+          sz = pick(held, _mm512_mul_pd(fl, spz), sz);
+        }
+        const __m512d adt = _mm512_mul_pd(active, vdt);
+        sx = _mm512_add_pd(sx, _mm512_mul_pd(adt, vtx));
+        sy = _mm512_add_pd(sy, _mm512_mul_pd(adt, vty));
+        sz = _mm512_add_pd(sz, _mm512_mul_pd(adt, vtz));
+        const __m512d neg_kt =
+            _mm512_castsi512_pd(_mm512_xor_si512(sign, _mm512_castpd_si512(ckt)));
+        const __m512d aetat = _mm512_mul_pd(active, cetat);
+        __m512d ftx = _mm512_sub_pd(_mm512_mul_pd(neg_kt, sx), _mm512_mul_pd(aetat, vtx));
+        __m512d fty = _mm512_sub_pd(_mm512_mul_pd(neg_kt, sy), _mm512_mul_pd(aetat, vty));
+        __m512d ftz = _mm512_sub_pd(_mm512_mul_pd(neg_kt, sz), _mm512_mul_pd(aetat, vtz));
+        const __m512d cap =
+            _mm512_mul_pd(mu, pick(_mm512_cmp_pd_mask(fn, zero, _CMP_GT_OQ), fn, zero));
+        const __m512d ft2 =
+            _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(ftx, ftx), _mm512_mul_pd(fty, fty)),
+                          _mm512_mul_pd(ftz, ftz));
+        const __mmask8 binds = _mm512_cmp_pd_mask(ft2, _mm512_mul_pd(cap, cap), _CMP_GT_OQ) & act;
+        if (binds) {
+          const __m512d neg_inv_kt = pick(kt_positive, _mm512_div_pd(minus_one, ckt), zero);
+          const __m512d scale = _mm512_div_pd(cap, _mm512_sqrt_pd(ft2));
+          const __m512d cx = _mm512_mul_pd(scale, ftx), cy = _mm512_mul_pd(scale, fty),
+                        cz = _mm512_mul_pd(scale, ftz);
+          sx = pick(binds, pick(kt_positive, _mm512_mul_pd(neg_inv_kt, cx), zero), sx);
+          sy = pick(binds, pick(kt_positive, _mm512_mul_pd(neg_inv_kt, cy), zero), sy);
+          sz = pick(binds, pick(kt_positive, _mm512_mul_pd(neg_inv_kt, cz), zero), sz);
+          ftx = pick(binds, cx, ftx);
+          fty = pick(binds, cy, fty);
+          ftz = pick(binds, cz, ftz);
+        }
+        // Springs: advanced where active, cleared where the pair is out of contact.
+        // One lane at a time: a masked vector store would overlap the next row's load and
+        // stall it (no store forwarding from a partly masked store).
+        _mm512_store_pd(fx, pick(act, sx, zero));
+        _mm512_store_pd(fy, pick(act, sy, zero));
+        _mm512_store_pd(fz, pick(act, sz, zero));
+        for (unsigned m = cand | clear; m != 0; m &= m - 1) {
+          const int l = __builtin_ctz(m);
+          spring[k + l] = Vec3{fx[l], fy[l], fz[l]};
+        }
+        if (act == 0) continue;
+
+        _mm512_store_pd(fx, _mm512_add_pd(_mm512_mul_pd(fn, nx), ftx));
+        _mm512_store_pd(fy, _mm512_add_pd(_mm512_mul_pd(fn, ny), fty));
+        _mm512_store_pd(fz, _mm512_add_pd(_mm512_mul_pd(fn, nz), ftz));
+        contacts += __builtin_popcount(act);
+        max_overlap = _mm512_mask_max_pd(max_overlap, act, max_overlap, overlap);
+        max_ratio = _mm512_mask_max_pd(max_ratio, act, max_ratio,
+                                       _mm512_div_pd(overlap, _mm512_min_pd(ri, rj)));
+        // The forces in pair order, as the scalar loop applies them.
+        for (unsigned m = act; m != 0; m &= m - 1) {
+          const int l = __builtin_ctz(m);
+          const Vec3 f{fx[l], fy[l], fz[l]};
+          fi += f;
+          const std::int32_t pj = jl[l];
+          if (static_cast<std::size_t>(pj) < a1)
+            F[pj] -= f;
+          else
+            remote.push_back({pj, f});
+        }
+      }
+    }
+    F[i] += fi;
+  }
+  stats.contacts += contacts;
+  stats.max_overlap = std::max(stats.max_overlap, _mm512_reduce_max_pd(max_overlap));
+  stats.max_overlap_ratio = std::max(stats.max_overlap_ratio, _mm512_reduce_max_pd(max_ratio));
+}
+#undef DEM_AVX512
+#endif
+
+}  // namespace
+
+bool pair_rows_vector_available() {
+#if defined(__x86_64__) && defined(__GNUC__)
+  __builtin_cpu_init();
+  return __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl") &&
+         __builtin_cpu_supports("avx512dq");
+#else
+  return false;
+#endif
+}
+
+void pair_rows(const PairRows& p, std::size_t a0, std::size_t a1, std::vector<PairRemote>& remote,
+               PairRowStats& stats, bool vector) {
+#if defined(__x86_64__) && defined(__GNUC__)
+  static const bool available = pair_rows_vector_available();
+  if (vector && available) {
+    pair_rows_avx512(p, a0, a1, remote, stats);
+    return;
+  }
+#endif
+  pair_rows_scalar(p, a0, a1, remote, stats);
+}
+
+}  // namespace dem::detail

@@ -1,0 +1,288 @@
+// The pair forces' two implementations (dem/pair_kernel.hpp) give the same bits: forces,
+// springs, the forces handed to later threads and the statistics, on rows built to reach every
+// branch of contact_force (apart, ending inside the step's window, starting inside it, resting,
+// coincident centres, springs with and without history, turned far out of the tangent plane,
+// the Coulomb cap binding or not), rows of 0 to 21 candidates (the vector version's tails and
+// second chunks), one size, two sizes and a continuum of sizes, and four contact laws. Whole runs
+// through the engine are compared both ways as well.
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <random>
+#include <vector>
+
+#include "dem/contact_law.hpp"
+#include "dem/pair_kernel.hpp"
+#include "dem_test_util.hpp"
+
+namespace {
+
+using dem::Vec3;
+using dem::detail::PairRemote;
+using dem::detail::PairRows;
+using dem::detail::PairRowStats;
+
+bool same_bits(double a, double b) { return std::memcmp(&a, &b, sizeof a) == 0; }
+bool same_bits(Vec3 a, Vec3 b) {
+  return same_bits(a.x, b.x) && same_bits(a.y, b.y) && same_bits(a.z, b.z);
+}
+
+struct Rows {
+  std::vector<Vec3> x, u, spring;
+  std::vector<double> r, m;
+  std::vector<std::int32_t> off, j;
+};
+
+Vec3 random_unit(std::mt19937_64& rng) {
+  std::normal_distribution<double> g;
+  Vec3 v{g(rng), g(rng), g(rng)};
+  return (1.0 / dem::norm(v)) * v;
+}
+
+// n particles; row i holds partners i+1..; every partner is placed relative to i by one of the
+// cases of the header, so no geometry of a real bed is needed.
+// sizes: 0 one radius, 1 two radii (the coefficient cache meets pairs of either kind), 2 uniform.
+Rows make_rows(std::mt19937_64& rng, int n, int sizes, double dt) {
+  Rows s;
+  std::uniform_real_distribution<double> U01(0, 1);
+  s.x.resize(n);
+  s.u.resize(n);
+  s.r.resize(n);
+  s.m.resize(n);
+  for (int i = 0; i < n; ++i) {
+    s.r[i] = sizes == 2 ? 0.04 + 0.01 * U01(rng) : (sizes == 1 && U01(rng) < 0.5 ? 0.04 : 0.05);
+    s.m[i] = 2600 * 4.18879 * s.r[i] * s.r[i] * s.r[i];
+    s.x[i] = {U01(rng), U01(rng), U01(rng)};
+    s.u[i] = {0.1 * (U01(rng) - 0.5), 0.1 * (U01(rng) - 0.5), 0.1 * (U01(rng) - 0.5)};
+  }
+  s.off.push_back(0);
+  std::uniform_int_distribution<int> len(0, 21);
+  for (int i = 0; i < n; ++i) {
+    const int want = std::min(len(rng), n - 1 - i);
+    // distinct partners above i, ascending (a row of the half list)
+    std::vector<std::int32_t> row;
+    for (int q = i + 1; q < n && static_cast<int>(row.size()) < want; ++q)
+      if (U01(rng) < std::max(0.3, want / double(n - i))) row.push_back(q);
+    for (const std::int32_t q : row) {
+      s.j.push_back(q);
+      const double rsum = s.r[i] + s.r[q];
+      const Vec3 n1 = random_unit(rng);
+      const int kind = static_cast<int>(U01(rng) * 8);
+      double gap = 0;  // distance - rsum
+      Vec3 urel = s.u[i] - s.u[q];
+      switch (kind) {
+        case 0:
+          gap = 0.3 * rsum;
+          break;  // far apart
+        case 1:
+          gap = -0.01 * rsum * U01(rng);
+          break;  // resting contact
+        case 2:
+          gap = -0.05 * rsum * U01(rng);
+          break;   // deep
+        case 3: {  // ending or starting inside the window
+          const double vn = 2.0 * (U01(rng) - 0.5);
+          urel = urel + vn * n1;
+          gap = (U01(rng) - 0.5) * dt * std::abs(vn);
+          break;
+        }
+        case 4:
+          gap = 1e-3 * dt * (U01(rng) - 0.5);
+          break;   // grazing
+        case 5: {  // fast approach, apart this step
+          urel = urel + (-5.0) * n1;
+          gap = 2.6 * dt;
+          break;
+        }
+        case 6:
+          gap = -rsum;
+          break;  // coincident centres
+        default:
+          gap = -0.002 * rsum;
+          break;
+      }
+      // x_i - x_q = (rsum + gap) n1, relative velocity u_i - u_q = urel.
+      s.x[q] = s.x[i] - (rsum + gap) * n1;
+      s.u[q] = s.u[i] - urel;
+      // History: none, -0, tangential, far out of the tangent plane, along the normal (x = 1),
+      // large (the cap binds).
+      const int h = static_cast<int>(U01(rng) * 6);
+      Vec3 sp{};
+      const Vec3 t = dem::cross(n1, random_unit(rng));
+      switch (h) {
+        case 0:
+          break;
+        case 1:
+          sp = {-0.0, 0.0, -0.0};
+          break;
+        case 2:
+          sp = 1e-5 * t + 1e-9 * n1;
+          break;
+        case 3:
+          sp = 1e-5 * t + 3e-6 * n1;
+          break;
+        case 4:
+          sp = 1e-5 * n1;
+          break;
+        default:
+          sp = 1e-2 * t;
+          break;
+      }
+      s.spring.push_back(sp);
+    }
+    s.off.push_back(static_cast<std::int32_t>(s.j.size()));
+  }
+  return s;
+}
+
+struct Result {
+  std::vector<Vec3> force, spring;
+  std::vector<PairRemote> remote;
+  PairRowStats stats;
+};
+
+Result run(const Rows& in, const dem::ContactLaw& law, double dt, std::size_t a0, std::size_t a1,
+           bool vector) {
+  Result out;
+  out.spring = in.spring;
+  out.force.assign(in.x.size(), Vec3{1.0, -0.0, 2.0});
+  PairRows p;
+  p.x = in.x.data();
+  p.u = in.u.data();
+  p.radius = in.r.data();
+  p.mass = in.m.data();
+  p.offset = in.off.data();
+  p.partner = in.j.data();
+  p.spring = out.spring.data();
+  p.force = out.force.data();
+  p.law = law;
+  p.dt = dt;
+  dem::detail::pair_rows(p, a0, a1, out.remote, out.stats, vector);
+  return out;
+}
+
+std::vector<dem::ContactLaw> laws() {
+  std::vector<dem::ContactLaw> v;
+  dem::ContactLaw a;  // the paper's: Pa, restitution, clipped
+  a.normal_stiffness = 4e7;
+  a.restitution = 0.3;
+  a.tangential_stiffness_ratio = 0.5;
+  a.friction = 0.6;
+  dem::finalize(a, "a");
+  v.push_back(a);
+  dem::ContactLaw b = a;  // N/m, a damping coefficient, attraction allowed (LAMMPS-like)
+  b.stiffness_per_length = false;
+  b.normal_stiffness = 2e5;
+  b.damping_from_restitution = false;
+  b.normal_damping = 40;
+  b.clip_attractive = false;
+  b.tangential_stiffness_ratio = 2.0 / 7.0;
+  dem::finalize(b, "b");
+  v.push_back(b);
+  dem::ContactLaw c = a;  // no tangential spring (k_T = 0): the cap resets to zero
+  c.tangential_stiffness_ratio = 0;
+  dem::finalize(c, "c");
+  v.push_back(c);
+  dem::ContactLaw d = a;  // frictionless
+  d.friction = 0;
+  dem::finalize(d, "d");
+  v.push_back(d);
+  return v;
+}
+
+TEST(dem_PairKernel, VectorAndScalarGiveTheSameBits) {
+  if (!dem::detail::pair_rows_vector_available())
+    GTEST_SKIP() << "this processor has no AVX-512: only the scalar pair forces run here";
+  const double dt = 1e-4;
+  std::mt19937_64 rng(7);
+  std::int64_t contacts = 0, rows_seen = 0, remotes = 0;
+  for (const int sizes : {0, 1, 2}) {
+    for (const dem::ContactLaw& law : laws()) {
+      for (int rep = 0; rep < 6; ++rep) {
+        const Rows rows = make_rows(rng, 600, sizes, dt);
+        // A thread's range in the middle: the partners beyond it go to the remote list.
+        const std::size_t a0 = 40, a1 = 420;
+        const Result s = run(rows, law, dt, a0, a1, false);
+        const Result v = run(rows, law, dt, a0, a1, true);
+        for (std::size_t i = 0; i < rows.x.size(); ++i)
+          ASSERT_TRUE(same_bits(s.force[i], v.force[i]))
+              << "force of particle " << i << " (sizes " << sizes << ")";
+        for (std::size_t k = 0; k < rows.spring.size(); ++k)
+          ASSERT_TRUE(same_bits(s.spring[k], v.spring[k])) << "spring of pair " << k;
+        ASSERT_EQ(s.remote.size(), v.remote.size());
+        for (std::size_t q = 0; q < s.remote.size(); ++q) {
+          ASSERT_EQ(s.remote[q].j, v.remote[q].j);
+          ASSERT_TRUE(same_bits(s.remote[q].f, v.remote[q].f));
+        }
+        ASSERT_EQ(s.stats.contacts, v.stats.contacts);
+        ASSERT_TRUE(same_bits(s.stats.max_overlap, v.stats.max_overlap));
+        ASSERT_TRUE(same_bits(s.stats.max_overlap_ratio, v.stats.max_overlap_ratio));
+        contacts += s.stats.contacts;
+        remotes += static_cast<std::int64_t>(s.remote.size());
+        rows_seen += static_cast<std::int64_t>(a1 - a0);
+        // Something happened: springs changed, forces were applied.
+        int changed = 0;
+        for (std::size_t k = 0; k < rows.spring.size(); ++k)
+          changed += !same_bits(rows.spring[k], s.spring[k]);
+        EXPECT_GT(changed, 100);
+      }
+    }
+  }
+  EXPECT_GT(contacts, 10000);
+  EXPECT_GT(remotes, 300);
+  EXPECT_GT(rows_seen, 0);
+}
+
+// A bed settling under gravity with walls, polydisperse, through the engine on 1 and 2 threads:
+// every array of State after the run is the same with either kernel.
+TEST(dem_PairKernel, WholeRunsAreTheSameWithEitherKernel) {
+  if (!dem::detail::pair_rows_vector_available())
+    GTEST_SKIP() << "this processor has no AVX-512: only the scalar pair forces run here";
+  for (const int threads : {1, 2}) {
+    dem::State result[2];
+    for (const bool vector : {false, true}) {
+      dem::detail::use_vector_pairs(vector);
+      dem::Scene scene = demtest::one_species_scene(0.8e-3, 1.2e-3);
+      scene.threads = threads;
+      scene.broad_phase_interval = 10;
+      scene.gravity = {0, 0, -9.81};
+      scene.particle_particle = scene.particle_wall = demtest::law_n_per_m(500, 0.3, true, 0.5);
+      scene.walls.push_back({"floor", {0, 0, 0}, {0, 0, 1}});
+      scene.walls.push_back({"x0", {0, 0, 0}, {1, 0, 0}});
+      scene.walls.push_back({"x1", {0.03, 0, 0}, {-1, 0, 0}});
+      scene.dt = 2e-5;
+      dem::State st;
+      std::mt19937_64 rng(11);
+      std::uniform_real_distribution<double> U01(0, 1);
+      for (int k = 0; k < 1500; ++k) {
+        const double r = 0.8e-3 + 0.4e-3 * U01(rng);
+        demtest::add(
+            st, {1.5e-3 + 2.5e-3 * (k % 11), 2.5e-3 * ((k / 11) % 11), 1.5e-3 + 2.5e-3 * (k / 121)},
+            {0.05 * (U01(rng) - 0.5), 0.05 * (U01(rng) - 0.5), -0.2}, r);
+      }
+      dem::Engine engine(scene);
+      for (int k = 0; k < 1500; ++k) engine.step(st);
+      EXPECT_GT(engine.contact_stats().particle_contacts, 200);
+      result[vector] = st;
+    }
+    dem::detail::use_vector_pairs(true);
+    int arrays = 0;
+    dem::for_each_array(result[0], [&](const char* name, const auto& a, dem::Field) {
+      const char* other = nullptr;
+      std::size_t bytes = 0;
+      dem::for_each_array(result[1], [&](const char* n2, const auto& b, dem::Field) {
+        if (std::strcmp(name, n2) == 0) {
+          other = reinterpret_cast<const char*>(b.data());
+          bytes = b.size() * sizeof(b[0]);
+        }
+      });
+      ASSERT_EQ(bytes, a.size() * sizeof(a[0])) << name;
+      EXPECT_TRUE(bytes == 0 || std::memcmp(a.data(), other, bytes) == 0)
+          << name << " differs on " << threads << " threads";
+      ++arrays;
+    });
+    EXPECT_GT(arrays, 20);
+  }
+}
+
+}  // namespace
