@@ -5,7 +5,10 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <cstdlib>
+#include <cstring>
 #include <limits>
+#include <mutex>
 #include <sstream>
 
 #include "dem/contact_law.hpp"
@@ -101,7 +104,21 @@ bool shares_vertex(const Scene& scene, std::uint64_t a, std::uint64_t b) {
 }
 
 std::atomic<bool> sleeper_row_skip{true};
+// The pair forces' kernel: the AVX-512 one where the processor has it, unless the environment
+// asks for the scalar loop (DEM_PAIR_KERNEL=scalar, for timing one against the other; both give
+// the same bits). Read once; a value other than vector or scalar is refused.
+bool vector_pairs_from_environment() {
+  const char* v = std::getenv("DEM_PAIR_KERNEL");
+  if (v == nullptr || std::strcmp(v, "vector") == 0) return true;
+  if (std::strcmp(v, "scalar") == 0) return false;
+  throw std::invalid_argument(std::string("environment DEM_PAIR_KERNEL=") + v +
+                              ": use vector (the default) or scalar, or unset it");
+}
 std::atomic<bool> vector_pairs{true};
+std::once_flag vector_pairs_read;
+void read_vector_pairs() {
+  std::call_once(vector_pairs_read, [] { vector_pairs = vector_pairs_from_environment(); });
+}
 
 // Keeps the two largest of the squared displacements seen so far (first >= second), each of
 // another particle: what the guard adds up.
@@ -115,13 +132,17 @@ inline void keep_two_largest(double& first, double& second, double d2) {
 }  // namespace
 
 void detail::use_sleeper_row_skip(bool skip) { sleeper_row_skip = skip; }
-void detail::use_vector_pairs(bool vector) { vector_pairs = vector; }
+void detail::use_vector_pairs(bool vector) {
+  read_vector_pairs();
+  vector_pairs = vector;
+}
 
 Timing make_timing() {
   return Timing({"broad_phase", "pair_forces", "mesh_contacts", "integration", "output"});
 }
 
 Engine::Engine(const Scene& scene) : scene_(scene) {
+  read_vector_pairs();
   max_threads_ = threads_ = std::max(1, scene.threads);
   remote_.resize(max_threads_);
   remote_wake_.resize(max_threads_);
@@ -293,8 +314,8 @@ void Engine::pair_forces(State& s) {
 }
 
 // Sleep = false is the all-active loop (detail::pair_rows: the AVX-512 kernel or the scalar
-// loop, the same bits); Sleep = true is the scalar loop with the sleeper rules (Scene::sleep):
-// it computes every force that the all-active loop computes between awake particles in the
+// loop, the same bits); Sleep = true adds the sleeper rules (Scene::sleep, detail::pair_rows_sleep)
+// and computes every force that the all-active loop computes between awake particles in the
 // same order, so the awake part of the bed sees the same sums.
 template <bool Sleep>
 void Engine::pair_forces_impl(State& s) {
@@ -360,8 +381,6 @@ void Engine::pair_forces_impl(State& s) {
       }
 #pragma omp barrier
     }
-    std::int64_t contacts = 0;
-    double max_overlap = 0, max_overlap_ratio = 0;
     std::vector<detail::PairRemote> remote;  // local for the loop (no false sharing), capacity kept
     remote.swap(remote_[t]);
     remote.clear();
@@ -378,122 +397,35 @@ void Engine::pair_forces_impl(State& s) {
     } else {
       for (std::size_t i = a0; i < a1; ++i) force_[i] = s.mass[i] * g;
     }
-    // Wake a sleeper: directly in this thread's range, queued otherwise (the partner j > i
-    // of a pair in this range is never in an earlier thread's range).
-    auto wake = [&](std::size_t p) {
-      if (p < a1)
-        WAKE[p] = 1;
-      else
-        remote_wake.push_back(static_cast<std::int32_t>(p));
-    };
-    if constexpr (!Sleep) {
-      detail::PairRows rows;
-      rows.x = s.x.data();
-      rows.u = s.u.data();
-      rows.radius = s.radius.data();
-      rows.mass = s.mass.data();
-      rows.offset = s.pair_offset.data();
-      rows.partner = s.pair_j.data();
-      rows.spring = s.pair_spring.data();
-      rows.force = force_.data();
-      rows.law = law;
-      rows.dt = dt;
-      detail::PairRowStats st;
-      detail::pair_rows(rows, a0, a1, remote, st, vector_pairs.load(std::memory_order_relaxed));
-      contacts = st.contacts;
-      max_overlap = st.max_overlap;
-      max_overlap_ratio = st.max_overlap_ratio;
+    detail::PairRows rows;
+    rows.x = s.x.data();
+    rows.u = s.u.data();
+    rows.radius = s.radius.data();
+    rows.mass = s.mass.data();
+    rows.offset = s.pair_offset.data();
+    rows.partner = s.pair_j.data();
+    rows.spring = s.pair_spring.data();
+    rows.force = force_.data();
+    rows.law = law;
+    rows.dt = dt;
+    detail::PairRowStats st;
+    const bool vector = vector_pairs.load(std::memory_order_relaxed);
+    if (Sleep) {
+      detail::PairSleep sl;
+      sl.rest = REST;
+      sl.steps = S;
+      sl.wake_speed2 = wake_speed2;
+      sl.mark = skip_rows ? MARK : nullptr;
+      sl.stamp = stamp;
+      sl.wake = WAKE;
+      sl.remote_wake = &remote_wake;
+      detail::pair_rows_sleep(rows, sl, a0, a1, remote, st, vector);
     } else {
-      ContactCoefficients c;
-      double last_ri = -1, last_mi = -1, last_rj = -1, last_mj = -1;
-      // Raw pointers: the compiler cannot prove that writing a spring leaves the vectors'
-      // data pointers alone, and would reload them for every pair.
-      const Vec3* const X = s.x.data();
-      const Vec3* const U = s.u.data();
-      const double* const R = s.radius.data();
-      const double* const M = s.mass.data();
-      const std::int32_t* const off = s.pair_offset.data();
-      const std::int32_t* const J = s.pair_j.data();
-      Vec3* const spring = s.pair_spring.data();
-      Vec3* const F = force_.data();
-      for (std::size_t i = a0; i < a1; ++i) {
-        const Vec3 xi = X[i], ui = U[i];
-        const double ri = R[i], mi = M[i];
-        if (ri != last_ri || mi != last_mi) {
-          last_ri = ri;
-          last_mi = mi;
-          last_rj = last_mj = -1;
-        }
-        const bool si = Sleep && REST[i] >= S;
-        // A sleeper with only sleepers in its row: nothing to compute (the loop below would skip
-        // every pair), so its row is not read at all.
-        if (Sleep && si && skip_rows && __atomic_load_n(&MARK[i], __ATOMIC_RELAXED) != stamp)
-          continue;
-        Vec3 fi{};
-        for (std::int32_t k = off[i]; k < off[i + 1]; ++k) {
-          const std::int32_t j = J[k];
-          bool sj = false;
-          if (Sleep) {
-            sj = REST[j] >= S;
-            if (si && sj) continue;  // two sleepers: no force, the spring stays as it was
-          }
-          const Vec3 d = xi - X[j];
-          const double rsum = ri + R[j];
-          const double d2 = norm2(d);
-          const Vec3 urel = ui - U[j];
-          if (d2 >= rsum * rsum && surely_apart(d2, rsum, norm2(urel), dt)) {
-            // Contact ended: history is forgotten (write only if there is something to clear).
-            if (nonzero(spring[k])) {
-              // A sleeper whose contact with an awake particle ends may have lost its support.
-              if (Sleep && (si || sj)) wake(si ? i : static_cast<std::size_t>(j));
-              spring[k] = Vec3{};
-            }
-            continue;
-          }
-          const double dist = std::sqrt(d2);
-          const Vec3 nrm = dist > 0 ? (1.0 / dist) * d : Vec3{0, 0, 1};
-          const double rj = R[j], mj = M[j];
-          // Monodisperse beds repeat the same pair: reuse the coefficients (saves a sqrt).
-          if (rj != last_rj || mj != last_mj) {
-            c = coefficients(law, ri * rj / rsum, mi * mj / (mi + mj));
-            last_rj = rj;
-            last_mj = mj;
-          }
-          Vec3 f;
-          if (!contact_force(law, c, rsum - dist, nrm, urel, spring[k], dt, f)) {
-            spring[k] = Vec3{};
-            continue;
-          }
-          ++contacts;
-          max_overlap = std::max(max_overlap, rsum - dist);
-          max_overlap_ratio = std::max(max_overlap_ratio, (rsum - dist) / std::min(ri, rj));
-          if (Sleep && (si || sj)) {
-            // Awake against asleep: the force acts on the awake particle only; a partner moving
-            // faster than scene.sleep.speed relative to the sleeper wakes it.
-            if (norm2(urel) > wake_speed2) wake(si ? i : static_cast<std::size_t>(j));
-            if (sj) {
-              fi += f;
-            } else if (static_cast<std::size_t>(j) < a1) {
-              F[j] -= f;
-            } else {
-              remote.push_back({j, f});
-            }
-            continue;
-          }
-          fi += f;
-          // Partner in this thread's range: write directly; otherwise defer, applied below in
-          // fixed thread order so the sums do not depend on scheduling.
-          if (static_cast<std::size_t>(j) < a1)
-            F[j] -= f;
-          else
-            remote.push_back({j, f});
-        }
-        F[i] += fi;
-      }
+      detail::pair_rows(rows, a0, a1, remote, st, vector);
     }
     remote.swap(remote_[t]);
     if (Sleep) remote_wake.swap(remote_wake_[t]);
-    thread_stats_[t] = ContactStats{contacts, 0, max_overlap, max_overlap_ratio};
+    thread_stats_[t] = ContactStats{st.contacts, 0, st.max_overlap, st.max_overlap_ratio};
   }
   for (int t = 0; t < T; ++t)
     for (const detail::PairRemote& r : remote_[t]) force_[r.j] -= r.f;

@@ -11,7 +11,17 @@ namespace dem::detail {
 
 namespace {
 
-void pair_rows_scalar(const PairRows& p, std::size_t a0, std::size_t a1,
+// Wakes sleeper p: directly in this thread's range, queued otherwise (the partner j > i of a
+// pair in this range is never in an earlier thread's range).
+inline void wake(const PairSleep& sl, std::size_t p, std::size_t a1) {
+  if (p < a1)
+    sl.wake[p] = 1;
+  else
+    sl.remote_wake->push_back(static_cast<std::int32_t>(p));
+}
+
+template <bool Sleep>
+void pair_rows_scalar(const PairRows& p, const PairSleep& sl, std::size_t a0, std::size_t a1,
                       std::vector<PairRemote>& remote, PairRowStats& stats) {
   const ContactLaw law = p.law;  // a local copy: no reloads after stores
   const double dt = p.dt;
@@ -23,6 +33,8 @@ void pair_rows_scalar(const PairRows& p, std::size_t a0, std::size_t a1,
   const std::int32_t* const J = p.partner;
   Vec3* const spring = p.spring;
   Vec3* const F = p.force;
+  const std::int32_t* const REST = sl.rest;
+  const std::int32_t S = sl.steps;
   std::int64_t contacts = 0;
   double max_overlap = 0, max_overlap_ratio = 0;
   ContactCoefficients c;
@@ -35,16 +47,30 @@ void pair_rows_scalar(const PairRows& p, std::size_t a0, std::size_t a1,
       last_mi = mi;
       last_rj = last_mj = -1;
     }
+    const bool si = Sleep && REST[i] >= S;
+    // A sleeper with only sleepers in its row: nothing to compute (the loop below would skip
+    // every pair), so its row is not read at all.
+    if (Sleep && si && sl.mark && __atomic_load_n(&sl.mark[i], __ATOMIC_RELAXED) != sl.stamp)
+      continue;
     Vec3 fi{};
     for (std::int32_t k = off[i]; k < off[i + 1]; ++k) {
       const std::int32_t j = J[k];
+      bool sj = false;
+      if (Sleep) {
+        sj = REST[j] >= S;
+        if (si && sj) continue;  // two sleepers: no force, the spring stays as it was
+      }
       const Vec3 d = xi - X[j];
       const double rsum = ri + R[j];
       const double d2 = norm2(d);
       const Vec3 urel = ui - U[j];
       if (d2 >= rsum * rsum && surely_apart(d2, rsum, norm2(urel), dt)) {
         // Contact ended: history is forgotten (write only if there is something to clear).
-        if (nonzero(spring[k])) spring[k] = Vec3{};
+        if (nonzero(spring[k])) {
+          // A sleeper whose contact with an awake particle ends may have lost its support.
+          if (Sleep && (si || sj)) wake(sl, si ? i : static_cast<std::size_t>(j), a1);
+          spring[k] = Vec3{};
+        }
         continue;
       }
       const double dist = std::sqrt(d2);
@@ -64,6 +90,18 @@ void pair_rows_scalar(const PairRows& p, std::size_t a0, std::size_t a1,
       ++contacts;
       max_overlap = std::max(max_overlap, rsum - dist);
       max_overlap_ratio = std::max(max_overlap_ratio, (rsum - dist) / std::min(ri, rj));
+      if (Sleep && (si || sj)) {
+        // Awake against asleep: the force acts on the awake particle only; a partner moving
+        // faster than scene.sleep.speed relative to the sleeper wakes it.
+        if (norm2(urel) > sl.wake_speed2) wake(sl, si ? i : static_cast<std::size_t>(j), a1);
+        if (sj)
+          fi += f;
+        else if (static_cast<std::size_t>(j) < a1)
+          F[j] -= f;
+        else
+          remote.push_back({j, f});
+        continue;
+      }
       fi += f;
       if (static_cast<std::size_t>(j) < a1)
         F[j] -= f;
@@ -145,8 +183,10 @@ DEM_AVX512 inline Lanes3 load_contiguous(const Interleave& t, const double* base
 // 8 candidates of a row at a time: every lane computes the screen and the whole contact force
 // (the scalar version's branches become masks), then the forces of the active lanes are summed
 // and applied in pair order by scalar code, exactly as the scalar loop does.
-DEM_AVX512 void pair_rows_avx512(const PairRows& p, std::size_t a0, std::size_t a1,
-                                 std::vector<PairRemote>& remote, PairRowStats& stats) {
+template <bool Sleep>
+DEM_AVX512 void pair_rows_avx512(const PairRows& p, const PairSleep& sl, std::size_t a0,
+                                 std::size_t a1, std::vector<PairRemote>& remote,
+                                 PairRowStats& stats) {
   const ContactLaw& law = p.law;
   const double dt = p.dt;
   const double* const X = reinterpret_cast<const double*>(p.x);
@@ -187,8 +227,13 @@ DEM_AVX512 void pair_rows_avx512(const PairRows& p, std::size_t a0, std::size_t 
   double cached_ri = -1, cached_mi = -1;
   __m512d cached_rj = minus_one, cached_mj = minus_one, cached_k = zero, cached_eta = zero;
 
+  const __m256i sleep_steps = _mm256_set1_epi32(sl.steps);
+  const __m512d wake_speed2 = _mm512_set1_pd(sl.wake_speed2);
   for (std::size_t i = a0; i < a1; ++i) {
     const std::int32_t k1 = off[i + 1];
+    const bool si = Sleep && sl.rest[i] >= sl.steps;
+    if (Sleep && si && sl.mark && __atomic_load_n(&sl.mark[i], __ATOMIC_RELAXED) != sl.stamp)
+      continue;  // a sleeper with only sleepers in its row (as the scalar loop)
     Vec3 fi{};
     if (off[i] < k1) {
       const __m512d xix = _mm512_set1_pd(X[3 * i]), xiy = _mm512_set1_pd(X[3 * i + 1]),
@@ -198,9 +243,20 @@ DEM_AVX512 void pair_rows_avx512(const PairRows& p, std::size_t a0, std::size_t 
       const __m512d ri = _mm512_set1_pd(R[i]), mi = _mm512_set1_pd(M[i]);
       for (std::int32_t k = off[i]; k < k1; k += 8) {
         const int left = k1 - k;
-        const __mmask8 live = left >= 8 ? 0xFF : static_cast<__mmask8>((1u << left) - 1);
-        const __m256i j = _mm256_maskz_loadu_epi32(live, J + k);
+        const __mmask8 row = left >= 8 ? 0xFF : static_cast<__mmask8>((1u << left) - 1);
+        const __m256i j = _mm256_maskz_loadu_epi32(row, J + k);
         _mm256_store_si256(reinterpret_cast<__m256i*>(jl), j);
+        // Sleeping: sj = partners asleep; for a sleeper's row those pairs are skipped (their
+        // springs stay as they were), and every remaining pair is awake against asleep.
+        __mmask8 live = row, sj = 0, sleepy = 0;
+        if (Sleep) {
+          const __m256i rest = _mm256_mmask_i32gather_epi32(_mm256_setzero_si256(), row, j,
+                                                            sl.rest, 4);
+          sj = _mm256_mask_cmp_epi32_mask(row, rest, sleep_steps, _MM_CMPINT_NLT);
+          if (si) live = row & static_cast<__mmask8>(~sj);
+          sleepy = si ? live : sj;
+          if (live == 0) continue;
+        }
         const Lanes3 xj = load_vec3(X, jl), uj = load_vec3(U, jl);
         const __m512d xjx = xj.x, xjy = xj.y, xjz = xj.z, ujx = uj.x, ujy = uj.y, ujz = uj.z;
         const __m512d rj = _mm512_mask_i32gather_pd(one, live, j, R, 8);
@@ -241,6 +297,9 @@ DEM_AVX512 void pair_rows_avx512(const PairRows& p, std::size_t a0, std::size_t 
             1);
         const __mmask8 clear = _mm512_mask_test_epi64_mask(apart, sbits, sbits);
         const __mmask8 cand = live & static_cast<__mmask8>(~apart);
+        if (Sleep)  // a sleeper whose contact with an awake particle ends may have lost its support
+          for (unsigned m = clear & sleepy; m != 0; m &= m - 1)
+            wake(sl, si ? i : static_cast<std::size_t>(jl[__builtin_ctz(m)]), a1);
         if (cand == 0) {
           for (unsigned m = clear; m != 0; m &= m - 1) spring[k + __builtin_ctz(m)] = Vec3{};
           continue;
@@ -378,16 +437,26 @@ DEM_AVX512 void pair_rows_avx512(const PairRows& p, std::size_t a0, std::size_t 
         max_overlap = _mm512_mask_max_pd(max_overlap, act, max_overlap, overlap);
         max_ratio = _mm512_mask_max_pd(max_ratio, act, max_ratio,
                                        _mm512_div_pd(overlap, _mm512_min_pd(ri, rj)));
-        // The forces in pair order, as the scalar loop applies them.
+        if (Sleep) {  // a partner faster than scene.sleep.speed relative to a sleeper wakes it
+          const __mmask8 fast = _mm512_mask_cmp_pd_mask(act & sleepy, urel2, wake_speed2,
+                                                        _CMP_GT_OQ);
+          for (unsigned m = fast; m != 0; m &= m - 1)
+            wake(sl, si ? i : static_cast<std::size_t>(jl[__builtin_ctz(m)]), a1);
+        }
+        // The forces in pair order, as the scalar loop applies them (awake against asleep: on
+        // the awake particle only).
         for (unsigned m = act; m != 0; m &= m - 1) {
           const int l = __builtin_ctz(m);
           const Vec3 f{fx[l], fy[l], fz[l]};
-          fi += f;
           const std::int32_t pj = jl[l];
-          if (static_cast<std::size_t>(pj) < a1)
-            F[pj] -= f;
-          else
-            remote.push_back({pj, f});
+          const bool on_i = !Sleep || !si, on_j = !Sleep || !((sj >> l) & 1);
+          if (on_i) fi += f;
+          if (on_j) {
+            if (static_cast<std::size_t>(pj) < a1)
+              F[pj] -= f;
+            else
+              remote.push_back({pj, f});
+          }
         }
       }
     }
@@ -414,14 +483,27 @@ bool pair_rows_vector_available() {
 
 void pair_rows(const PairRows& p, std::size_t a0, std::size_t a1, std::vector<PairRemote>& remote,
                PairRowStats& stats, bool vector) {
+  const PairSleep none;
 #if defined(__x86_64__) && defined(__GNUC__)
   static const bool available = pair_rows_vector_available();
   if (vector && available) {
-    pair_rows_avx512(p, a0, a1, remote, stats);
+    pair_rows_avx512<false>(p, none, a0, a1, remote, stats);
     return;
   }
 #endif
-  pair_rows_scalar(p, a0, a1, remote, stats);
+  pair_rows_scalar<false>(p, none, a0, a1, remote, stats);
+}
+
+void pair_rows_sleep(const PairRows& p, const PairSleep& sleep, std::size_t a0, std::size_t a1,
+                     std::vector<PairRemote>& remote, PairRowStats& stats, bool vector) {
+#if defined(__x86_64__) && defined(__GNUC__)
+  static const bool available = pair_rows_vector_available();
+  if (vector && available) {
+    pair_rows_avx512<true>(p, sleep, a0, a1, remote, stats);
+    return;
+  }
+#endif
+  pair_rows_scalar<true>(p, sleep, a0, a1, remote, stats);
 }
 
 }  // namespace dem::detail

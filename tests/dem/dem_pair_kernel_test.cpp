@@ -233,6 +233,79 @@ TEST(dem_PairKernel, VectorAndScalarGiveTheSameBits) {
   EXPECT_GT(rows_seen, 0);
 }
 
+// The same with sleepers: a third of the particles asleep, the rows of some sleepers marked to be
+// read; forces, springs, the forces handed on, the statistics and the set of sleepers to wake
+// agree bit for bit.
+TEST(dem_PairKernel, WithSleepersVectorAndScalarGiveTheSameBits) {
+  if (!dem::detail::pair_rows_vector_available())
+    GTEST_SKIP() << "this processor has no AVX-512: only the scalar pair forces run here";
+  const double dt = 1e-4;
+  std::mt19937_64 rng(21);
+  std::uniform_real_distribution<double> U01(0, 1);
+  std::int64_t wakes = 0, contacts = 0;
+  for (const int sizes : {0, 1, 2}) {
+    for (const dem::ContactLaw& law : laws()) {
+      for (const bool marks : {false, true}) {
+        const Rows rows = make_rows(rng, 600, sizes, dt);
+        const std::size_t n = rows.x.size(), a0 = 40, a1 = 420;
+        std::vector<std::int32_t> rest(n), mark(n);
+        for (std::size_t i = 0; i < n; ++i) {
+          rest[i] = U01(rng) < 0.35 ? 200 : static_cast<std::int32_t>(U01(rng) * 150);
+          mark[i] = U01(rng) < 0.5 ? 7 : 6;
+        }
+        Result res[2];
+        std::vector<std::uint8_t> woken[2];
+        for (const bool vector : {false, true}) {
+          Result& out = res[vector];
+          out.spring = rows.spring;
+          out.force.assign(n, Vec3{1.0, -0.0, 2.0});
+          woken[vector].assign(n, 0);
+          std::vector<std::int32_t> remote_wake;
+          PairRows p;
+          p.x = rows.x.data();
+          p.u = rows.u.data();
+          p.radius = rows.r.data();
+          p.mass = rows.m.data();
+          p.offset = rows.off.data();
+          p.partner = rows.j.data();
+          p.spring = out.spring.data();
+          p.force = out.force.data();
+          p.law = law;
+          p.dt = dt;
+          dem::detail::PairSleep sl;
+          sl.rest = rest.data();
+          sl.steps = 200;
+          sl.wake_speed2 = 0.03 * 0.03;
+          sl.mark = marks ? mark.data() : nullptr;
+          sl.stamp = 7;
+          sl.wake = woken[vector].data();
+          sl.remote_wake = &remote_wake;
+          dem::detail::pair_rows_sleep(p, sl, a0, a1, out.remote, out.stats, vector);
+          for (const std::int32_t q : remote_wake) woken[vector][q] = 1;
+        }
+        for (std::size_t i = 0; i < n; ++i) {
+          ASSERT_TRUE(same_bits(res[0].force[i], res[1].force[i])) << "force of particle " << i;
+          ASSERT_EQ(woken[0][i], woken[1][i]) << "wake of particle " << i;
+          wakes += woken[0][i];
+        }
+        for (std::size_t k = 0; k < rows.spring.size(); ++k)
+          ASSERT_TRUE(same_bits(res[0].spring[k], res[1].spring[k])) << "spring of pair " << k;
+        ASSERT_EQ(res[0].remote.size(), res[1].remote.size());
+        for (std::size_t q = 0; q < res[0].remote.size(); ++q) {
+          ASSERT_EQ(res[0].remote[q].j, res[1].remote[q].j);
+          ASSERT_TRUE(same_bits(res[0].remote[q].f, res[1].remote[q].f));
+        }
+        ASSERT_EQ(res[0].stats.contacts, res[1].stats.contacts);
+        ASSERT_TRUE(same_bits(res[0].stats.max_overlap, res[1].stats.max_overlap));
+        ASSERT_TRUE(same_bits(res[0].stats.max_overlap_ratio, res[1].stats.max_overlap_ratio));
+        contacts += res[0].stats.contacts;
+      }
+    }
+  }
+  EXPECT_GT(wakes, 100);
+  EXPECT_GT(contacts, 5000);
+}
+
 // A bed settling under gravity with walls, polydisperse, through the engine on 1 and 2 threads:
 // every array of State after the run is the same with either kernel.
 TEST(dem_PairKernel, WholeRunsAreTheSameWithEitherKernel) {

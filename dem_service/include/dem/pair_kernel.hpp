@@ -50,6 +50,24 @@ struct PairRowStats {
 void pair_rows(const PairRows& p, std::size_t a0, std::size_t a1, std::vector<PairRemote>& remote,
                PairRowStats& stats, bool vector);
 
+// Sleeping (Scene::sleep): the rules of the pair loop with sleepers. A pair of two sleepers
+// computes nothing (its spring stays); awake against asleep, the force acts on the awake
+// particle only, and the sleeper wakes when the contact ends with history or the partner is
+// faster than the wake speed. Awake pairs get exactly what pair_rows gives them.
+struct PairSleep {
+  const std::int32_t* rest = nullptr;  // State::rest_steps: asleep when >= steps
+  std::int32_t steps = 0;
+  double wake_speed2 = 0;              // (scene.sleep.speed)^2
+  // Rows of sleepers are read only if mark[i] == stamp (an awake partner marked them);
+  // nullptr: every row is read.
+  const std::int32_t* mark = nullptr;
+  std::int32_t stamp = 0;
+  std::uint8_t* wake = nullptr;  // set to 1 for a sleeper to wake in [a0, a1)
+  std::vector<std::int32_t>* remote_wake = nullptr;  // sleepers to wake beyond a1
+};
+void pair_rows_sleep(const PairRows& p, const PairSleep& sleep, std::size_t a0, std::size_t a1,
+                     std::vector<PairRemote>& remote, PairRowStats& stats, bool vector);
+
 bool pair_rows_vector_available();
 
 }  // namespace dem::detail
