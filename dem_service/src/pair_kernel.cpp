@@ -129,9 +129,11 @@ DEM_AVX512 inline __m512d pick(__mmask8 m, __m512d a, __m512d b) {
 struct Lanes3 {
   __m512d x, y, z;
 };
+static_assert(sizeof(Vec3) == 3 * sizeof(double), "the kernel reads Vec3 arrays as doubles");
 DEM_AVX512 inline __m512d load_two(const double* base, const std::int32_t* j) {
-  return _mm512_insertf64x4(_mm512_castpd256_pd512(_mm256_maskz_loadu_pd(0x7, base + 3 * j[0])),
-                            _mm256_maskz_loadu_pd(0x7, base + 3 * j[1]), 1);
+  const std::ptrdiff_t j0 = j[0], j1 = j[1];
+  return _mm512_insertf64x4(_mm512_castpd256_pd512(_mm256_maskz_loadu_pd(0x7, base + 3 * j0)),
+                            _mm256_maskz_loadu_pd(0x7, base + 3 * j1), 1);
 }
 DEM_AVX512 inline Lanes3 load_vec3(const double* base, const std::int32_t* j) {
   const __m512d p0 = load_two(base, j), p1 = load_two(base, j + 2), p2 = load_two(base, j + 4),
