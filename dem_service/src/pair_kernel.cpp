@@ -20,6 +20,23 @@ inline void wake(const PairSleep& sl, std::size_t p, std::size_t a1) {
     sl.remote_wake->push_back(static_cast<std::int32_t>(p));
 }
 
+// The partner's share of a pair force: subtracted directly in this thread's range, handed on
+// (in pair order) beyond it.
+inline void on_partner(Vec3* F, std::vector<PairRemote>& remote, std::int32_t j, Vec3 f,
+                       std::size_t a1) {
+  if (static_cast<std::size_t>(j) < a1)
+    F[j] -= f;
+  else
+    remote.push_back({j, f});
+}
+
+inline void add_stats(PairRowStats& stats, std::int64_t contacts, double max_overlap,
+                      double max_overlap_ratio) {
+  stats.contacts += contacts;
+  stats.max_overlap = std::max(stats.max_overlap, max_overlap);
+  stats.max_overlap_ratio = std::max(stats.max_overlap_ratio, max_overlap_ratio);
+}
+
 template <bool Sleep>
 void pair_rows_scalar(const PairRows& p, const PairSleep& sl, std::size_t a0, std::size_t a1,
                       std::vector<PairRemote>& remote, PairRowStats& stats) {
@@ -90,29 +107,16 @@ void pair_rows_scalar(const PairRows& p, const PairSleep& sl, std::size_t a0, st
       ++contacts;
       max_overlap = std::max(max_overlap, rsum - dist);
       max_overlap_ratio = std::max(max_overlap_ratio, (rsum - dist) / std::min(ri, rj));
-      if (Sleep && (si || sj)) {
-        // Awake against asleep: the force acts on the awake particle only; a partner moving
-        // faster than scene.sleep.speed relative to the sleeper wakes it.
-        if (norm2(urel) > sl.wake_speed2) wake(sl, si ? i : static_cast<std::size_t>(j), a1);
-        if (sj)
-          fi += f;
-        else if (static_cast<std::size_t>(j) < a1)
-          F[j] -= f;
-        else
-          remote.push_back({j, f});
-        continue;
-      }
-      fi += f;
-      if (static_cast<std::size_t>(j) < a1)
-        F[j] -= f;
-      else
-        remote.push_back({j, f});
+      // Awake against asleep: the force acts on the awake particle only; a partner moving
+      // faster than scene.sleep.speed relative to the sleeper wakes it.
+      if (Sleep && (si || sj) && norm2(urel) > sl.wake_speed2)
+        wake(sl, si ? i : static_cast<std::size_t>(j), a1);
+      if (!Sleep || !si) fi += f;
+      if (!Sleep || !sj) on_partner(F, remote, j, f, a1);
     }
     F[i] += fi;
   }
-  stats.contacts += contacts;
-  stats.max_overlap = std::max(stats.max_overlap, max_overlap);
-  stats.max_overlap_ratio = std::max(stats.max_overlap_ratio, max_overlap_ratio);
+  add_stats(stats, contacts, max_overlap, max_overlap_ratio);
 }
 
 #if defined(__x86_64__) && defined(__GNUC__)
@@ -451,22 +455,14 @@ DEM_AVX512 void pair_rows_avx512(const PairRows& p, const PairSleep& sl, std::si
           const int l = __builtin_ctz(m);
           const Vec3 f{fx[l], fy[l], fz[l]};
           const std::int32_t pj = jl[l];
-          const bool on_i = !Sleep || !si, on_j = !Sleep || !((sj >> l) & 1);
-          if (on_i) fi += f;
-          if (on_j) {
-            if (static_cast<std::size_t>(pj) < a1)
-              F[pj] -= f;
-            else
-              remote.push_back({pj, f});
-          }
+          if (!Sleep || !si) fi += f;
+          if (!Sleep || !((sj >> l) & 1)) on_partner(F, remote, pj, f, a1);
         }
       }
     }
     F[i] += fi;
   }
-  stats.contacts += contacts;
-  stats.max_overlap = std::max(stats.max_overlap, _mm512_reduce_max_pd(max_overlap));
-  stats.max_overlap_ratio = std::max(stats.max_overlap_ratio, _mm512_reduce_max_pd(max_ratio));
+  add_stats(stats, contacts, _mm512_reduce_max_pd(max_overlap), _mm512_reduce_max_pd(max_ratio));
 }
 #undef DEM_AVX512
 #endif

@@ -141,9 +141,9 @@ struct Result {
   PairRowStats stats;
 };
 
-Result run(const Rows& in, const dem::ContactLaw& law, double dt, std::size_t a0, std::size_t a1,
-           bool vector) {
-  Result out;
+// The kernels' view of `in`, writing springs and forces into `out` (springs copied from `in`,
+// forces starting from a value with a -0 component).
+PairRows start(const Rows& in, Result& out, const dem::ContactLaw& law, double dt) {
   out.spring = in.spring;
   out.force.assign(in.x.size(), Vec3{1.0, -0.0, 2.0});
   PairRows p;
@@ -157,6 +157,13 @@ Result run(const Rows& in, const dem::ContactLaw& law, double dt, std::size_t a0
   p.force = out.force.data();
   p.law = law;
   p.dt = dt;
+  return p;
+}
+
+Result run(const Rows& in, const dem::ContactLaw& law, double dt, std::size_t a0, std::size_t a1,
+           bool vector) {
+  Result out;
+  const PairRows p = start(in, out, law, dt);
   dem::detail::pair_rows(p, a0, a1, out.remote, out.stats, vector);
   return out;
 }
@@ -257,21 +264,9 @@ TEST(dem_PairKernel, WithSleepersVectorAndScalarGiveTheSameBits) {
         std::vector<std::uint8_t> woken[2];
         for (const bool vector : {false, true}) {
           Result& out = res[vector];
-          out.spring = rows.spring;
-          out.force.assign(n, Vec3{1.0, -0.0, 2.0});
+          const PairRows p = start(rows, out, law, dt);
           woken[vector].assign(n, 0);
           std::vector<std::int32_t> remote_wake;
-          PairRows p;
-          p.x = rows.x.data();
-          p.u = rows.u.data();
-          p.radius = rows.r.data();
-          p.mass = rows.m.data();
-          p.offset = rows.off.data();
-          p.partner = rows.j.data();
-          p.spring = out.spring.data();
-          p.force = out.force.data();
-          p.law = law;
-          p.dt = dt;
           dem::detail::PairSleep sl;
           sl.rest = rest.data();
           sl.steps = 200;
