@@ -479,29 +479,28 @@ bool pair_rows_vector_available() {
 #endif
 }
 
-void pair_rows(const PairRows& p, std::size_t a0, std::size_t a1, std::vector<PairRemote>& remote,
-               PairRowStats& stats, bool vector) {
-  const PairSleep none;
-#if defined(__x86_64__) && defined(__GNUC__)
-  static const bool available = pair_rows_vector_available();
-  if (vector && available) {
-    pair_rows_avx512<false>(p, none, a0, a1, remote, stats);
-    return;
-  }
-#endif
-  pair_rows_scalar<false>(p, none, a0, a1, remote, stats);
-}
-
-void pair_rows_sleep(const PairRows& p, const PairSleep& sleep, std::size_t a0, std::size_t a1,
+// The one place that picks the kernel: the vector one when asked for and available.
+template <bool Sleep>
+static void dispatch(const PairRows& p, const PairSleep& sleep, std::size_t a0, std::size_t a1,
                      std::vector<PairRemote>& remote, PairRowStats& stats, bool vector) {
 #if defined(__x86_64__) && defined(__GNUC__)
   static const bool available = pair_rows_vector_available();
   if (vector && available) {
-    pair_rows_avx512<true>(p, sleep, a0, a1, remote, stats);
+    pair_rows_avx512<Sleep>(p, sleep, a0, a1, remote, stats);
     return;
   }
 #endif
-  pair_rows_scalar<true>(p, sleep, a0, a1, remote, stats);
+  pair_rows_scalar<Sleep>(p, sleep, a0, a1, remote, stats);
+}
+
+void pair_rows(const PairRows& p, std::size_t a0, std::size_t a1, std::vector<PairRemote>& remote,
+               PairRowStats& stats, bool vector) {
+  dispatch<false>(p, PairSleep{}, a0, a1, remote, stats, vector);
+}
+
+void pair_rows_sleep(const PairRows& p, const PairSleep& sleep, std::size_t a0, std::size_t a1,
+                     std::vector<PairRemote>& remote, PairRowStats& stats, bool vector) {
+  dispatch<true>(p, sleep, a0, a1, remote, stats, vector);
 }
 
 }  // namespace dem::detail
