@@ -135,6 +135,7 @@ int run(int argc, char** argv) {
   for (const auto& s : sets) cosim::config::apply_override(root, s);
   // May execute dem_run again (once) with the OpenMP wait variables set: before any output.
   const std::string wait = dem::apply_thread_wait(dem::read_thread_wait(root), argv);
+  dem::read_pair_kernel_environment();  // a bad DEM_PAIR_KERNEL stops the run before any work
   std::fprintf(stderr, "dem_run: idle threads wait %s\n", wait.c_str());
   const std::string base = std::filesystem::path(config_path).parent_path().string();
   dem::RunConfig rc = dem::load_config(root, base);

@@ -30,6 +30,7 @@ int run(int argc, char** argv) {
   // May execute dem_service again (once) with the OpenMP wait variables set: before the bus.
   const std::string wait = dem::apply_thread_wait(dem::read_thread_wait(args.config), argv);
   std::cerr << "dem_service: idle threads wait " << wait << "\n";
+  dem::read_pair_kernel_environment();  // a bad DEM_PAIR_KERNEL stops it before the bus
   dem::ServiceModel model(args.config, args.config_dir, args.config_path);
   const int code =
       cosim::run_participant(model, "dem", static_cast<int>(args.rest.size()), args.rest.data());

@@ -116,9 +116,6 @@ bool vector_pairs_from_environment() {
 }
 std::atomic<bool> vector_pairs{true};
 std::once_flag vector_pairs_read;
-void read_vector_pairs() {
-  std::call_once(vector_pairs_read, [] { vector_pairs = vector_pairs_from_environment(); });
-}
 
 // Keeps the two largest of the squared displacements seen so far (first >= second), each of
 // another particle: what the guard adds up.
@@ -132,8 +129,12 @@ inline void keep_two_largest(double& first, double& second, double d2) {
 }  // namespace
 
 void detail::use_sleeper_row_skip(bool skip) { sleeper_row_skip = skip; }
+void read_pair_kernel_environment() {
+  std::call_once(vector_pairs_read, [] { vector_pairs = vector_pairs_from_environment(); });
+}
+
 void detail::use_vector_pairs(bool vector) {
-  read_vector_pairs();
+  read_pair_kernel_environment();
   vector_pairs = vector;
 }
 
@@ -142,7 +143,7 @@ Timing make_timing() {
 }
 
 Engine::Engine(const Scene& scene) : scene_(scene) {
-  read_vector_pairs();
+  read_pair_kernel_environment();
   max_threads_ = threads_ = std::max(1, scene.threads);
   remote_.resize(max_threads_);
   remote_wake_.resize(max_threads_);
@@ -364,6 +365,28 @@ void Engine::pair_forces_impl(State& s) {
     stamp = ++row_stamp_;
     MARK = row_mark_.data();
   }
+  // What every thread's rows read and write (raw pointers, see dem/pair_kernel.hpp).
+  detail::PairRows rows;
+  rows.x = s.x.data();
+  rows.u = s.u.data();
+  rows.radius = s.radius.data();
+  rows.mass = s.mass.data();
+  rows.offset = s.pair_offset.data();
+  rows.partner = s.pair_j.data();
+  rows.spring = s.pair_spring.data();
+  rows.force = force_.data();
+  rows.law = law;
+  rows.dt = dt;
+  detail::PairSleep sleep_rules;  // each thread adds its queue of remote wakes
+  if (Sleep) {
+    sleep_rules.rest = REST;
+    sleep_rules.steps = S;
+    sleep_rules.wake_speed2 = wake_speed2;
+    sleep_rules.mark = skip_rows ? MARK : nullptr;
+    sleep_rules.stamp = stamp;
+    sleep_rules.wake = WAKE;
+  }
+  const bool vector = vector_pairs.load(std::memory_order_relaxed);
 #pragma omp parallel num_threads(T)
   {
     const int t = omp_get_thread_num();
@@ -397,27 +420,9 @@ void Engine::pair_forces_impl(State& s) {
     } else {
       for (std::size_t i = a0; i < a1; ++i) force_[i] = s.mass[i] * g;
     }
-    detail::PairRows rows;
-    rows.x = s.x.data();
-    rows.u = s.u.data();
-    rows.radius = s.radius.data();
-    rows.mass = s.mass.data();
-    rows.offset = s.pair_offset.data();
-    rows.partner = s.pair_j.data();
-    rows.spring = s.pair_spring.data();
-    rows.force = force_.data();
-    rows.law = law;
-    rows.dt = dt;
     detail::PairRowStats st;
-    const bool vector = vector_pairs.load(std::memory_order_relaxed);
     if (Sleep) {
-      detail::PairSleep sl;
-      sl.rest = REST;
-      sl.steps = S;
-      sl.wake_speed2 = wake_speed2;
-      sl.mark = skip_rows ? MARK : nullptr;
-      sl.stamp = stamp;
-      sl.wake = WAKE;
+      detail::PairSleep sl = sleep_rules;
       sl.remote_wake = &remote_wake;
       detail::pair_rows_sleep(rows, sl, a0, a1, remote, st, vector);
     } else {

@@ -6,8 +6,15 @@
 // second chunks), one size, two sizes and a continuum of sizes, and four contact laws. Whole runs
 // through the engine are compared both ways as well.
 #include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
+#include <cstdlib>
 #include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
 #include <random>
 #include <vector>
 
@@ -351,6 +358,49 @@ TEST(dem_PairKernel, WholeRunsAreTheSameWithEitherKernel) {
     });
     EXPECT_GT(arrays, 20);
   }
+}
+
+// Runs `cmd` with stdout and stderr to a file; returns the exit status and the output.
+std::pair<int, std::string> run_command(const std::string& cmd) {
+  const std::filesystem::path log = std::filesystem::temp_directory_path() /
+                                    ("dem_pair_kernel_" + std::to_string(::getpid()) + ".log");
+  const int status = std::system((cmd + " > " + log.string() + " 2>&1").c_str());
+  std::ifstream in(log);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  std::filesystem::remove(log);
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, ss.str()};
+}
+
+// DEM_PAIR_KERNEL picks the kernel for timing; any other value than vector or scalar stops
+// dem_run and dem_service at start-up with a message naming the variable and its values.
+TEST(dem_PairKernel, BadKernelInTheEnvironmentIsRefusedAtStartUp) {
+  const std::string config = std::string(DEM_SOURCE_DIR) + "/configs/dem/drop_on_meshes.yaml";
+  const std::string out =
+      (std::filesystem::temp_directory_path() / ("dem_pair_kernel_" + std::to_string(::getpid()) +
+                                                 ".h5"))
+          .string();
+  for (const char* exe : {DEM_RUN_EXE, DEM_SERVICE_EXE}) {
+    const std::string args = std::string(exe) == DEM_RUN_EXE
+                                 ? config + " --set run.duration=0.001 --output " + out
+                                 : std::string(DEM_SOURCE_DIR) +
+                                       "/configs/soil/pile.yaml --name soil --bus "
+                                       "udpm://239.255.76.67:7667?ttl=0";
+    const auto [code, text] = run_command("env DEM_PAIR_KERNEL=avx " + std::string(exe) + " " + args);
+    EXPECT_EQ(code, 2) << text;
+    EXPECT_NE(text.find("DEM_PAIR_KERNEL=avx: use vector (the default) or scalar, or unset it"),
+              std::string::npos)
+        << text;
+  }
+  // The two good values run.
+  for (const char* v : {"scalar", "vector"}) {
+    const auto [code, text] = run_command(std::string("env DEM_PAIR_KERNEL=") + v + " " +
+                                          DEM_RUN_EXE + " " + config +
+                                          " --set run.duration=0.001 --output " + out);
+    EXPECT_EQ(code, 0) << v << ": " << text;
+  }
+  std::filesystem::remove(out);
+  std::filesystem::remove(std::filesystem::path(out).replace_extension(".xdmf"));
 }
 
 }  // namespace

@@ -137,6 +137,12 @@ class Engine {
   Timing timing_ = make_timing();
 };
 
+// Reads DEM_PAIR_KERNEL from the environment once (unset or "vector": the AVX-512 pair kernel
+// where the processor has it; "scalar": the scalar loop; both give the same bits) and throws
+// std::invalid_argument naming the variable and its values for anything else. Every Engine
+// calls it; dem_run and dem_service call it at start-up so a bad value stops them at once.
+void read_pair_kernel_environment();
+
 namespace detail {
 // Whether the pair loop skips the rows of sleepers that hold no awake partner (the default) or
 // scans every row as before; tests compare whole runs both ways.
