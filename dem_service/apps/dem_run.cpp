@@ -68,15 +68,17 @@ void print_timing(const dem::Engine& engine, const dem::State& s, double sim_tim
   }
   std::vector<cosim::TimingRow> rows = engine.timing().rows();
   rows.push_back({"other", std::max(0.0, wall - engine.timing().sum())});
-  char title[160], rtf[96], rate[96], phases[128];
+  char title[160], rtf[96], rate[96], phases[192];
   std::snprintf(title, sizeof title, "Loop time of %.3f s for %lld steps with %zu particles on %d thread(s)",
                 wall, steps, s.size(), engine.threads());
   std::snprintf(rtf, sizeof rtf, "Real-time factor (wall / simulated): %.3g",
                 sim_time > 0 ? wall / sim_time : 0.0);
   std::snprintf(rate, sizeof rate, "Particle-steps/s: %.4g",
                 wall > 0 ? static_cast<double>(s.size()) * steps / wall : 0.0);
-  std::snprintf(phases, sizeof phases, "Broad phases: %lld (early rebuilds by the guard: %lld)",
-                rebuilds, early);
+  std::snprintf(phases, sizeof phases,
+                "Broad phases: %lld (early rebuilds by the guard: %lld; steps its far-mover "
+                "check spared one: %lld)",
+                rebuilds, early, static_cast<long long>(engine.guard_cleared()));
   char memory[160];
   const double n = std::max<double>(1.0, static_cast<double>(s.size()));
   std::snprintf(memory, sizeof memory,

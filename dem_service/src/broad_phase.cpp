@@ -154,6 +154,67 @@ std::size_t BroadPhase::workspace_bytes() const {
   return b;
 }
 
+// Cells at least h wide over the box [lo, hi]; a particle far from the rest would blow the
+// cell count up: the grid is coarsened instead.
+void BroadPhase::set_grid(Vec3 lo, Vec3 hi, std::size_t n, double h) {
+  long nx, ny, nz;
+  const double max_cells = std::max<double>(4.0 * static_cast<double>(n), 64.0);
+  while (true) {
+    nx = static_cast<long>((hi.x - lo.x) / h) + 1;
+    ny = static_cast<long>((hi.y - lo.y) / h) + 1;
+    nz = static_cast<long>((hi.z - lo.z) / h) + 1;
+    if (static_cast<double>(nx) * ny * nz <= max_cells) break;
+    h *= 1.25;
+  }
+  lo_ = lo;
+  inv_h_ = 1.0 / h;
+  nx_ = nx;
+  ny_ = ny;
+  nz_ = nz;
+}
+
+bool BroadPhase::grid_matches(const State& s) const {
+  return grid_state_ == &s && grid_size_ == s.size() && grid_rebuilds_ == s.rebuilds &&
+         grid_built_at_ == s.step - s.steps_since_rebuild;
+}
+
+// The grid of the last broad phase from the positions it binned (State::x_at_rebuild, which are
+// in cell order): after a restart from a checkpoint, when this object has not built the lists.
+bool BroadPhase::restore_grid(const Scene& scene, const State& s) {
+  const std::size_t n = s.size();
+  if (!s.lists_valid || s.x_at_rebuild.size() != n) return false;
+  Vec3 lo{1e300, 1e300, 1e300}, hi{-1e300, -1e300, -1e300};
+  for (const Vec3& p : s.x_at_rebuild) {
+    lo = {std::min(lo.x, p.x), std::min(lo.y, p.y), std::min(lo.z, p.z)};
+    hi = {std::max(hi.x, p.x), std::max(hi.y, p.y), std::max(hi.z, p.z)};
+  }
+  if (n == 0) lo = hi = Vec3{};
+  set_grid(lo, hi, n, 2 * scene.r_max() + scene.skin_distance());
+  const long nx = nx_, ny = ny_, nz = nz_;
+  auto cell_coord = [&](double v, double l, long nmax) {
+    return std::clamp(static_cast<long>((v - l) * inv_h_), 0L, nmax - 1);
+  };
+  cell_start_.assign(static_cast<std::size_t>(nx * ny * nz) + 1, 0);
+  long last = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const Vec3 p = s.x_at_rebuild[i];
+    const long c = (cell_coord(p.z, lo.z, nz) * ny + cell_coord(p.y, lo.y, ny)) * nx +
+                   cell_coord(p.x, lo.x, nx);
+    if (c < last) {  // not in cell order: not a grid this object can rebuild
+      cell_start_.clear();
+      return false;
+    }
+    last = c;
+    ++cell_start_[c + 1];
+  }
+  for (std::size_t c = 0; c + 1 < cell_start_.size(); ++c) cell_start_[c + 1] += cell_start_[c];
+  grid_state_ = &s;
+  grid_size_ = n;
+  grid_rebuilds_ = s.rebuilds;
+  grid_built_at_ = s.step - s.steps_since_rebuild;
+  return true;
+}
+
 void BroadPhase::build(const Scene& scene, State& s,
                        const std::vector<std::vector<Vec3>>& tool_vertices, int threads) {
   const std::size_t n = s.size();
@@ -178,19 +239,10 @@ void BroadPhase::build(const Scene& scene, State& s,
   }
   Vec3 lo{lx, ly, lz}, hi{hx, hy, hz};
   if (n == 0) lo = hi = Vec3{};
-  double h = 2 * rmax + skin;
-  long nx, ny, nz;
-  // A particle far from the rest would blow the cell count up: coarsen the grid instead.
-  const double max_cells = std::max<double>(4.0 * static_cast<double>(n), 64.0);
-  while (true) {
-    nx = static_cast<long>((hi.x - lo.x) / h) + 1;
-    ny = static_cast<long>((hi.y - lo.y) / h) + 1;
-    nz = static_cast<long>((hi.z - lo.z) / h) + 1;
-    if (static_cast<double>(nx) * ny * nz <= max_cells) break;
-    h *= 1.25;
-  }
+  set_grid(lo, hi, n, 2 * rmax + skin);
+  const long nx = nx_, ny = ny_, nz = nz_;
   const long ncells = nx * ny * nz;
-  const double inv_h = 1.0 / h;
+  const double inv_h = inv_h_;
   auto cell_coord = [&](double v, double l, long nmax) {
     long c = static_cast<long>((v - l) * inv_h);
     return std::clamp(c, 0L, nmax - 1);
@@ -434,6 +486,10 @@ void BroadPhase::build(const Scene& scene, State& s,
   s.steps_since_rebuild = 0;
   s.lists_valid = true;
   ++s.rebuilds;
+  grid_state_ = &s;
+  grid_size_ = n;
+  grid_rebuilds_ = s.rebuilds;
+  grid_built_at_ = s.step;
 }
 
 // Walls within r + skin of each particle (one bit per wall; all bits if > 32 walls), the

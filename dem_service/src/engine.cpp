@@ -195,17 +195,221 @@ bool Engine::guard_fires(const State& s, double* moved) const {
   // one grain flies); one particle alone reaches a wall or mesh triangle not among its
   // candidates only after moving the whole skin, which the sum covers too.
   double worst = s.max_displacement + s.second_displacement;
-  for (std::size_t m = 0; m < scene_.tools.size(); ++m) {
-    const ToolPose& now = s.tool_pose[m];
-    const ToolPose& then = s.tool_pose_at_rebuild[m];
-    const double angle = angle_between(now.orientation, then.orientation);
-    const double tool_move = norm(now.position - then.position) +
-                             2 * std::sin(std::min(angle, M_PI) / 2) *
-                                 scene_.tools[m].mesh.bounding_radius;
-    worst = std::max(worst, s.max_displacement + tool_move);
-  }
+  for (std::size_t m = 0; m < scene_.tools.size(); ++m)
+    worst = std::max(worst, s.max_displacement + tool_move(s, m));
   *moved = worst;
   return worst > scene_.skin_distance();
+}
+
+// How far any point of tool m moved since the last broad phase (at most).
+double Engine::tool_move(const State& s, std::size_t m) const {
+  const ToolPose& now = s.tool_pose[m];
+  const ToolPose& then = s.tool_pose_at_rebuild[m];
+  const double angle = angle_between(now.orientation, then.orientation);
+  return norm(now.position - then.position) +
+         2 * std::sin(std::min(angle, M_PI) / 2) * scene_.tools[m].mesh.bounding_radius;
+}
+
+void Engine::find_far_movers(const State& s) {
+  const double half = 0.5 * scene_.skin_distance(), half2 = half * half;
+  far_.clear();
+  far_overflow_ = false;
+  double near2 = 0, u2 = 0;
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    const double d2 = norm2(s.x[i] - s.x_at_rebuild[i]);
+    u2 = std::max(u2, norm2(s.u[i]));
+    if (!(d2 <= half2)) {
+      if (far_.size() < kMaxFarMovers)
+        far_.push_back(static_cast<std::int32_t>(i));
+      else
+        far_overflow_ = true;
+    } else {
+      near2 = std::max(near2, d2);
+    }
+  }
+  near_max_ = std::sqrt(near2);
+  u_max_ = std::sqrt(u2);
+  far_step_ = s.step;
+  far_state_ = &s;
+  far_size_ = s.size();
+}
+
+void Engine::build_mesh_grids() {
+  mesh_grid_.assign(scene_.tools.size(), MeshGrid{});
+  for (std::size_t m = 0; m < scene_.tools.size(); ++m) {
+    const Mesh& mesh = scene_.tools[m].mesh;
+    MeshGrid& g = mesh_grid_[m];
+    if (mesh.vertices.empty()) continue;
+    Vec3 lo = mesh.vertices[0], hi = lo;
+    for (const Vec3& v : mesh.vertices) {
+      lo = {std::min(lo.x, v.x), std::min(lo.y, v.y), std::min(lo.z, v.z)};
+      hi = {std::max(hi.x, v.x), std::max(hi.y, v.y), std::max(hi.z, v.z)};
+    }
+    // Cells a candidate distance wide, at most about 4 per triangle.
+    double h = 2 * scene_.r_max() + scene_.skin_distance();
+    const double max_cells = std::max(64.0, 4.0 * static_cast<double>(mesh.triangles.size()));
+    while (true) {
+      g.nx = static_cast<long>((hi.x - lo.x) / h) + 1;
+      g.ny = static_cast<long>((hi.y - lo.y) / h) + 1;
+      g.nz = static_cast<long>((hi.z - lo.z) / h) + 1;
+      if (static_cast<double>(g.nx) * g.ny * g.nz <= max_cells) break;
+      h *= 1.25;
+    }
+    g.lo = lo;
+    g.inv_h = 1.0 / h;
+    auto cell = [&](double v, double l, long nmax) {
+      return std::clamp(static_cast<long>((v - l) * g.inv_h), 0L, nmax - 1);
+    };
+    std::vector<std::array<long, 6>> box(mesh.triangles.size());
+    g.start.assign(static_cast<std::size_t>(g.nx * g.ny * g.nz) + 1, 0);
+    for (int pass = 0; pass < 2; ++pass) {
+      std::vector<std::int32_t> fill(g.start.begin(), g.start.end() - 1);
+      for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
+        auto& b = box[t];
+        if (pass == 0) {
+          const auto& T = mesh.triangles[t];
+          const Vec3 a = mesh.vertices[T[0]], c = mesh.vertices[T[1]], d = mesh.vertices[T[2]];
+          b = {cell(std::min({a.x, c.x, d.x}), lo.x, g.nx), cell(std::max({a.x, c.x, d.x}), lo.x, g.nx),
+               cell(std::min({a.y, c.y, d.y}), lo.y, g.ny), cell(std::max({a.y, c.y, d.y}), lo.y, g.ny),
+               cell(std::min({a.z, c.z, d.z}), lo.z, g.nz), cell(std::max({a.z, c.z, d.z}), lo.z, g.nz)};
+        }
+        for (long z = b[4]; z <= b[5]; ++z)
+          for (long y = b[2]; y <= b[3]; ++y)
+            for (long x = b[0]; x <= b[1]; ++x) {
+              const long c = (z * g.ny + y) * g.nx + x;
+              if (pass == 0)
+                ++g.start[c + 1];
+              else
+                g.tri[fill[c]++] = static_cast<std::int32_t>(t);
+            }
+      }
+      if (pass == 0) {
+        for (std::size_t c = 0; c + 1 < g.start.size(); ++c) g.start[c + 1] += g.start[c];
+        g.tri.resize(static_cast<std::size_t>(g.start.back()));
+      }
+    }
+  }
+}
+
+// Is a triangle of tool m within `reach` of particle e that is not among e's candidates?
+bool Engine::unlisted_triangle_near(const State& s, std::size_t e, std::size_t m,
+                                    double reach) const {
+  const MeshGrid& g = mesh_grid_[m];
+  if (g.start.empty()) return false;  // a mesh without vertices
+  const Mesh& mesh = scene_.tools[m].mesh;
+  const Mat3& R = tool_rotation_[m];
+  const Vec3 d = s.x[e] - s.tool_pose[m].position;
+  const Vec3 q{R.m[0][0] * d.x + R.m[1][0] * d.y + R.m[2][0] * d.z,
+               R.m[0][1] * d.x + R.m[1][1] * d.y + R.m[2][1] * d.z,
+               R.m[0][2] * d.x + R.m[1][2] * d.y + R.m[2][2] * d.z};  // R^T d: the mesh frame
+  const double grow = reach * (1 + 1e-9) + 1e-12;
+  auto range = [&](double v, double l, long nmax, long& c0, long& c1) {
+    const double a = (v - grow - l) * g.inv_h, b = (v + grow - l) * g.inv_h;
+    c0 = a > 0 ? (a < static_cast<double>(nmax) ? static_cast<long>(a) : nmax) : 0;
+    c1 = b >= 0 ? (b < static_cast<double>(nmax) ? static_cast<long>(b) : nmax - 1) : -1;
+  };
+  long x0, x1, y0, y1, z0, z1;
+  range(q.x, g.lo.x, g.nx, x0, x1);
+  range(q.y, g.lo.y, g.ny, y0, y1);
+  range(q.z, g.lo.z, g.nz, z0, z1);
+  const Vec3* wv = tool_vertices_[m].data();
+  const std::int32_t k0 = s.tri_offset[e], k1 = s.tri_offset[e + 1];
+  for (long z = z0; z <= z1; ++z)
+    for (long y = y0; y <= y1; ++y)
+      for (long x = x0; x <= x1; ++x) {
+        const long c = (z * g.ny + y) * g.nx + x;
+        for (std::int32_t k = g.start[c]; k < g.start[c + 1]; ++k) {
+          const std::int32_t t = g.tri[k];
+          if (closest_on_triangle(mesh, wv, t, s.x[e]).dist2 >= reach * reach * (1 + 1e-9)) continue;
+          bool listed = false;
+          for (std::int32_t j = k0; j < k1 && !listed; ++j)
+            listed = s.tri_tool[j] == static_cast<std::int32_t>(m) && s.tri_index[j] == t;
+          if (!listed) return true;
+        }
+      }
+  return false;
+}
+
+// Why the bound can be refined (docs/dem.md "The guard"): a pair not in the lists was more than
+// the skin apart at the last broad phase. Every particle but the far movers moved at most half
+// the skin, so no pair of two of them can touch yet, nor can one of them reach a tool that moved
+// less than the skin minus its displacement. What is left are the pairs, walls and tools of the
+// few far movers, and those are looked at where the far movers are now: a pair of which one is a
+// far mover can be active this step only within r_a + r_b + dt/2 (|u_a| + |u_b|) of each other
+// (contact_force's window), and every particle within that reach of a far mover lay, at the last
+// broad phase, in the cells around it widened by half the skin.
+bool Engine::far_movers_clear(const State& s) {
+  if (far_step_ != s.step || far_state_ != &s || far_size_ != s.size()) find_far_movers(s);
+  if (far_overflow_ || s.x_at_rebuild.size() != s.size() || s.wall_mask.size() != s.size())
+    return false;
+  if (!broad_.grid_matches(s) && !broad_.restore_grid(scene_, s)) return false;
+  const double skin = scene_.skin_distance();
+  const std::size_t ntools = scene_.tools.size();
+  double moves[64];
+  if (ntools > 64) return false;
+  for (std::size_t m = 0; m < ntools; ++m) {
+    moves[m] = tool_move(s, m);
+    if (near_max_ + moves[m] > skin) return false;
+  }
+  const double dt = scene_.dt, rmax = scene_.r_max();
+  const auto listed = [&](std::size_t a, std::size_t b) {
+    const std::size_t i = std::min(a, b), j = std::max(a, b);
+    for (std::int32_t k = s.pair_offset[i]; k < s.pair_offset[i + 1]; ++k)
+      if (static_cast<std::size_t>(s.pair_j[k]) == j) return true;
+    return false;
+  };
+  // May a and b be active this step without being in the lists? (1e-9: rounding of the bound)
+  const auto unlisted_near = [&](std::size_t a, std::size_t b, double ua) {
+    const double reach = (s.radius[a] + s.radius[b] + 0.5 * dt * (ua + norm(s.u[b]))) * (1 + 1e-9);
+    return norm2(s.x[a] - s.x[b]) < reach * reach && !listed(a, b);
+  };
+  const RegionOptions& region = scene_.region;
+  for (std::size_t k = 0; k < far_.size(); ++k) {
+    const std::size_t e = static_cast<std::size_t>(far_[k]);
+    const Vec3 xe = s.x[e];
+    const double re = s.radius[e], ue = norm(s.u[e]);
+    if (!(ue <= u_max_)) return false;  // NaN: the blow-up check names it
+    // Left the region of interest: a broad phase removes it now, as it would have before.
+    if (region.enabled && (xe.x < region.min.x || xe.y < region.min.y || xe.z < region.min.z ||
+                           xe.x > region.max.x || xe.y > region.max.y || xe.z > region.max.z))
+      return false;
+    // Walls not among its candidates, within the reach of boundary_contacts this step.
+    const double wall_reach = (re + 0.5 * dt * ue) * (1 + 1e-9);
+    for (std::size_t w = 0; w < scene_.walls.size() && w < 32; ++w) {
+      if ((s.wall_mask[e] >> w) & 1u) continue;
+      const Wall& wall = scene_.walls[w];
+      if (dot(xe - wall.point, wall.normal) < wall_reach) return false;
+    }
+    // Tools that may have come within reach of a triangle not among its candidates: the
+    // triangles within the reach of boundary_contacts this step must all be candidates (a
+    // particle without a boundary slot block has none).
+    const double disp = norm(xe - s.x_at_rebuild[e]);
+    for (std::size_t m = 0; m < ntools; ++m) {
+      if (disp + moves[m] <= skin) continue;
+      const Mesh& mesh = scene_.tools[m].mesh;
+      const ToolPose& tp = s.tool_pose[m];
+      const double reach = re + 0.5 * dt * (ue + norm(tp.velocity) +
+                                            norm(tp.angular_velocity) * mesh.bounding_radius);
+      const double far = mesh.bounding_radius + reach * (1 + 1e-9);
+      if (norm2(xe - tp.position) >= far * far) continue;  // beyond every vertex
+      if (mesh_grid_.size() != ntools) build_mesh_grids();
+      if (unlisted_triangle_near(s, e, m, reach)) return false;
+    }
+    // Particles: those that moved at most half the skin, found through the grid ...
+    bool clear = true;
+    const double reach = (re + rmax + 0.5 * dt * (ue + u_max_) + 0.5 * skin) * (1 + 1e-9);
+    broad_.for_each_near(xe, reach, [&](std::int32_t b) {
+      if (!clear || static_cast<std::size_t>(b) == e ||
+          std::binary_search(far_.begin(), far_.end(), b))
+        return;
+      if (unlisted_near(e, static_cast<std::size_t>(b), ue)) clear = false;
+    });
+    if (!clear) return false;
+    // ... and the other far movers, wherever they are.
+    for (std::size_t l = k + 1; l < far_.size(); ++l)
+      if (unlisted_near(e, static_cast<std::size_t>(far_[l]), ue)) return false;
+  }
+  return true;
 }
 
 void Engine::size_sleep_arrays(State& s) {
@@ -267,6 +471,12 @@ void Engine::prepare(State& s) {
     choose_threads(s);
     broad_.build(scene_, s, tool_vertices_, threads_);
   } else if (guard_fires(s, &moved)) {
+    if (scene_.guard == GuardMode::rebuild && far_movers_clear(s)) {
+      if (cleared_at_ != s.step) ++guard_cleared_;  // prepare() may be called twice a step
+      cleared_at_ = s.step;
+      timing_.lap(section::broad_phase, watch);
+      return;
+    }
     if (scene_.guard == GuardMode::strict) {
       std::ostringstream msg;
       msg << "broad phase guard at step " << s.step << " (t = " << s.step * scene_.dt
@@ -591,13 +801,27 @@ void Engine::integrate_impl(State& s) {
   const double dt = scene_.dt;
   const double vmax2 = scene_.stability.max_speed * scene_.stability.max_speed;
   double max_d2 = 0, second_d2 = 0;  // the two largest squared displacements (two particles)
+  const double half = 0.5 * scene_.skin_distance(), half2 = half * half;
+  double near2 = 0, u2 = 0;
+  thread_far_.resize(static_cast<std::size_t>(T));
   std::int64_t bad = -1;
 #pragma omp parallel num_threads(T)
   {
     const int t = omp_get_thread_num();
     const std::size_t a0 = n * t / T, a1 = n * (t + 1) / T;
     double my_d2 = 0, my_second = 0;  // this thread's two largest
-    auto moved = [&](double d2) { keep_two_largest(my_d2, my_second, d2); };
+    double my_near2 = 0, my_u2 = 0;    // far movers: the others' largest, the largest |u|^2
+    std::vector<std::int32_t>& my_far = thread_far_[t];
+    my_far.clear();
+    auto moved = [&](std::size_t i, double d2) {
+      keep_two_largest(my_d2, my_second, d2);
+      my_u2 = std::max(my_u2, norm2(s.u[i]));
+      if (!(d2 <= half2)) {
+        if (my_far.size() <= kMaxFarMovers) my_far.push_back(static_cast<std::int32_t>(i));
+      } else {
+        my_near2 = std::max(my_near2, d2);
+      }
+    };
     std::int64_t my_bad = -1;
     std::int64_t my_sleeping = 0;
     auto near_tool = [&](std::size_t i) {
@@ -633,7 +857,7 @@ void Engine::integrate_impl(State& s) {
           s.rest_steps[i] = 0;
         else
           ++my_sleeping;
-        moved(norm2(s.x[i] - s.x_at_rebuild[i]));
+        moved(i, norm2(s.x[i] - s.x_at_rebuild[i]));
         continue;
       }
       // Semi-implicit Euler: the new velocity moves the particle (symplectic, one force
@@ -646,7 +870,7 @@ void Engine::integrate_impl(State& s) {
       s.x[i] = x;
       const double v2 = norm2(v);
       if (!(v2 <= vmax2) && my_bad < 0) my_bad = static_cast<std::int64_t>(i);
-      moved(norm2(x - s.x_at_rebuild[i]));
+      moved(i, norm2(x - s.x_at_rebuild[i]));
       if (Sleep) {
         std::int32_t r = s.rest_steps[i];
         if (v2 < rest_speed2 && !near_tool(i)) {
@@ -664,6 +888,8 @@ void Engine::integrate_impl(State& s) {
     {
       keep_two_largest(max_d2, second_d2, my_d2);
       keep_two_largest(max_d2, second_d2, my_second);
+      near2 = std::max(near2, my_near2);
+      u2 = std::max(u2, my_u2);
       sleeping += my_sleeping;
       if (my_bad >= 0 && (bad < 0 || my_bad < bad)) bad = my_bad;
     }
@@ -673,6 +899,21 @@ void Engine::integrate_impl(State& s) {
   sleeping_ = sleeping;
   ++s.step;
   ++s.steps_since_rebuild;
+  // The far movers of the new state, in ascending order (threads hold ascending ranges).
+  far_.clear();
+  far_overflow_ = false;
+  for (int t = 0; t < T; ++t)
+    for (std::int32_t i : thread_far_[static_cast<std::size_t>(t)]) {
+      if (far_.size() < kMaxFarMovers)
+        far_.push_back(i);
+      else
+        far_overflow_ = true;
+    }
+  near_max_ = std::sqrt(near2);
+  u_max_ = std::sqrt(u2);
+  far_step_ = s.step;
+  far_state_ = &s;
+  far_size_ = s.size();
   if (bad >= 0) {
     const std::size_t i = static_cast<std::size_t>(bad);
     std::ostringstream msg;

@@ -4,6 +4,7 @@
 // timed (stages()); docs/performance.md says what each costs.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <vector>
 
@@ -69,10 +70,48 @@ class BroadPhase {
   // Particles moved by the last build's permutation (0 when the cell order had not changed).
   std::size_t last_permuted() const { return last_permuted_; }
 
+  // Whether the grid below is the one of s's last broad phase (built by this object), and, if
+  // not, rebuilding it from s (false when s's lists are not in cell order, e.g. not valid).
+  bool grid_matches(const State& s) const;
+  bool restore_grid(const Scene& scene, const State& s);
+
+  // After build() and until the next one (the particles keep their order in between): calls
+  // f(b) for every particle b whose cell at that build overlaps the box p +- reach, a superset
+  // of the particles whose position at the build (State::x_at_rebuild) was within reach of p.
+  // The guard's far-mover check (Engine) looks for new neighbours this way.
+  // Check grid_matches(s) (or restore_grid) first.
+  template <class F>
+  void for_each_near(Vec3 p, double reach, F&& f) const {
+    auto range = [&](double v, double l, long nmax, long& c0, long& c1) {
+      const double a = (v - reach - l) * inv_h_, b = (v + reach - l) * inv_h_;
+      // NaN or beyond the grid on either side: clamp like the build's cell_coord
+      c0 = a > 0 ? (a < static_cast<double>(nmax) ? static_cast<long>(a) : nmax - 1) : 0;
+      c1 = b > 0 ? (b < static_cast<double>(nmax) ? static_cast<long>(b) : nmax - 1) : 0;
+    };
+    long x0, x1, y0, y1, z0, z1;
+    range(p.x, lo_.x, nx_, x0, x1);
+    range(p.y, lo_.y, ny_, y0, y1);
+    range(p.z, lo_.z, nz_, z0, z1);
+    for (long z = z0; z <= z1; ++z)
+      for (long y = y0; y <= y1; ++y) {
+        const long row = (z * ny_ + y) * nx_;
+        for (std::int32_t b = cell_start_[row + x0]; b < cell_start_[row + x1 + 1]; ++b) f(b);
+      }
+  }
+
  private:
   cosim::Timer stages_{{"grid", "sort", "permute", "pair_list", "history", "mesh_candidates",
                         "wall_masks"}};
   std::size_t last_permuted_ = 0;
+  // The last build's grid: lower corner, 1 / cell size, cells per axis.
+  Vec3 lo_{};
+  double inv_h_ = 1;
+  long nx_ = 0, ny_ = 0, nz_ = 0;
+  // Which broad phase the grid is of: the state, its size, s.rebuilds and the step it ran at.
+  const State* grid_state_ = nullptr;
+  std::size_t grid_size_ = 0;
+  std::int64_t grid_rebuilds_ = -1, grid_built_at_ = -1;
+  void set_grid(Vec3 lo, Vec3 hi, std::size_t n, double h);
 
   // Workspace kept between builds so the steady state allocates nothing new.
   std::vector<std::int32_t> cell_of_, cell_start_, fill_, order_, new_index_;

@@ -77,6 +77,9 @@ class Engine {
   // particles removed by the region of interest in the last prepare()/rebuild().
   std::int64_t sleeping() const { return sleeping_; }
   std::int64_t removed_last() const { return removed_last_; }
+  // Steps at which the guard's bound fired but its far-mover check found the lists still
+  // complete, so no broad phase ran (scene.guard: rebuild; docs/dem.md "The guard").
+  std::int64_t guard_cleared() const { return guard_cleared_; }
   // The broad phase's own stages (grid, sort, permute, ...): where section broad_phase goes.
   const cosim::Timer& broad_phase_stages() const { return broad_.stages(); }
   cosim::Timer& broad_phase_stages() { return broad_.stages(); }
@@ -97,6 +100,12 @@ class Engine {
   void update_tool_geometry(const State& s);
   void choose_threads(const State& s);
   bool guard_fires(const State& s, double* moved) const;
+  double tool_move(const State& s, std::size_t m) const;
+  // The guard's second look (scene.guard: rebuild) when its bound fires: true when the lists
+  // still hold every contact because only a few particles moved more than half the skin and
+  // none of them has come near a particle, wall or tool it is not listed with.
+  bool far_movers_clear(const State& s);
+  void find_far_movers(const State& s);
   void pair_forces(State& s);
   template <bool Sleep>
   void pair_forces_impl(State& s);
@@ -127,6 +136,30 @@ class Engine {
   std::vector<std::int32_t> row_mark_;
   std::int32_t row_stamp_ = 0;
   std::int64_t sleeping_ = 0;
+  // Far movers: particles that moved more than half the skin since the last broad phase, in
+  // ascending order (at most kMaxFarMovers, else far_overflow_), with the largest displacement
+  // of all the others and the largest speed |u| of any particle. The integration collects them
+  // for the state after its step (far_step_, far_state_); find_far_movers() for any other.
+  static constexpr std::size_t kMaxFarMovers = 1024;
+  std::vector<std::int32_t> far_;
+  std::vector<std::vector<std::int32_t>> thread_far_;  // per thread
+  bool far_overflow_ = false;
+  double near_max_ = 0, u_max_ = 0;
+  std::int64_t far_step_ = -1;
+  const State* far_state_ = nullptr;
+  std::size_t far_size_ = 0;
+  std::int64_t guard_cleared_ = 0, cleared_at_ = -1;
+  // Each tool's triangles binned on a grid in the mesh frame (built when the far-mover check
+  // first needs it; meshes are rigid): the triangles near a point without a pass over all.
+  struct MeshGrid {
+    Vec3 lo{};
+    double inv_h = 1;
+    long nx = 0, ny = 0, nz = 0;
+    std::vector<std::int32_t> start, tri;
+  };
+  std::vector<MeshGrid> mesh_grid_;
+  void build_mesh_grids();
+  bool unlisted_triangle_near(const State& s, std::size_t e, std::size_t m, double reach) const;
   std::int64_t removed_last_ = 0;
   std::vector<std::vector<Wrench>> thread_tool_wrench_;  // per thread
   std::vector<std::vector<Vec3>> thread_wall_force_;     // per thread
