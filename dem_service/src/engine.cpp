@@ -692,10 +692,9 @@ void Engine::boundary_forces(State& s) {
       std::uint64_t old_key[kBoundarySlots];
       Vec3 old_spring[kBoundarySlots], spring[kBoundarySlots];
       bool used[kBoundarySlots] = {}, matched[kBoundarySlots] = {};
-      for (int o = 0; o < nold; ++o) {
-        old_key[o] = s.slot_key[base + o];
-        old_spring[o] = s.slot_spring[base + o];
-      }
+      // The whole block, a fixed size: a copy of nold entries became a rep movs, slow to start.
+      std::memcpy(old_key, &s.slot_key[base], sizeof old_key);
+      std::memcpy(old_spring, &s.slot_spring[base], sizeof old_spring);
       for (int c = 0; c < nc; ++c)
         for (int o = 0; o < nold; ++o)
           if (!used[o] && old_key[o] == cs[c].key) {
