@@ -158,14 +158,7 @@ std::size_t BroadPhase::workspace_bytes() const {
 // cell count up: the grid is coarsened instead.
 void BroadPhase::set_grid(Vec3 lo, Vec3 hi, std::size_t n, double h) {
   long nx, ny, nz;
-  const double max_cells = std::max<double>(4.0 * static_cast<double>(n), 64.0);
-  while (true) {
-    nx = static_cast<long>((hi.x - lo.x) / h) + 1;
-    ny = static_cast<long>((hi.y - lo.y) / h) + 1;
-    nz = static_cast<long>((hi.z - lo.z) / h) + 1;
-    if (static_cast<double>(nx) * ny * nz <= max_cells) break;
-    h *= 1.25;
-  }
+  detail::grid_cells(lo, hi, std::max<double>(4.0 * static_cast<double>(n), 64.0), h, nx, ny, nz);
   lo_ = lo;
   inv_h_ = 1.0 / h;
   nx_ = nx;

@@ -247,14 +247,8 @@ void Engine::build_mesh_grids() {
     }
     // Cells a candidate distance wide, at most about 4 per triangle.
     double h = 2 * scene_.r_max() + scene_.skin_distance();
-    const double max_cells = std::max(64.0, 4.0 * static_cast<double>(mesh.triangles.size()));
-    while (true) {
-      g.nx = static_cast<long>((hi.x - lo.x) / h) + 1;
-      g.ny = static_cast<long>((hi.y - lo.y) / h) + 1;
-      g.nz = static_cast<long>((hi.z - lo.z) / h) + 1;
-      if (static_cast<double>(g.nx) * g.ny * g.nz <= max_cells) break;
-      h *= 1.25;
-    }
+    detail::grid_cells(lo, hi, std::max(64.0, 4.0 * static_cast<double>(mesh.triangles.size())),
+                       h, g.nx, g.ny, g.nz);
     g.lo = lo;
     g.inv_h = 1.0 / h;
     auto cell = [&](double v, double l, long nmax) {

@@ -28,6 +28,19 @@ enum : std::size_t {
 }  // namespace stage
 
 namespace detail {
+// Cells at least h wide over the box [lo, hi] (h is grown by 1.25 until there are at most
+// max_cells: a body far from the rest would blow the count up).
+inline void grid_cells(Vec3 lo, Vec3 hi, double max_cells, double& h, long& nx, long& ny,
+                       long& nz) {
+  while (true) {
+    nx = static_cast<long>((hi.x - lo.x) / h) + 1;
+    ny = static_cast<long>((hi.y - lo.y) / h) + 1;
+    nz = static_cast<long>((hi.z - lo.z) / h) + 1;
+    if (static_cast<double>(nx) * ny * nz <= max_cells) return;
+    h *= 1.25;
+  }
+}
+
 // The distance test of the pair list for particle a over its stencil rows: the candidates b in
 // [max(row_begin[q], a + 1), row_end[q]) for q < rows whose centre distance is below
 // r_a + r_b + skin, written to `out` in order; their number is returned, and those already
