@@ -1,7 +1,8 @@
 // The guard that rebuilds the lists "when needed" uses the two largest displacements (of two
 // different particles) instead of twice the largest: one fast particle alone moves a whole skin
-// before it fires, two fast particles flying at each other are caught, and no contact is missed
-// on the way (dem_broad_phase_test checks the lists against a brute-force search in general).
+// before the bound fires; with guard: rebuild its far-mover check then lets a lone particle fly
+// on without a broad phase; two fast particles flying at each other are caught, and no contact
+// is missed on the way (dem_broad_phase_test checks the lists against a brute-force search).
 #include <gtest/gtest.h>
 
 #include <algorithm>
