@@ -183,16 +183,10 @@ bool BroadPhase::restore_grid(const Scene& scene, const State& s) {
   }
   if (n == 0) lo = hi = Vec3{};
   set_grid(lo, hi, n, 2 * scene.r_max() + scene.skin_distance());
-  const long nx = nx_, ny = ny_, nz = nz_;
-  auto cell_coord = [&](double v, double l, long nmax) {
-    return std::clamp(static_cast<long>((v - l) * inv_h_), 0L, nmax - 1);
-  };
-  cell_start_.assign(static_cast<std::size_t>(nx * ny * nz) + 1, 0);
+  cell_start_.assign(static_cast<std::size_t>(nx_ * ny_ * nz_) + 1, 0);
   long last = 0;
   for (std::size_t i = 0; i < n; ++i) {
-    const Vec3 p = s.x_at_rebuild[i];
-    const long c = (cell_coord(p.z, lo.z, nz) * ny + cell_coord(p.y, lo.y, ny)) * nx +
-                   cell_coord(p.x, lo.x, nx);
+    const long c = cell_index(s.x_at_rebuild[i]);
     if (c < last) {  // not in cell order: not a grid this object can rebuild
       cell_start_.clear();
       return false;
@@ -235,21 +229,13 @@ void BroadPhase::build(const Scene& scene, State& s,
   set_grid(lo, hi, n, 2 * rmax + skin);
   const long nx = nx_, ny = ny_, nz = nz_;
   const long ncells = nx * ny * nz;
-  const double inv_h = inv_h_;
-  auto cell_coord = [&](double v, double l, long nmax) {
-    long c = static_cast<long>((v - l) * inv_h);
-    return std::clamp(c, 0L, nmax - 1);
-  };
   stages_.lap(stage::grid, watch);
 
   // --- sort: stable counting sort of particles by cell (cells numbered x fastest).
   cell_of_.resize(n);
 #pragma omp parallel for schedule(static) num_threads(T)
   for (std::size_t i = 0; i < n; ++i) {
-    const Vec3 p = s.x[i];
-    cell_of_[i] = static_cast<std::int32_t>(
-        (cell_coord(p.z, lo.z, nz) * ny + cell_coord(p.y, lo.y, ny)) * nx +
-        cell_coord(p.x, lo.x, nx));
+    cell_of_[i] = static_cast<std::int32_t>(cell_index(s.x[i]));
   }
   cell_start_.assign(static_cast<std::size_t>(ncells) + 1, 0);
   for (std::size_t i = 0; i < n; ++i) ++cell_start_[cell_of_[i] + 1];

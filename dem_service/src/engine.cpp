@@ -210,28 +210,46 @@ double Engine::tool_move(const State& s, std::size_t m) const {
          2 * std::sin(std::min(angle, M_PI) / 2) * scene_.tools[m].mesh.bounding_radius;
 }
 
-void Engine::find_far_movers(const State& s) {
-  const double half = 0.5 * scene_.skin_distance(), half2 = half * half;
+// One particle's share of the far movers' bookkeeping (the integration per thread, and
+// find_far_movers): far if it moved more than half the skin (d2 > half2; NaN counts as far),
+// listed up to one past the cap so that finish_far_movers sees an overflow.
+void Engine::note_far_mover(std::vector<std::int32_t>& far, double& near2, double& u2,
+                            std::size_t i, double d2, double ui2, double half2) {
+  u2 = std::max(u2, ui2);
+  if (!(d2 <= half2)) {
+    if (far.size() <= kMaxFarMovers) far.push_back(static_cast<std::int32_t>(i));
+  } else {
+    near2 = std::max(near2, d2);
+  }
+}
+
+// The far movers of state s from the first `lists` per-thread lists (ascending ranges).
+void Engine::finish_far_movers(const State& s, int lists, double near2, double u2) {
   far_.clear();
   far_overflow_ = false;
-  double near2 = 0, u2 = 0;
-  for (std::size_t i = 0; i < s.size(); ++i) {
-    const double d2 = norm2(s.x[i] - s.x_at_rebuild[i]);
-    u2 = std::max(u2, norm2(s.u[i]));
-    if (!(d2 <= half2)) {
+  for (int t = 0; t < lists; ++t)
+    for (std::int32_t i : thread_far_[static_cast<std::size_t>(t)]) {
       if (far_.size() < kMaxFarMovers)
-        far_.push_back(static_cast<std::int32_t>(i));
+        far_.push_back(i);
       else
         far_overflow_ = true;
-    } else {
-      near2 = std::max(near2, d2);
     }
-  }
   near_max_ = std::sqrt(near2);
   u_max_ = std::sqrt(u2);
   far_step_ = s.step;
   far_state_ = &s;
   far_size_ = s.size();
+}
+
+void Engine::find_far_movers(const State& s) {
+  const double half = 0.5 * scene_.skin_distance(), half2 = half * half;
+  if (thread_far_.empty()) thread_far_.resize(1);
+  thread_far_[0].clear();
+  double near2 = 0, u2 = 0;
+  for (std::size_t i = 0; i < s.size(); ++i)
+    note_far_mover(thread_far_[0], near2, u2, i, norm2(s.x[i] - s.x_at_rebuild[i]),
+                   norm2(s.u[i]), half2);
+  finish_far_movers(s, 1, near2, u2);
 }
 
 void Engine::build_mesh_grids() {
@@ -339,8 +357,8 @@ bool Engine::far_movers_clear(const State& s) {
   if (!broad_.grid_matches(s) && !broad_.restore_grid(scene_, s)) return false;
   const double skin = scene_.skin_distance();
   const std::size_t ntools = scene_.tools.size();
-  double moves[64];
-  if (ntools > 64) return false;
+  std::vector<double>& moves = tool_moves_;
+  moves.resize(ntools);
   for (std::size_t m = 0; m < ntools; ++m) {
     moves[m] = tool_move(s, m);
     if (near_max_ + moves[m] > skin) return false;
@@ -808,12 +826,7 @@ void Engine::integrate_impl(State& s) {
     my_far.clear();
     auto moved = [&](std::size_t i, double d2) {
       keep_two_largest(my_d2, my_second, d2);
-      my_u2 = std::max(my_u2, norm2(s.u[i]));
-      if (!(d2 <= half2)) {
-        if (my_far.size() <= kMaxFarMovers) my_far.push_back(static_cast<std::int32_t>(i));
-      } else {
-        my_near2 = std::max(my_near2, d2);
-      }
+      note_far_mover(my_far, my_near2, my_u2, i, d2, norm2(s.u[i]), half2);
     };
     std::int64_t my_bad = -1;
     std::int64_t my_sleeping = 0;
@@ -892,21 +905,7 @@ void Engine::integrate_impl(State& s) {
   sleeping_ = sleeping;
   ++s.step;
   ++s.steps_since_rebuild;
-  // The far movers of the new state, in ascending order (threads hold ascending ranges).
-  far_.clear();
-  far_overflow_ = false;
-  for (int t = 0; t < T; ++t)
-    for (std::int32_t i : thread_far_[static_cast<std::size_t>(t)]) {
-      if (far_.size() < kMaxFarMovers)
-        far_.push_back(i);
-      else
-        far_overflow_ = true;
-    }
-  near_max_ = std::sqrt(near2);
-  u_max_ = std::sqrt(u2);
-  far_step_ = s.step;
-  far_state_ = &s;
-  far_size_ = s.size();
+  finish_far_movers(s, T, near2, u2);  // the far movers of the new state
   if (bad >= 0) {
     const std::size_t i = static_cast<std::size_t>(bad);
     std::ostringstream msg;

@@ -95,16 +95,9 @@ class BroadPhase {
   // Check grid_matches(s) (or restore_grid) first.
   template <class F>
   void for_each_near(Vec3 p, double reach, F&& f) const {
-    auto range = [&](double v, double l, long nmax, long& c0, long& c1) {
-      const double a = (v - reach - l) * inv_h_, b = (v + reach - l) * inv_h_;
-      // NaN or beyond the grid on either side: clamp like the build's cell_coord
-      c0 = a > 0 ? (a < static_cast<double>(nmax) ? static_cast<long>(a) : nmax - 1) : 0;
-      c1 = b > 0 ? (b < static_cast<double>(nmax) ? static_cast<long>(b) : nmax - 1) : 0;
-    };
-    long x0, x1, y0, y1, z0, z1;
-    range(p.x, lo_.x, nx_, x0, x1);
-    range(p.y, lo_.y, ny_, y0, y1);
-    range(p.z, lo_.z, nz_, z0, z1);
+    const long x0 = cell_coord(p.x - reach, lo_.x, nx_), x1 = cell_coord(p.x + reach, lo_.x, nx_);
+    const long y0 = cell_coord(p.y - reach, lo_.y, ny_), y1 = cell_coord(p.y + reach, lo_.y, ny_);
+    const long z0 = cell_coord(p.z - reach, lo_.z, nz_), z1 = cell_coord(p.z + reach, lo_.z, nz_);
     for (long z = z0; z <= z1; ++z)
       for (long y = y0; y <= y1; ++y) {
         const long row = (z * ny_ + y) * nx_;
@@ -125,6 +118,15 @@ class BroadPhase {
   std::size_t grid_size_ = 0;
   std::int64_t grid_rebuilds_ = -1, grid_built_at_ = -1;
   void set_grid(Vec3 lo, Vec3 hi, std::size_t n, double h);
+  // The grid's cell along one axis of coordinate v, clamped to [0, nmax) (NaN: 0).
+  long cell_coord(double v, double l, long nmax) const {
+    const double a = (v - l) * inv_h_;
+    return a > 0 ? (a < static_cast<double>(nmax) ? static_cast<long>(a) : nmax - 1) : 0;
+  }
+  long cell_index(Vec3 p) const {
+    return (cell_coord(p.z, lo_.z, nz_) * ny_ + cell_coord(p.y, lo_.y, ny_)) * nx_ +
+           cell_coord(p.x, lo_.x, nx_);
+  }
 
   // Workspace kept between builds so the steady state allocates nothing new.
   std::vector<std::int32_t> cell_of_, cell_start_, fill_, order_, new_index_;

@@ -106,6 +106,9 @@ class Engine {
   // none of them has come near a particle, wall or tool it is not listed with.
   bool far_movers_clear(const State& s);
   void find_far_movers(const State& s);
+  static void note_far_mover(std::vector<std::int32_t>& far, double& near2, double& u2,
+                             std::size_t i, double d2, double ui2, double half2);
+  void finish_far_movers(const State& s, int lists, double near2, double u2);
   void pair_forces(State& s);
   template <bool Sleep>
   void pair_forces_impl(State& s);
@@ -149,6 +152,7 @@ class Engine {
   const State* far_state_ = nullptr;
   std::size_t far_size_ = 0;
   std::int64_t guard_cleared_ = 0, cleared_at_ = -1;
+  std::vector<double> tool_moves_;  // far-mover check: each tool's move since the broad phase
   // Each tool's triangles binned on a grid in the mesh frame (built when the far-mover check
   // first needs it; meshes are rigid): the triangles near a point without a pass over all.
   struct MeshGrid {
