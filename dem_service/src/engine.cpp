@@ -187,18 +187,31 @@ void Engine::update_tool_geometry(const State& s) {
   }
 }
 
-bool Engine::guard_fires(const State& s, double* moved) const {
+bool Engine::guard_fires(const State& s, double* moved) {
   // A pair not in the list was more than `skin` apart at the last broad phase; it can touch
   // only after the two bodies together moved more than that.
   // The two largest displacements belong to two different particles, so their sum bounds what
   // any pair moved together (twice the largest, the usual bound, waits for half the skin when
   // one grain flies); one particle alone reaches a wall or mesh triangle not among its
   // candidates only after moving the whole skin, which the sum covers too.
-  double worst = s.max_displacement + s.second_displacement;
+  // The contact law acts from a gap below dt/2 |v_n| on (the step's window, docs/physics.md),
+  // so the window is added: dt/2 (|u_a| + |u_b|) <= dt u_max for a pair, dt/2 (|u| + the
+  // fastest point of the tool) for a tool.
+  if (far_step_ != s.step || far_state_ != &s || far_size_ != s.size()) find_far_movers(s);
+  const double window = scene_.dt * u_max_;
+  double worst = s.max_displacement + s.second_displacement + window;
   for (std::size_t m = 0; m < scene_.tools.size(); ++m)
-    worst = std::max(worst, s.max_displacement + tool_move(s, m));
+    worst = std::max(worst, s.max_displacement + tool_move(s, m) + 0.5 * window +
+                                tool_window(s, m));
   *moved = worst;
   return worst > scene_.skin_distance();
+}
+
+// Half a step of the fastest point of tool m: its part of the contact window.
+double Engine::tool_window(const State& s, std::size_t m) const {
+  const ToolPose& tp = s.tool_pose[m];
+  return 0.5 * scene_.dt *
+         (norm(tp.velocity) + norm(tp.angular_velocity) * scene_.tools[m].mesh.bounding_radius);
 }
 
 // How far any point of tool m moved since the last broad phase (at most).
@@ -211,20 +224,35 @@ double Engine::tool_move(const State& s, std::size_t m) const {
 }
 
 // One particle's share of the far movers' bookkeeping (the integration per thread, and
-// find_far_movers): far if it moved more than half the skin (d2 > half2; NaN counts as far),
-// listed up to one past the cap so that finish_far_movers sees an overflow.
-void Engine::note_far_mover(std::vector<std::int32_t>& far, double& near2, double& u2,
-                            std::size_t i, double d2, double ui2, double half2) {
-  u2 = std::max(u2, ui2);
-  if (!(d2 <= half2)) {
+// find_far_movers): far if it moved more than 0.9 of half the skin or its half step dt/2 |u|
+// (its part of the contact window) exceeds 0.1 of it (NaN counts as far); so every other
+// particle has d + dt/2 |u| <= skin / 2, and no pair of two of them is inside its window yet.
+// Listed up to one past the cap so that finish_far_movers sees an overflow.
+Engine::FarLimits Engine::far_limits() const {
+  const double half = 0.5 * scene_.skin_distance();
+  const double d = 0.9 * half, u = 0.1 * half / (0.5 * scene_.dt);
+  return {d * d, u * u};
+}
+
+void Engine::note_far_mover(std::vector<std::int32_t>& far, FarTally& tally, std::size_t i,
+                            double d2, double ui2, const FarLimits& limits) {
+  tally.u2 = std::max(tally.u2, ui2);
+  if (!(d2 <= limits.d2 && ui2 <= limits.u2)) {
     if (far.size() <= kMaxFarMovers) far.push_back(static_cast<std::int32_t>(i));
   } else {
-    near2 = std::max(near2, d2);
+    tally.near2 = std::max(tally.near2, d2);
+    tally.near_u2 = std::max(tally.near_u2, ui2);
   }
 }
 
+void Engine::FarTally::merge(const FarTally& o) {
+  near2 = std::max(near2, o.near2);
+  near_u2 = std::max(near_u2, o.near_u2);
+  u2 = std::max(u2, o.u2);
+}
+
 // The far movers of state s from the first `lists` per-thread lists (ascending ranges).
-void Engine::finish_far_movers(const State& s, int lists, double near2, double u2) {
+void Engine::finish_far_movers(const State& s, int lists, const FarTally& tally) {
   far_.clear();
   far_overflow_ = false;
   for (int t = 0; t < lists; ++t)
@@ -234,22 +262,23 @@ void Engine::finish_far_movers(const State& s, int lists, double near2, double u
       else
         far_overflow_ = true;
     }
-  near_max_ = std::sqrt(near2);
-  u_max_ = std::sqrt(u2);
+  near_max_ = std::sqrt(tally.near2);
+  near_u_max_ = std::sqrt(tally.near_u2);
+  u_max_ = std::sqrt(tally.u2);
   far_step_ = s.step;
   far_state_ = &s;
   far_size_ = s.size();
 }
 
 void Engine::find_far_movers(const State& s) {
-  const double half = 0.5 * scene_.skin_distance(), half2 = half * half;
+  const FarLimits limits = far_limits();
   if (thread_far_.empty()) thread_far_.resize(1);
   thread_far_[0].clear();
-  double near2 = 0, u2 = 0;
+  FarTally tally;
   for (std::size_t i = 0; i < s.size(); ++i)
-    note_far_mover(thread_far_[0], near2, u2, i, norm2(s.x[i] - s.x_at_rebuild[i]),
-                   norm2(s.u[i]), half2);
-  finish_far_movers(s, 1, near2, u2);
+    note_far_mover(thread_far_[0], tally, i, norm2(s.x[i] - s.x_at_rebuild[i]), norm2(s.u[i]),
+                   limits);
+  finish_far_movers(s, 1, tally);
 }
 
 void Engine::build_mesh_grids() {
@@ -359,11 +388,13 @@ bool Engine::far_movers_clear(const State& s) {
   const std::size_t ntools = scene_.tools.size();
   std::vector<double>& moves = tool_moves_;
   moves.resize(ntools);
-  for (std::size_t m = 0; m < ntools; ++m) {
-    moves[m] = tool_move(s, m);
-    if (near_max_ + moves[m] > skin) return false;
-  }
   const double dt = scene_.dt, rmax = scene_.r_max();
+  // Pairs of the others, and the others against walls, are within the bound with the window
+  // (note_far_mover); against a tool they are if d + dt/2 |u| + d_t + the tool's part is.
+  for (std::size_t m = 0; m < ntools; ++m) {
+    moves[m] = tool_move(s, m) + tool_window(s, m);  // with the tool's part of the window
+    if (near_max_ + 0.5 * dt * near_u_max_ + moves[m] > skin) return false;
+  }
   const auto listed = [&](std::size_t a, std::size_t b) {
     const std::size_t i = std::min(a, b), j = std::max(a, b);
     for (std::int32_t k = s.pair_offset[i]; k < s.pair_offset[i + 1]; ++k)
@@ -395,7 +426,7 @@ bool Engine::far_movers_clear(const State& s) {
     // Tools that may have come within reach of a triangle not among its candidates: the
     // triangles within the reach of boundary_contacts this step must all be candidates (a
     // particle without a boundary slot block has none).
-    const double disp = norm(xe - s.x_at_rebuild[e]);
+    const double disp = norm(xe - s.x_at_rebuild[e]) + 0.5 * dt * ue;
     for (std::size_t m = 0; m < ntools; ++m) {
       if (disp + moves[m] <= skin) continue;
       const Mesh& mesh = scene_.tools[m].mesh;
@@ -492,7 +523,8 @@ void Engine::prepare(State& s) {
     if (scene_.guard == GuardMode::strict) {
       std::ostringstream msg;
       msg << "broad phase guard at step " << s.step << " (t = " << s.step * scene_.dt
-          << " s): bodies moved " << moved << " m since the last broad phase, more than the skin "
+          << " s): bodies moved " << moved << " m since the last broad phase (with this step's "
+          << "contact window), more than the skin "
           << scene_.skin_distance() << " m; contacts could be missed. Lower "
           << "scene.broad_phase_interval (now " << scene_.broad_phase_interval
           << ") or raise scene.skin (now " << scene_.skin
@@ -812,8 +844,8 @@ void Engine::integrate_impl(State& s) {
   const double dt = scene_.dt;
   const double vmax2 = scene_.stability.max_speed * scene_.stability.max_speed;
   double max_d2 = 0, second_d2 = 0;  // the two largest squared displacements (two particles)
-  const double half = 0.5 * scene_.skin_distance(), half2 = half * half;
-  double near2 = 0, u2 = 0;
+  const FarLimits limits = far_limits();
+  FarTally tally;
   thread_far_.resize(static_cast<std::size_t>(T));
   std::int64_t bad = -1;
 #pragma omp parallel num_threads(T)
@@ -821,12 +853,12 @@ void Engine::integrate_impl(State& s) {
     const int t = omp_get_thread_num();
     const std::size_t a0 = n * t / T, a1 = n * (t + 1) / T;
     double my_d2 = 0, my_second = 0;  // this thread's two largest
-    double my_near2 = 0, my_u2 = 0;    // far movers: the others' largest, the largest |u|^2
+    FarTally my_tally;  // far movers: the others' largest displacement and speed, the largest
     std::vector<std::int32_t>& my_far = thread_far_[t];
     my_far.clear();
     auto moved = [&](std::size_t i, double d2) {
       keep_two_largest(my_d2, my_second, d2);
-      note_far_mover(my_far, my_near2, my_u2, i, d2, norm2(s.u[i]), half2);
+      note_far_mover(my_far, my_tally, i, d2, norm2(s.u[i]), limits);
     };
     std::int64_t my_bad = -1;
     std::int64_t my_sleeping = 0;
@@ -894,8 +926,7 @@ void Engine::integrate_impl(State& s) {
     {
       keep_two_largest(max_d2, second_d2, my_d2);
       keep_two_largest(max_d2, second_d2, my_second);
-      near2 = std::max(near2, my_near2);
-      u2 = std::max(u2, my_u2);
+      tally.merge(my_tally);
       sleeping += my_sleeping;
       if (my_bad >= 0 && (bad < 0 || my_bad < bad)) bad = my_bad;
     }
@@ -905,7 +936,7 @@ void Engine::integrate_impl(State& s) {
   sleeping_ = sleeping;
   ++s.step;
   ++s.steps_since_rebuild;
-  finish_far_movers(s, T, near2, u2);  // the far movers of the new state
+  finish_far_movers(s, T, tally);  // the far movers of the new state
   if (bad >= 0) {
     const std::size_t i = static_cast<std::size_t>(bad);
     std::ostringstream msg;

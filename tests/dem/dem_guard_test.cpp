@@ -104,4 +104,42 @@ TEST(dem_Guard, GuardCatchesTwoFastParticlesMeetingHeadOn) {
   EXPECT_GT(st.early_rebuilds, 0);
 }
 
+// The contact law acts from a gap below dt/2 |v_n| on (the step's window), so a pair must be in
+// the lists before its gap closes to zero. Two particles close at 9.95e-6 m a step from 1e-6 m
+// beyond the skin: at step 50 their gap is 3.5e-6 m, inside the window (4.975e-6 m), while the
+// two displacements add up to 4.975e-4 m, less than the skin (5e-4 m). A bound without the
+// window would not fire there and the step's partial force would be lost.
+TEST(dem_Guard, BoundCountsTheContactWindow) {
+  const double r = 1e-3;
+  dem::Scene scene = one_species_scene(r, r);
+  scene.particle_particle = scene.particle_wall = law_n_per_m(100, 0.5, true, 0.5);
+  scene.broad_phase_interval = 1 << 30;
+  scene.skin = 0.5;  // 5e-4 m
+  scene.dt = 1e-5;
+  const double speed = 0.4975, skin = scene.skin_distance(), dt = scene.dt;
+  State st;
+  add(st, {0, 0, 0}, {speed, 0, 0}, r);
+  add(st, {2 * r + skin + 1e-6, 0, 0}, {-speed, 0, 0}, r);
+  dem::Engine engine(scene);
+  int in_window = 0;
+  for (int k = 0; k < 60; ++k) {
+    engine.prepare(st);
+    const std::size_t a = index_of(st, 0), b = index_of(st, 1);
+    const double gap = dem::norm(st.x[a] - st.x[b]) - 2 * r;
+    const double window = 0.5 * dt * std::abs(st.u[a].x - st.u[b].x);
+    if (gap < window) {
+      const std::size_t i = std::min(a, b), j = std::max(a, b);
+      bool listed = false;
+      for (std::int32_t q = st.pair_offset[i]; q < st.pair_offset[i + 1]; ++q)
+        listed |= static_cast<std::size_t>(st.pair_j[q]) == j;
+      ASSERT_TRUE(listed) << "step " << k << ": gap " << gap << " m inside the window "
+                          << window << " m, the pair not in the lists";
+      if (gap > 0) ++in_window;
+    }
+    engine.step(st);
+  }
+  EXPECT_GE(in_window, 1);  // the case the test is about happened
+  EXPECT_LT(std::abs(st.v[index_of(st, 0)].x), 0.99 * speed);  // and the contact acted
+}
+
 }  // namespace

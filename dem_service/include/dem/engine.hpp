@@ -99,16 +99,27 @@ class Engine {
  private:
   void update_tool_geometry(const State& s);
   void choose_threads(const State& s);
-  bool guard_fires(const State& s, double* moved) const;
+  bool guard_fires(const State& s, double* moved);
   double tool_move(const State& s, std::size_t m) const;
+  double tool_window(const State& s, std::size_t m) const;
   // The guard's second look (scene.guard: rebuild) when its bound fires: true when the lists
   // still hold every contact because only a few particles moved more than half the skin and
   // none of them has come near a particle, wall or tool it is not listed with.
   bool far_movers_clear(const State& s);
   void find_far_movers(const State& s);
-  static void note_far_mover(std::vector<std::int32_t>& far, double& near2, double& u2,
-                             std::size_t i, double d2, double ui2, double half2);
-  void finish_far_movers(const State& s, int lists, double near2, double u2);
+  // The largest squared displacement and speed of the particles that moved at most half the
+  // skin (the others), and the largest squared speed of all.
+  struct FarTally {
+    double near2 = 0, near_u2 = 0, u2 = 0;
+    void merge(const FarTally& o);
+  };
+  struct FarLimits {
+    double d2, u2;  // far beyond either (squared displacement, squared speed)
+  };
+  FarLimits far_limits() const;
+  static void note_far_mover(std::vector<std::int32_t>& far, FarTally& tally, std::size_t i,
+                             double d2, double ui2, const FarLimits& limits);
+  void finish_far_movers(const State& s, int lists, const FarTally& tally);
   void pair_forces(State& s);
   template <bool Sleep>
   void pair_forces_impl(State& s);
@@ -147,7 +158,7 @@ class Engine {
   std::vector<std::int32_t> far_;
   std::vector<std::vector<std::int32_t>> thread_far_;  // per thread
   bool far_overflow_ = false;
-  double near_max_ = 0, u_max_ = 0;
+  double near_max_ = 0, near_u_max_ = 0, u_max_ = 0;
   std::int64_t far_step_ = -1;
   const State* far_state_ = nullptr;
   std::size_t far_size_ = 0;
