@@ -208,6 +208,15 @@ struct ChunkKernel {
   __mmask8 per_length, from_restitution, clip;
   __m512i sign;
   Interleave mix;
+  // The arrays of the rows (as doubles where the kernel reads Vec3 components).
+  const double* X;
+  const double* U;
+  const double* R;
+  const double* M;
+  const std::int32_t* off;
+  const std::int32_t* J;
+  Vec3* spring;
+  Vec3* F;
   // The coefficients of the last uniform chunk (no radius or mass is negative: nothing matches
   // before the first one).
   __m512d cached_ri, cached_mi, cached_rj, cached_mj, cached_k, cached_eta;
@@ -216,7 +225,17 @@ struct ChunkKernel {
   // Forces of the lanes (valid where act).
   alignas(64) double fx[8], fy[8], fz[8];
 
-  DEM_AVX512 ChunkKernel(const ContactLaw& law, double dt) {
+  DEM_AVX512 explicit ChunkKernel(const PairRows& p) {
+    const ContactLaw& law = p.law;
+    const double dt = p.dt;
+    X = reinterpret_cast<const double*>(p.x);
+    U = reinterpret_cast<const double*>(p.u);
+    R = p.radius;
+    M = p.mass;
+    off = p.offset;
+    J = p.partner;
+    spring = p.spring;
+    F = p.force;
     zero = _mm512_setzero_pd();
     one = _mm512_set1_pd(1.0);
     two = _mm512_set1_pd(2.0);
@@ -250,8 +269,13 @@ struct ChunkKernel {
   // masked lanes). Else (row by row, 61 % of the lanes used) they are skipped when no lane
   // needs them.
   template <bool Full>
-  DEM_AVX512 ChunkOut compute(const ChunkIn& in, const double* X, const double* U,
-                              const double* R, const double* M, Vec3* spring);
+  DEM_AVX512 ChunkOut compute(const ChunkIn& in, std::int32_t k);
+  // The two kernels (below): row by row with the sleeping rules, or the stream of pairs.
+  template <bool Sleep>
+  DEM_AVX512 void rows(const PairSleep& sl, std::size_t a0, std::size_t a1,
+                       std::vector<PairRemote>& remote, PairRowStats& stats);
+  DEM_AVX512 void stream(std::size_t a0, std::size_t a1, std::vector<PairRemote>& remote,
+                         PairRowStats& stats);
   DEM_AVX512 void finish(PairRowStats& stats) const {
     add_stats(stats, contacts, _mm512_reduce_max_pd(max_overlap),
               _mm512_reduce_max_pd(max_ratio));
@@ -259,9 +283,9 @@ struct ChunkKernel {
 };
 
 template <bool Full>
-DEM_AVX512 __attribute__((always_inline)) inline ChunkOut ChunkKernel::compute(const ChunkIn& in, const double* X,
-                                                const double* U, const double* R,
-                                                const double* M, Vec3* spring) {
+DEM_AVX512 __attribute__((always_inline)) inline ChunkOut ChunkKernel::compute(
+    const ChunkIn& in, std::int32_t k) {
+  Vec3* const spring = this->spring + k;
   ChunkOut out;
   const __mmask8 live = in.live;
   const Lanes3 xj = load_vec3(X, in.jl), uj = load_vec3(U, in.jl);
@@ -455,18 +479,8 @@ DEM_AVX512 inline void prefetch_ahead(const Vec3* spring, const std::int32_t* J,
 
 // Row by row, 8 candidates of a row at a time (the sleeping rules are per row): with sleepers.
 template <bool Sleep>
-DEM_AVX512 void pair_rows_avx512(const PairRows& p, const PairSleep& sl, std::size_t a0,
-                                 std::size_t a1, std::vector<PairRemote>& remote,
-                                 PairRowStats& stats) {
-  const double* const X = reinterpret_cast<const double*>(p.x);
-  const double* const U = reinterpret_cast<const double*>(p.u);
-  const double* const R = p.radius;
-  const double* const M = p.mass;
-  const std::int32_t* const off = p.offset;
-  const std::int32_t* const J = p.partner;
-  Vec3* const spring = p.spring;
-  Vec3* const F = p.force;
-  ChunkKernel kernel(p.law, p.dt);
+DEM_AVX512 void ChunkKernel::rows(const PairSleep& sl, std::size_t a0, std::size_t a1,
+                                  std::vector<PairRemote>& remote, PairRowStats& stats) {
   alignas(32) std::int32_t jl[8];
   const std::int32_t kend = off[a1];
   const __m256i sleep_steps = _mm256_set1_epi32(sl.steps);
@@ -507,7 +521,7 @@ DEM_AVX512 void pair_rows_avx512(const PairRows& p, const PairSleep& sl, std::si
           if (in.live == 0) continue;
         }
         prefetch_ahead(spring, J, k, kend);
-        const ChunkOut out = kernel.compute<false>(in, X, U, R, M, spring + k);
+        const ChunkOut out = compute<false>(in, k);
         if (Sleep)  // a sleeper whose contact with an awake particle ends may have lost its support
           for (unsigned m = out.clear & sleepy; m != 0; m &= m - 1)
             wake(sl, si ? i : static_cast<std::size_t>(jl[__builtin_ctz(m)]), a1);
@@ -522,7 +536,7 @@ DEM_AVX512 void pair_rows_avx512(const PairRows& p, const PairSleep& sl, std::si
         // the awake particle only).
         for (unsigned m = out.act; m != 0; m &= m - 1) {
           const int l = __builtin_ctz(m);
-          const Vec3 f{kernel.fx[l], kernel.fy[l], kernel.fz[l]};
+          const Vec3 f{fx[l], fy[l], fz[l]};
           if (!Sleep || !si) fi += f;
           if (!Sleep || !((sj >> l) & 1)) on_partner(F, remote, jl[l], f, a1);
         }
@@ -530,7 +544,7 @@ DEM_AVX512 void pair_rows_avx512(const PairRows& p, const PairSleep& sl, std::si
     }
     F[i] += fi;
   }
-  kernel.finish(stats);
+  finish(stats);
 }
 
 // All particles awake: 8 consecutive pairs of the half list at a time, whichever rows they are
@@ -538,17 +552,8 @@ DEM_AVX512 void pair_rows_avx512(const PairRows& p, const PairSleep& sl, std::si
 // on average: 61 % of the lanes of a row-by-row chunk). The i side of each lane is read from
 // the chunk's rows, which are consecutive. Row i's force is added when the stream has passed
 // it, after its pairs' partners, as the row loop does.
-DEM_AVX512 void pair_stream_avx512(const PairRows& p, std::size_t a0, std::size_t a1,
-                                   std::vector<PairRemote>& remote, PairRowStats& stats) {
-  const double* const X = reinterpret_cast<const double*>(p.x);
-  const double* const U = reinterpret_cast<const double*>(p.u);
-  const double* const R = p.radius;
-  const double* const M = p.mass;
-  const std::int32_t* const off = p.offset;
-  const std::int32_t* const J = p.partner;
-  Vec3* const spring = p.spring;
-  Vec3* const F = p.force;
-  ChunkKernel kernel(p.law, p.dt);
+DEM_AVX512 void ChunkKernel::stream(std::size_t a0, std::size_t a1,
+                                    std::vector<PairRemote>& remote, PairRowStats& stats) {
   alignas(32) std::int32_t jl[8], il[8];
   const std::int32_t kend = off[a1];
   std::size_t scan = a0;  // the row of the pair being assigned to a lane
@@ -602,8 +607,8 @@ DEM_AVX512 void pair_stream_avx512(const PairRows& p, std::size_t a0, std::size_
       vec3_masks(span, m);
       const __mmask8 rows = static_cast<__mmask8>((1u << span) - 1);
       const __m512i pickv = _mm512_cvtepi32_epi64(_mm256_sub_epi32(iv, _mm256_set1_epi32(i0)));
-      const Lanes3 xi = load_contiguous(kernel.mix, X + 3 * static_cast<std::size_t>(i0), m);
-      const Lanes3 ui = load_contiguous(kernel.mix, U + 3 * static_cast<std::size_t>(i0), m);
+      const Lanes3 xi = load_contiguous(mix, X + 3 * static_cast<std::size_t>(i0), m);
+      const Lanes3 ui = load_contiguous(mix, U + 3 * static_cast<std::size_t>(i0), m);
       in.xix = _mm512_permutexvar_pd(pickv, xi.x);
       in.xiy = _mm512_permutexvar_pd(pickv, xi.y);
       in.xiz = _mm512_permutexvar_pd(pickv, xi.z);
@@ -626,7 +631,7 @@ DEM_AVX512 void pair_stream_avx512(const PairRows& p, std::size_t a0, std::size_
     in.j = _mm256_maskz_loadu_epi32(in.live, J + k);
     _mm256_store_si256(reinterpret_cast<__m256i*>(jl), in.j);
     prefetch_ahead(spring, J, k, kend);
-    const ChunkOut out = kernel.compute<true>(in, X, U, R, M, spring + k);
+    const ChunkOut out = compute<true>(in, k);
     // The forces in pair order: a row's sum is added once the stream has left the row.
     for (unsigned m = out.act; m != 0; m &= m - 1) {
       const int l = __builtin_ctz(m);
@@ -635,15 +640,15 @@ DEM_AVX512 void pair_stream_avx512(const PairRows& p, std::size_t a0, std::size_
         F[done] += fi;
         fi = Vec3{};
       }
-      fi += Vec3{kernel.fx[l], kernel.fy[l], kernel.fz[l]};
-      on_partner(F, remote, jl[l], Vec3{kernel.fx[l], kernel.fy[l], kernel.fz[l]}, a1);
+      fi += Vec3{fx[l], fy[l], fz[l]};
+      on_partner(F, remote, jl[l], Vec3{fx[l], fy[l], fz[l]}, a1);
     }
   }
   for (; done < a1; ++done) {
     F[done] += fi;
     fi = Vec3{};
   }
-  kernel.finish(stats);
+  finish(stats);
 }
 #undef DEM_AVX512
 #endif
@@ -667,10 +672,11 @@ static void dispatch(const PairRows& p, const PairSleep& sleep, std::size_t a0, 
 #if defined(__x86_64__) && defined(__GNUC__)
   static const bool available = pair_rows_vector_available();
   if (vector && available) {
+    ChunkKernel kernel(p);
     if (Sleep)
-      pair_rows_avx512<true>(p, sleep, a0, a1, remote, stats);
+      kernel.rows<true>(sleep, a0, a1, remote, stats);
     else
-      pair_stream_avx512(p, a0, a1, remote, stats);
+      kernel.stream(a0, a1, remote, stats);
     return;
   }
 #endif
