@@ -49,9 +49,13 @@ for v in a b; do
   get "$rev" "$src" "$tmp/kernel_$v.cpp" || { echo "kernel_ab: no $src at $rev" >&2; exit 2; }
   get "$rev" "$hdr" "$tmp/header_$v.hpp" || { echo "kernel_ab: no $hdr at $rev" >&2; exit 2; }
 done
-# The harness compiles both against the current header: their interfaces must agree.
+# The harness compiles both against the current header: their interfaces must agree (compared
+# without comments and blank lines).
 get worktree "$hdr" "$tmp/header_now.hpp"
-if ! cmp -s "$tmp/header_a.hpp" "$tmp/header_now.hpp" || ! cmp -s "$tmp/header_b.hpp" "$tmp/header_now.hpp"; then
+for h in a b now; do
+  sed -e 's://.*$::' -e '/^[[:space:]]*$/d' "$tmp/header_$h.hpp" > "$tmp/interface_$h"
+done
+if ! cmp -s "$tmp/interface_a" "$tmp/interface_now" || ! cmp -s "$tmp/interface_b" "$tmp/interface_now"; then
   echo "kernel_ab: $hdr differs between $rev_a, $rev_b and the working copy; compare revisions" >&2
   echo "  with the same interface" >&2
   exit 2

@@ -2,8 +2,9 @@
 // loop. Two implementations make the same decisions and the same IEEE operations in the same
 // order, so their results are equal bit for bit: a scalar one (one candidate at a time, the
 // inline functions of contact_law.hpp) and, where the processor has AVX-512, one that takes 8
-// candidates of a row at a time (screen and contact force without branches, the forces summed
-// in pair order afterwards). The engine is built with -ffp-contract=off, so neither fuses.
+// candidates at a time (8 consecutive pairs of any rows when all are awake, 8 of one row with
+// sleepers; screen and contact force without branches, the forces summed in pair order
+// afterwards). The engine is built with -ffp-contract=off, so neither fuses.
 #pragma once
 
 #include <cstddef>
