@@ -271,7 +271,6 @@ struct ChunkKernel {
   template <bool Full>
   DEM_AVX512 ChunkOut compute(const ChunkIn& in, std::int32_t k);
   // The two kernels (below): row by row with the sleeping rules, or the stream of pairs.
-  template <bool Sleep>
   DEM_AVX512 void rows(const PairSleep& sl, std::size_t a0, std::size_t a1,
                        std::vector<PairRemote>& remote, PairRowStats& stats);
   DEM_AVX512 void stream(std::size_t a0, std::size_t a1, std::vector<PairRemote>& remote,
@@ -477,8 +476,7 @@ DEM_AVX512 inline void prefetch_ahead(const Vec3* spring, const std::int32_t* J,
   }
 }
 
-// Row by row, 8 candidates of a row at a time (the sleeping rules are per row): with sleepers.
-template <bool Sleep>
+// With sleepers: row by row, 8 candidates of a row at a time (the sleeping rules are per row).
 DEM_AVX512 void ChunkKernel::rows(const PairSleep& sl, std::size_t a0, std::size_t a1,
                                   std::vector<PairRemote>& remote, PairRowStats& stats) {
   alignas(32) std::int32_t jl[8];
@@ -487,8 +485,8 @@ DEM_AVX512 void ChunkKernel::rows(const PairSleep& sl, std::size_t a0, std::size
   const __m512d wake_speed2 = _mm512_set1_pd(sl.wake_speed2);
   for (std::size_t i = a0; i < a1; ++i) {
     const std::int32_t k1 = off[i + 1];
-    const bool si = Sleep && sl.rest[i] >= sl.steps;
-    if (Sleep && si && sl.mark && __atomic_load_n(&sl.mark[i], __ATOMIC_RELAXED) != sl.stamp)
+    const bool si = sl.rest[i] >= sl.steps;
+    if (si && sl.mark && __atomic_load_n(&sl.mark[i], __ATOMIC_RELAXED) != sl.stamp)
       continue;  // a sleeper with only sleepers in its row (as the scalar loop)
     Vec3 fi{};
     if (off[i] < k1) {
@@ -512,7 +510,7 @@ DEM_AVX512 void ChunkKernel::rows(const PairSleep& sl, std::size_t a0, std::size
         // springs stay as they were), and every remaining pair is awake against asleep.
         __mmask8 sj = 0, sleepy = 0;
         in.live = row;
-        if (Sleep) {
+        {
           const __m256i rest = _mm256_mmask_i32gather_epi32(_mm256_setzero_si256(), row, in.j,
                                                             sl.rest, 4);
           sj = _mm256_mask_cmp_epi32_mask(row, rest, sleep_steps, _MM_CMPINT_NLT);
@@ -522,11 +520,11 @@ DEM_AVX512 void ChunkKernel::rows(const PairSleep& sl, std::size_t a0, std::size
         }
         prefetch_ahead(spring, J, k, kend);
         const ChunkOut out = compute<false>(in, k);
-        if (Sleep)  // a sleeper whose contact with an awake particle ends may have lost its support
-          for (unsigned m = out.clear & sleepy; m != 0; m &= m - 1)
+        // A sleeper whose contact with an awake particle ends may have lost its support.
+        for (unsigned m = out.clear & sleepy; m != 0; m &= m - 1)
             wake(sl, si ? i : static_cast<std::size_t>(jl[__builtin_ctz(m)]), a1);
         if (out.act == 0) continue;
-        if (Sleep) {  // a partner faster than scene.sleep.speed relative to a sleeper wakes it
+        {  // a partner faster than scene.sleep.speed relative to a sleeper wakes it
           const __mmask8 fast =
               _mm512_mask_cmp_pd_mask(out.act & sleepy, out.urel2, wake_speed2, _CMP_GT_OQ);
           for (unsigned m = fast; m != 0; m &= m - 1)
@@ -537,8 +535,8 @@ DEM_AVX512 void ChunkKernel::rows(const PairSleep& sl, std::size_t a0, std::size
         for (unsigned m = out.act; m != 0; m &= m - 1) {
           const int l = __builtin_ctz(m);
           const Vec3 f{fx[l], fy[l], fz[l]};
-          if (!Sleep || !si) fi += f;
-          if (!Sleep || !((sj >> l) & 1)) on_partner(F, remote, jl[l], f, a1);
+          if (!si) fi += f;
+          if (!((sj >> l) & 1)) on_partner(F, remote, jl[l], f, a1);
         }
       }
     }
@@ -674,7 +672,7 @@ static void dispatch(const PairRows& p, const PairSleep& sleep, std::size_t a0, 
   if (vector && available) {
     ChunkKernel kernel(p);
     if (Sleep)
-      kernel.rows<true>(sleep, a0, a1, remote, stats);
+      kernel.rows(sleep, a0, a1, remote, stats);
     else
       kernel.stream(a0, a1, remote, stats);
     return;
