@@ -3,14 +3,15 @@
 # chunks, and the contact window in the bound"):
 #
 #   bash bench/dem/kernel_ab.sh REV_A REV_B [--checkpoint FILE.h5] [--config SCENE.yaml]
-#                               [--passes 40] [--threads 1]
+#                               [--passes 40] [--threads 1] [--close METRES]
 #
 # REV is a git revision, or "worktree" for the working copy of dem_service/src/pair_kernel.cpp.
 # Both versions are compiled into one binary and timed alternately on the pair lists of a
 # checkpoint (default: the paper scene's penetration checkpoint that bench/paper/paper_scene.sh
 # writes, with the contact law and dt of bench/paper/paper_scene.yaml), so a machine whose speed
 # drifts between minutes still compares them. It prints both medians, their ratio, how often B
-# was faster, and whether the first pass gave the same forces.
+# was faster, and whether the first pass gave the same forces. --close M: B reads only the close
+# pairs within M metres of contact (scene.close_margin), A every candidate.
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
 cd "$root"
@@ -23,13 +24,14 @@ rev_a=$1 rev_b=$2
 shift 2
 checkpoint=results/paper_bench/needed_1_penetration.h5
 config=bench/paper/paper_scene.yaml
-passes=40 threads=1
+passes=40 threads=1 close=
 while [ $# -gt 0 ]; do
   case "$1" in
     --checkpoint) checkpoint=$2; shift 2 ;;
     --config) config=$2; shift 2 ;;
     --passes) passes=$2; shift 2 ;;
     --threads) threads=$2; shift 2 ;;
+    --close) close=$2; shift 2 ;;
     *) echo "kernel_ab: unknown option $1 (see the usage at the top of $0)" >&2; exit 2 ;;
   esac
 done
@@ -71,4 +73,4 @@ link=$(sed -e 's/^.* -o \.\.\/\.\.\/bin\/dem_bench //' "$build/bench/dem/CMakeFi
   -DKERNEL_A="\"$tmp/kernel_a.cpp\"" -DKERNEL_B="\"$tmp/kernel_b.cpp\"" \
   "$root/bench/dem/kernel_ab.cpp" -o "$tmp/kernel_ab" $link)
 echo "A = $rev_a, B = $rev_b"
-"$tmp/kernel_ab" "$config" "$checkpoint" "$passes" "$threads"
+"$tmp/kernel_ab" "$config" "$checkpoint" "$passes" "$threads" ${close:+"$close"}

@@ -88,6 +88,8 @@ void print_timing(const dem::Engine& engine, const dem::State& s, double sim_tim
                 static_cast<double>(cosim::peak_resident_bytes()) / 1e6);
   std::vector<std::string> notes{rtf, rate, phases, memory};
   const dem::Scene& scene = engine.scene();
+  if (const std::string close = dem::close_pairs_summary(engine, steps); !close.empty())
+    notes.push_back(close);
   if (scene.sleep.enabled) {
     char line[160];
     std::snprintf(line, sizeof line, "Sleeping: %.1f %% of particle-steps asleep, %lld asleep at the end",

@@ -165,9 +165,9 @@ void parse_region(const YAML::Node& r, RegionOptions& o) {
 
 void parse_scene_options(const YAML::Node& s, Scene& sc) {
   if (!s) throw ConfigError("scene: missing (expected a map with dt, gravity, ...)");
-  cfg::check_keys(s, "scene", {"dt", "gravity", "broad_phase_interval", "skin", "guard", "threads",
-                               "min_particles_per_thread", "thread_wait", "stability", "sleep",
-                               "region"});
+  cfg::check_keys(s, "scene", {"dt", "gravity", "broad_phase_interval", "skin", "close_margin",
+                               "guard", "threads", "min_particles_per_thread", "thread_wait",
+                               "stability", "sleep", "region"});
   sc.dt = cfg::get_positive(s, "scene", "dt");
   if (s["gravity"]) sc.gravity = vec3(s, "scene", "gravity");
   sc.broad_phase_interval =
@@ -176,6 +176,13 @@ void parse_scene_options(const YAML::Node& s, Scene& sc) {
     throw ConfigError("scene.broad_phase_interval: must be >= 1 (1 = broad phase every step)");
   sc.skin = cfg::get_double_or(s, "scene", "skin", sc.skin);
   if (!(sc.skin > 0)) throw ConfigError("scene.skin: must be > 0 (a fraction of r_max, e.g. 0.5)");
+  sc.close_margin = cfg::get_double_or(s, "scene", "close_margin", sc.close_margin);
+  if (!(sc.close_margin >= 0 && sc.close_margin < sc.skin)) {
+    std::ostringstream msg;
+    msg << "scene.close_margin: must be >= 0 and below scene.skin (now " << sc.skin
+        << "), a fraction of r_max like the skin, e.g. 0.08; 0 turns close pairs off";
+    throw ConfigError(msg.str());
+  }
   const bool strict = sc.guard == GuardMode::strict;
   sc.guard = cfg::get_choice(s, "scene", "guard", {"rebuild", "strict"},
                              strict ? "strict" : "rebuild") == "strict"

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <stdexcept>
 
 #if defined(__x86_64__) && defined(__GNUC__)
 #include <immintrin.h>
@@ -49,6 +50,8 @@ void pair_rows_scalar(const PairRows& p, const PairSleep& sl, std::size_t a0, st
   const std::int32_t* const off = p.offset;
   const std::int32_t* const J = p.partner;
   Vec3* const spring = p.spring;
+  const std::int32_t* const SI = p.spring_index;  // close pairs: their springs' homes
+  Vec3* const HOME = p.spring_home;
   Vec3* const F = p.force;
   const std::int32_t* const REST = sl.rest;
   const std::int32_t S = sl.steps;
@@ -72,6 +75,7 @@ void pair_rows_scalar(const PairRows& p, const PairSleep& sl, std::size_t a0, st
     Vec3 fi{};
     for (std::int32_t k = off[i]; k < off[i + 1]; ++k) {
       const std::int32_t j = J[k];
+      Vec3& sk = spring[k];
       bool sj = false;
       if (Sleep) {
         sj = REST[j] >= S;
@@ -83,10 +87,11 @@ void pair_rows_scalar(const PairRows& p, const PairSleep& sl, std::size_t a0, st
       const Vec3 urel = ui - U[j];
       if (d2 >= rsum * rsum && surely_apart(d2, rsum, norm2(urel), dt)) {
         // Contact ended: history is forgotten (write only if there is something to clear).
-        if (nonzero(spring[k])) {
+        if (nonzero(sk)) {
           // A sleeper whose contact with an awake particle ends may have lost its support.
           if (Sleep && (si || sj)) wake(sl, si ? i : static_cast<std::size_t>(j), a1);
-          spring[k] = Vec3{};
+          sk = Vec3{};
+          if (SI) HOME[SI[k]] = sk;
         }
         continue;
       }
@@ -100,10 +105,10 @@ void pair_rows_scalar(const PairRows& p, const PairSleep& sl, std::size_t a0, st
         last_mj = mj;
       }
       Vec3 f;
-      if (!contact_force(law, c, rsum - dist, nrm, urel, spring[k], dt, f)) {
-        spring[k] = Vec3{};
-        continue;
-      }
+      const bool acts = contact_force(law, c, rsum - dist, nrm, urel, sk, dt, f);
+      if (!acts) sk = Vec3{};
+      if (SI) HOME[SI[k]] = sk;
+      if (!acts) continue;
       ++contacts;
       max_overlap = std::max(max_overlap, rsum - dist);
       max_overlap_ratio = std::max(max_overlap_ratio, (rsum - dist) / std::min(ri, rj));
@@ -195,6 +200,7 @@ struct ChunkIn {
   __m512d xix, xiy, xiz, uix, uiy, uiz, ri, mi;  // the i side of each lane
   __m256i j;                                     // partners (0 in dead lanes)
   const std::int32_t* jl;                        // the same, stored
+  const std::int32_t* kl;                        // Indexed: the lanes' springs (0 in dead lanes)
   __mmask8 live;                                 // lanes to compute
   int left;                                      // candidates from this chunk's first on
 };
@@ -216,6 +222,8 @@ struct ChunkKernel {
   const std::int32_t* off;
   const std::int32_t* J;
   Vec3* spring;
+  const std::int32_t* spring_index;  // close pairs (stream<true>): their springs' homes
+  Vec3* spring_home;
   Vec3* F;
   // The coefficients of the last uniform chunk (no radius or mass is negative: nothing matches
   // before the first one).
@@ -235,6 +243,8 @@ struct ChunkKernel {
     off = p.offset;
     J = p.partner;
     spring = p.spring;
+    spring_index = p.spring_index;
+    spring_home = p.spring_home;
     F = p.force;
     zero = _mm512_setzero_pd();
     one = _mm512_set1_pd(1.0);
@@ -268,11 +278,13 @@ struct ChunkKernel {
   // their parts are computed without a branch (a branch taken at random costs more than the
   // masked lanes). Else (row by row, 61 % of the lanes used) they are skipped when no lane
   // needs them.
-  template <bool Full>
+  // Indexed: the springs of the lanes are spring[in.kl[l]] (close pairs), else spring[k + l].
+  template <bool Full, bool Indexed = false>
   DEM_AVX512 ChunkOut compute(const ChunkIn& in, std::int32_t k);
   // The two kernels (below): row by row with the sleeping rules, or the stream of pairs.
   DEM_AVX512 void rows(const PairSleep& sl, std::size_t a0, std::size_t a1,
                        std::vector<PairRemote>& remote, PairRowStats& stats);
+  template <bool Indexed>
   DEM_AVX512 void stream(std::size_t a0, std::size_t a1, std::vector<PairRemote>& remote,
                          PairRowStats& stats);
   DEM_AVX512 void finish(PairRowStats& stats) const {
@@ -281,18 +293,22 @@ struct ChunkKernel {
   }
 };
 
-template <bool Full>
+template <bool Full, bool Indexed>
 DEM_AVX512 __attribute__((always_inline)) inline ChunkOut ChunkKernel::compute(
     const ChunkIn& in, std::int32_t k) {
   Vec3* const spring = this->spring + k;
+  // Indexed: lane l's spring is also written to its home in the half list's array.
+  const auto put = [&](int l, Vec3 v) {
+    spring[l] = v;
+    if constexpr (Indexed) spring_home[in.kl[l]] = v;
+  };
   ChunkOut out;
   const __mmask8 live = in.live;
   const Lanes3 xj = load_vec3(X, in.jl), uj = load_vec3(U, in.jl);
   const __m512d rj = _mm512_mask_i32gather_pd(one, live, in.j, R, 8);
-  double* const sk = reinterpret_cast<double*>(spring);
   __mmask8 smask[3];
   vec3_masks(std::min(in.left, 8), smask);
-  const Lanes3 s0 = load_contiguous(mix, sk, smask);
+  const Lanes3 s0 = load_contiguous(mix, reinterpret_cast<const double*>(spring), smask);
   __m512d sx = s0.x, sy = s0.y, sz = s0.z;
 
   // The screen (surely_apart, after the d2 >= rsum^2 test).
@@ -321,7 +337,7 @@ DEM_AVX512 __attribute__((always_inline)) inline ChunkOut ChunkKernel::compute(
   out.clear = _mm512_mask_test_epi64_mask(apart, sbits, sbits);
   const __mmask8 cand = live & static_cast<__mmask8>(~apart);
   if (cand == 0) {
-    for (unsigned m = out.clear; m != 0; m &= m - 1) spring[__builtin_ctz(m)] = Vec3{};
+    for (unsigned m = out.clear; m != 0; m &= m - 1) put(__builtin_ctz(m), Vec3{});
     return out;
   }
 
@@ -447,7 +463,7 @@ DEM_AVX512 __attribute__((always_inline)) inline ChunkOut ChunkKernel::compute(
   _mm512_store_pd(fz, pick(act, sz, zero));
   for (unsigned m = cand | out.clear; m != 0; m &= m - 1) {
     const int l = __builtin_ctz(m);
-    spring[l] = Vec3{fx[l], fy[l], fz[l]};
+    put(l, Vec3{fx[l], fy[l], fz[l]});
   }
   out.act = act;
   if (act == 0) return out;
@@ -473,6 +489,19 @@ DEM_AVX512 inline void prefetch_ahead(const Vec3* spring, const std::int32_t* J,
     for (int line = 0; line < 3; ++line)
       _mm_prefetch(reinterpret_cast<const char*>(ahead + 8 * line), _MM_HINT_T0);
     _mm_prefetch(reinterpret_cast<const char*>(J + k + kPrefetchAhead), _MM_HINT_T0);
+  }
+}
+
+// The same for close pairs: their partners, indices and the springs they point to.
+DEM_AVX512 inline void prefetch_indexed(const Vec3* spring, const Vec3* home,
+                                        const std::int32_t* SI, const std::int32_t* J,
+                                        std::int32_t k, std::int32_t kend) {
+  prefetch_ahead(spring, J, k, kend);
+  if (k + kPrefetchAhead + 8 < kend) {
+    const std::int32_t s0 = SI[k + kPrefetchAhead], s1 = SI[k + kPrefetchAhead + 7];
+    _mm_prefetch(reinterpret_cast<const char*>(home + s0), _MM_HINT_T0);
+    _mm_prefetch(reinterpret_cast<const char*>(home + s1) + 16, _MM_HINT_T0);
+    _mm_prefetch(reinterpret_cast<const char*>(SI + k + 2 * kPrefetchAhead), _MM_HINT_T0);
   }
 }
 
@@ -550,15 +579,17 @@ DEM_AVX512 void ChunkKernel::rows(const PairSleep& sl, std::size_t a0, std::size
 // on average: 61 % of the lanes of a row-by-row chunk). The i side of each lane is read from
 // the chunk's rows, which are consecutive. Row i's force is added when the stream has passed
 // it, after its pairs' partners, as the row loop does.
+template <bool Indexed>
 DEM_AVX512 void ChunkKernel::stream(std::size_t a0, std::size_t a1,
                                     std::vector<PairRemote>& remote, PairRowStats& stats) {
-  alignas(32) std::int32_t jl[8], il[8];
+  alignas(32) std::int32_t jl[8], il[8], kl[8];
   const std::int32_t kend = off[a1];
   std::size_t scan = a0;  // the row of the pair being assigned to a lane
   std::size_t done = a0;  // rows before it have their force added
   Vec3 fi{};              // the sum of row `done`'s forces so far
   ChunkIn in;
   in.jl = jl;
+  in.kl = kl;
   const __m256i lane_index = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
   while (scan < a1 && off[scan + 1] == off[a0]) ++scan;  // rows without candidates first
   for (std::int32_t k = off[a0]; k < kend; k += 8) {
@@ -628,8 +659,14 @@ DEM_AVX512 void ChunkKernel::stream(std::size_t a0, std::size_t a1,
     }
     in.j = _mm256_maskz_loadu_epi32(in.live, J + k);
     _mm256_store_si256(reinterpret_cast<__m256i*>(jl), in.j);
-    prefetch_ahead(spring, J, k, kend);
-    const ChunkOut out = compute<true>(in, k);
+    if constexpr (Indexed) {
+      _mm256_store_si256(reinterpret_cast<__m256i*>(kl),
+                         _mm256_maskz_loadu_epi32(in.live, spring_index + k));
+      prefetch_indexed(spring, spring_home, spring_index, J, k, kend);
+    } else {
+      prefetch_ahead(spring, J, k, kend);
+    }
+    const ChunkOut out = compute<true, Indexed>(in, k);
     // The forces in pair order: a row's sum is added once the stream has left the row.
     for (unsigned m = out.act; m != 0; m &= m - 1) {
       const int l = __builtin_ctz(m);
@@ -673,8 +710,10 @@ static void dispatch(const PairRows& p, const PairSleep& sleep, std::size_t a0, 
     ChunkKernel kernel(p);
     if (Sleep)
       kernel.rows(sleep, a0, a1, remote, stats);
+    else if (p.spring_index)
+      kernel.stream<true>(a0, a1, remote, stats);
     else
-      kernel.stream(a0, a1, remote, stats);
+      kernel.stream<false>(a0, a1, remote, stats);
     return;
   }
 #endif
@@ -688,6 +727,8 @@ void pair_rows(const PairRows& p, std::size_t a0, std::size_t a1, std::vector<Pa
 
 void pair_rows_sleep(const PairRows& p, const PairSleep& sleep, std::size_t a0, std::size_t a1,
                      std::vector<PairRemote>& remote, PairRowStats& stats, bool vector) {
+  if (p.spring_index)
+    throw std::logic_error("pair_rows_sleep: close pairs (spring_index) are for all-awake rows only");
   dispatch<true>(p, sleep, a0, a1, remote, stats, vector);
 }
 

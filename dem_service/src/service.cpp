@@ -365,6 +365,8 @@ void ServiceModel::finish(std::ostream& report) {
   std::vector<std::string> notes{"snapshot: state copies for repeated steps; other: waiting for "
                                  "the master (bus) and the rest",
                                  rtf, phases};
+  if (const std::string close = dem::close_pairs_summary(*engine_, steps_done_); !close.empty())
+    notes.push_back(close);
   if (rc_->scene.sleep.enabled) {
     char line[160];
     std::snprintf(line, sizeof line, "Sleeping: %.1f %% of particle-steps asleep, %lld asleep at the end",

@@ -347,3 +347,12 @@ TEST(dem_BadInput, ExistingOutputIsReplacedOnlyWhenTheRunWrites) {
 }
 
 }  // namespace
+
+// scene.close_margin is a fraction of r_max like the skin, and below it.
+TEST(dem_BadInput, CloseMarginOutsideZeroToSkinIsRefused) {
+  expect_has(error_of({"scene.close_margin=-0.1"}),
+             "scene.close_margin: must be >= 0 and below scene.skin");
+  expect_has(error_of({"scene.close_margin=0.5", "scene.skin=0.5"}),
+             "scene.close_margin: must be >= 0 and below scene.skin (now 0.5");
+  expect_has(error_of({"scene.close_margin=0.5", "scene.skin=0.5"}), "0 turns close pairs off");
+}

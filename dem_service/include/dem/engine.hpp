@@ -80,6 +80,10 @@ class Engine {
   // Steps at which the guard's bound fired but its far-mover check found the lists still
   // complete, so no broad phase ran (scene.guard: rebuild; docs/dem.md "The guard").
   std::int64_t guard_cleared() const { return guard_cleared_; }
+  // Close pairs (Scene::close_margin): how often they were listed, and the share of the half
+  // list's candidates the last listing kept (0 if never listed).
+  std::int64_t close_builds() const { return close_builds_; }
+  double close_share() const { return close_share_; }
   // The broad phase's own stages (grid, sort, permute, ...): where section broad_phase goes.
   const cosim::Timer& broad_phase_stages() const { return broad_.stages(); }
   cosim::Timer& broad_phase_stages() { return broad_.stages(); }
@@ -120,6 +124,27 @@ class Engine {
   static void note_far_mover(std::vector<std::int32_t>& far, FarTally& tally, std::size_t i,
                              double d2, double ui2, const FarLimits& limits);
   void finish_far_movers(const State& s, int lists, const FarTally& tally);
+  // Close pairs: the candidates of the half list within Scene::close_distance() of contact,
+  // and every candidate of a particle faster than `fast` when they were listed. A pair left
+  // out was farther apart than the margin, so it cannot act (or hold history) before the slow
+  // particles' two largest displacements since then and their step window add up to the
+  // margin (checked before each step's pair forces, tallied by the integration).
+  struct ClosePairs {
+    std::vector<std::int32_t> offset, partner, index;  // CSR rows; index: the pair in the half list
+    std::vector<Vec3> spring;  // copies of their springs, in their order (both are written)
+    std::vector<std::int32_t> count;                   // per row, while listing
+    std::vector<std::uint8_t> keep, fast;              // per candidate; per particle
+    std::vector<Vec3> x_at;                            // positions when listed
+    std::vector<std::int64_t> thread_base;
+    const State* state = nullptr;                      // the lists they were taken from
+    std::size_t size = 0, candidates = 0;
+    std::int64_t rebuilds = -1, built_at = -1;
+    std::int64_t step = -1;  // the state's step that the copies and the tally are of
+    double d1 = 0, d2 = 0, u2 = 0;  // slow particles since: two largest squared displacements, speed^2
+    bool use = false;  // false: they kept nearly every candidate, the half list is read instead
+  };
+  bool close_pairs_hold(const State& s) const;
+  void list_close_pairs(State& s);
   void pair_forces(State& s);
   template <bool Sleep>
   void pair_forces_impl(State& s);
@@ -141,6 +166,9 @@ class Engine {
   std::vector<double> tool_box_radius_;             // farthest box corner from the reference point
   std::vector<std::vector<detail::PairRemote>> remote_;  // per thread
   std::vector<std::size_t> bounds_;  // particle ranges of the threads in pair_forces
+  ClosePairs close_;
+  std::int64_t close_builds_ = 0;
+  double close_share_ = 0;
   // Sleeping: wake_[i] set by the pair loop when a sleeper is to wake; wakes of particles in
   // another thread's range are queued per thread and applied after the loop.
   std::vector<std::uint8_t> wake_;
@@ -190,6 +218,10 @@ class Engine {
 // std::invalid_argument naming the variable and its values for anything else. Every Engine
 // calls it; dem_run and dem_service call it at start-up so a bad value stops them at once.
 void read_pair_kernel_environment();
+
+// "Close pairs: listed N times in S steps, ..." for the end-of-run notes (empty when
+// scene.close_margin is 0).
+std::string close_pairs_summary(const Engine& engine, long long steps);
 
 namespace detail {
 // Whether the pair loop skips the rows of sleepers that hold no awake partner (the default) or

@@ -33,6 +33,11 @@ struct PairRows {
   const std::int32_t* offset = nullptr;   // CSR rows of the half list (i < j)
   const std::int32_t* partner = nullptr;  // j of each pair
   Vec3* spring = nullptr;                 // tangential history of each pair (acts on i)
+  // Close pairs (the engine's sub-list of the half list): spring[k] is a copy of the half
+  // list's spring_home[spring_index[k]], and both are written, so the half list's springs stay
+  // current. All awake only (pair_rows); nullptr: no copy.
+  const std::int32_t* spring_index = nullptr;
+  Vec3* spring_home = nullptr;
   Vec3* force = nullptr;                  // per particle, accumulated
   ContactLaw law;
   double dt = 0;

@@ -93,6 +93,11 @@ struct Scene {
   int broad_phase_interval = 5;
   double skin = 0.5;  // skin factor tau: candidate margin is skin * r_max
   GuardMode guard = GuardMode::rebuild;
+  // Close pairs: the pair forces take only the candidates within close_margin * r_max of
+  // contact (or of a fast particle), re-listed when the slow particles may have closed the
+  // margin; the results are the same bits as with every candidate. 0: every candidate, every
+  // step. Used when all particles are awake (sleeping off).
+  double close_margin = 0.0;
   int threads = 1;
   // Fewer particles per thread than this and the step uses fewer threads: for small scenes
   // the barriers cost more than the work (and a lot more on a loaded machine).
@@ -112,6 +117,7 @@ struct Scene {
   // Largest radius any species can produce; the skin and the grid are sized from it.
   double r_max() const;
   double skin_distance() const { return skin * r_max(); }
+  double close_distance() const { return close_margin * r_max(); }
 };
 
 }  // namespace dem

@@ -1,0 +1,161 @@
+// Close pairs (scene.close_margin): the pair forces read only the candidates within a margin
+// of contact (and every candidate of a fast particle), re-listed when the slow particles may
+// have closed the margin. They change no result: every array of State after a run is the same,
+// bit for bit, as with every candidate read, on either kernel, 1 or 2 threads, with margins
+// small enough to re-list often, and when a state is put back to an earlier step (the DEM
+// service's repeated macro steps).
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <random>
+
+#include "dem_test_util.hpp"
+
+namespace {
+
+using demtest::Vec3;
+
+// A polydisperse lattice with gaps inside the skin, creeping at up to 4 mm/s (some below the
+// fast speed of the margin, some above), and 60 grains thrown through it at 0.5 m/s: collisions
+// spread from them, friction holds springs, contacts end and new ones begin.
+dem::Scene lattice_scene(int threads, double margin) {
+  dem::Scene scene = demtest::one_species_scene(0.8e-3, 1.2e-3);
+  scene.threads = threads;
+  scene.min_particles_per_thread = 100;
+  scene.broad_phase_interval = 1 << 30;  // when needed
+  scene.particle_particle = scene.particle_wall = demtest::law_n_per_m(500, 0.3, true, 0.5);
+  scene.dt = 2e-5;
+  scene.close_margin = margin;  // fast above margin * 1.2e-3 / (800 dt): 3.75 mm/s at 0.05
+  return scene;
+}
+
+dem::State lattice_state() {
+  dem::State st;
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> U01(0, 1);
+  const double pitch = 2.5e-3;
+  for (int k = 0; k < 1500; ++k) {
+    const double r = 0.8e-3 + 0.4e-3 * U01(rng);
+    Vec3 v{U01(rng) - 0.5, U01(rng) - 0.5, U01(rng) - 0.5};
+    v = (4e-3 * U01(rng) / std::max(1e-9, dem::norm(v))) * v;
+    if (k % 25 == 0) v = {0.5, 0.1 * (U01(rng) - 0.5), 0.1 * (U01(rng) - 0.5)};
+    demtest::add(st, {pitch * (k % 12), pitch * ((k / 12) % 12), pitch * (k / 144)}, v, r);
+  }
+  return st;
+}
+
+// Every array of State, compared byte for byte; returns the names that differ.
+std::string differing_arrays(const dem::State& a, const dem::State& b, int* arrays) {
+  std::string names;
+  *arrays = 0;
+  dem::for_each_array(a, [&](const char* name, const auto& x, dem::Field) {
+    dem::for_each_array(b, [&](const char* n2, const auto& y, dem::Field) {
+      if (std::strcmp(name, n2) != 0) return;
+      const std::size_t bytes = x.size() * sizeof(x[0]);
+      if (y.size() != x.size() || (bytes > 0 && std::memcmp(x.data(), y.data(), bytes) != 0))
+        names += std::string(" ") + name;
+    });
+    ++*arrays;
+  });
+  return names;
+}
+
+TEST(dem_ClosePairs, SameBitsAsEveryCandidate) {
+  const bool vector_available = dem::detail::pair_rows_vector_available();
+  for (const bool vector : {false, true}) {
+    if (vector && !vector_available) continue;
+    dem::detail::use_vector_pairs(vector);
+    for (const int threads : {1, 2}) {
+      dem::State reference = lattice_state();
+      {
+        const dem::Scene scene = lattice_scene(threads, 0.0);
+        dem::Engine engine(scene);
+        std::int64_t contact_steps = 0;  // touching pairs, summed over the steps
+        for (int k = 0; k < 1200; ++k) {
+          engine.step(reference);
+          contact_steps += engine.contact_stats().particle_contacts;
+        }
+        EXPECT_GT(contact_steps, 10000);
+        EXPECT_EQ(engine.close_builds(), 0);
+      }
+      for (const double margin : {0.05, 0.2}) {
+        const dem::Scene scene = lattice_scene(threads, margin);
+        dem::State st = lattice_state();
+        dem::Engine engine(scene);
+        std::int64_t used_steps = 0;
+        for (int k = 0; k < 1200; ++k) {
+          engine.step(st);
+          used_steps += engine.close_share() > 0 && engine.close_share() <= 0.9;
+        }
+        // The close pairs were listed more often than the broad phase ran, and read.
+        EXPECT_GT(engine.close_builds(), st.rebuilds) << margin;
+        EXPECT_GT(used_steps, 600) << margin;
+        EXPECT_LT(engine.close_share(), 0.9) << margin;
+        int arrays = 0;
+        EXPECT_EQ(differing_arrays(reference, st, &arrays), "")
+            << "margin " << margin << ", " << threads << " thread(s), "
+            << (vector ? "vector" : "scalar") << " kernel";
+        EXPECT_GT(arrays, 20);
+      }
+    }
+  }
+  dem::detail::use_vector_pairs(true);
+}
+
+// A repeated macro step puts the state back (copy assignment into the same object): the close
+// pairs listed for the abandoned steps must not be used for it.
+TEST(dem_ClosePairs, StatePutBackIsListedAgain) {
+  dem::State result[2];
+  for (const double margin : {0.0, 0.05}) {
+    const dem::Scene scene = lattice_scene(1, margin);
+    dem::State st = lattice_state();
+    dem::Engine engine(scene);
+    for (int k = 0; k < 600; ++k) engine.step(st);
+    const dem::State snapshot = st;
+    for (int k = 0; k < 40; ++k) engine.step(st);
+    st = snapshot;  // the repeat
+    for (int k = 0; k < 40; ++k) engine.step(st);
+    result[margin > 0] = st;
+  }
+  int arrays = 0;
+  EXPECT_EQ(differing_arrays(result[0], result[1], &arrays), "");
+}
+
+// Two slow particles closing on each other from beyond the margin, in a lattice at rest: the
+// listing must let them meet at the step they meet with every candidate read.
+TEST(dem_ClosePairs, SlowApproachFromBeyondTheMarginIsCaught) {
+  const double r = 1e-3;
+  dem::Scene scene = demtest::one_species_scene(r, r);
+  scene.particle_particle = scene.particle_wall = demtest::law_n_per_m(100, 0.5, true, 0.5);
+  scene.broad_phase_interval = 1 << 30;
+  scene.skin = 0.5;           // 0.5 mm
+  scene.close_margin = 0.05;  // 50 um: fast above 50e-6 / (800 dt) = 6.25e-3 m/s
+  scene.dt = 1e-5;
+  dem::State result[2];
+  std::int64_t first_contact[2] = {-1, -1};
+  for (const int with_close : {0, 1}) {
+    if (!with_close) scene.close_margin = 0;
+    else scene.close_margin = 0.05;
+    dem::State st;
+    // Slow (below the fast speed): 4e-3 m/s each, from 0.3 mm apart, inside the skin.
+    demtest::add(st, {0, 0, 0}, {4e-3, 0, 0}, r);
+    demtest::add(st, {2 * r + 3e-4, 0, 0}, {-4e-3, 0, 0}, r);
+    for (int k = 0; k < 6; ++k) demtest::add(st, {k * 2.3 * r, 5 * r, 0}, {}, r);  // candidates, not close
+    dem::Engine engine(scene);
+    for (int k = 0; k < 5000 && first_contact[with_close] < 0; ++k) {
+      engine.step(st);
+      if (engine.contact_stats().particle_contacts > 0) first_contact[with_close] = k;
+    }
+    if (with_close) {
+      EXPECT_GT(engine.close_builds(), 2);  // listed again on the way
+      EXPECT_LE(engine.close_share(), 0.9);
+    }
+    result[with_close] = st;
+  }
+  ASSERT_GT(first_contact[0], 100);
+  EXPECT_EQ(first_contact[0], first_contact[1]);
+  int arrays = 0;
+  EXPECT_EQ(differing_arrays(result[0], result[1], &arrays), "");
+}
+
+}  // namespace
