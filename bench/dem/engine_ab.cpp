@@ -1,0 +1,171 @@
+// Two variants of one DEM run (the same config with different --set overrides) stepped in one
+// process, in alternating blocks of steps, each on its own copy of the state: the A/B of a
+// config knob or engine option that this VM's drifting speed leaves possible (a 30-40 % swing
+// between minutes hides a 5 % change between two runs; within a block pair both see the same
+// machine). Prints per-variant medians of the blocks' wall times, their ratio, how often B was
+// faster, and whether the two final states are the same bit for bit. Not a test
+// (docs/performance.md, "Close pairs").
+//
+//   build/bin/engine_ab CONFIG [--set KEY=VALUE ...] --a KEY=VALUE [--a ...] --b KEY=VALUE
+//                       [--b ...] [--steps 1000] [--block 50]
+//
+// Tools follow their motion as in dem_run; nothing is written.
+#include <algorithm>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <exception>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "cosim/stopwatch.hpp"
+#include "cosim/yaml_config.hpp"
+#include "dem/config.hpp"
+#include "dem/engine.hpp"
+#include "dem/stability.hpp"
+#include "dem/thread_wait.hpp"
+
+namespace {
+
+void usage() {
+  std::fprintf(stderr,
+               "usage: engine_ab CONFIG [--set KEY=VALUE ...] --a KEY=VALUE [--a ...] --b "
+               "KEY=VALUE [--b ...] [--steps 1000] [--block 50]\n"
+               "  Steps the run of CONFIG twice in one process, with A's and B's overrides,\n"
+               "  in alternating blocks, and prints the blocks' median times and B/A.\n");
+}
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v.empty() ? 0 : v[v.size() / 2];
+}
+
+long parse_count(const char* text, const char* what) {
+  char* end = nullptr;
+  const long v = std::strtol(text, &end, 10);
+  if (end == text || *end != '\0' || v < 1) {
+    std::fprintf(stderr, "engine_ab: %s must be a whole number >= 1 (got '%s')\n", what, text);
+    std::exit(2);
+  }
+  return v;
+}
+
+// Every array of two states, byte for byte; the names of those that differ.
+std::string differing(const dem::State& a, const dem::State& b) {
+  std::string names;
+  dem::for_each_array(a, [&](const char* name, const auto& x, dem::Field) {
+    dem::for_each_array(b, [&](const char* n2, const auto& y, dem::Field) {
+      if (std::strcmp(name, n2) != 0) return;
+      const std::size_t bytes = x.size() * sizeof(x[0]);
+      if (y.size() != x.size() || (bytes > 0 && std::memcmp(x.data(), y.data(), bytes) != 0))
+        names += std::string(" ") + name;
+    });
+  });
+  return names;
+}
+
+struct Variant {
+  std::vector<std::string> sets;
+  dem::RunConfig rc;
+  std::vector<double> block_seconds;
+};
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string config;
+  std::vector<std::string> common;
+  Variant v[2];
+  long steps = 1000, block = 50;
+  for (int a = 1; a < argc; ++a) {
+    const std::string arg = argv[a];
+    const bool has_value = a + 1 < argc;
+    if (arg == "-h" || arg == "--help") {
+      usage();
+      return 0;
+    } else if (arg == "--set" && has_value) {
+      common.push_back(argv[++a]);
+    } else if (arg == "--a" && has_value) {
+      v[0].sets.push_back(argv[++a]);
+    } else if (arg == "--b" && has_value) {
+      v[1].sets.push_back(argv[++a]);
+    } else if (arg == "--steps" && has_value) {
+      steps = parse_count(argv[++a], "--steps");
+    } else if (arg == "--block" && has_value) {
+      block = parse_count(argv[++a], "--block");
+    } else if (!arg.empty() && arg[0] == '-') {
+      std::fprintf(stderr, "engine_ab: unknown or incomplete option '%s'\n", arg.c_str());
+      usage();
+      return 2;
+    } else if (config.empty()) {
+      config = arg;
+    } else {
+      std::fprintf(stderr, "engine_ab: more than one config file given ('%s')\n", arg.c_str());
+      return 2;
+    }
+  }
+  if (config.empty() || (v[0].sets.empty() && v[1].sets.empty())) {
+    usage();
+    return 2;
+  }
+  try {
+    const std::string base = std::filesystem::path(config).parent_path().string();
+    for (Variant& x : v) {
+      YAML::Node root = cosim::config::load_file(config);
+      for (const auto& s : common) cosim::config::apply_override(root, s);
+      for (const auto& s : x.sets) cosim::config::apply_override(root, s);
+      if (&x == &v[0]) dem::apply_thread_wait(dem::read_thread_wait(root), argv);
+      x.rc = dem::load_config(root, base);
+      dem::validate_state(x.rc.scene, x.rc.state, !x.rc.continues);
+    }
+    if (v[0].rc.state.size() != v[1].rc.state.size()) {
+      std::fprintf(stderr, "engine_ab: A and B start from different particle sets (%zu and %zu)\n",
+                   v[0].rc.state.size(), v[1].rc.state.size());
+      return 2;
+    }
+    dem::Engine engine_a(v[0].rc.scene), engine_b(v[1].rc.scene);
+    dem::Engine* engines[2] = {&engine_a, &engine_b};
+    int b_faster = 0, blocks = 0;
+    for (long done = 0; done < steps; done += block, ++blocks) {
+      const long n = std::min(block, steps - done);
+      for (int k = 0; k < 2; ++k) {
+        dem::State& s = v[k].rc.state;
+        const dem::Scene& scene = v[k].rc.scene;
+        const cosim::Stopwatch watch;
+        for (long q = 0; q < n; ++q) {
+          for (std::size_t m = 0; m < scene.tools.size(); ++m)
+            s.tool_pose[m] = scene.tools[m].motion.evaluate(s.step * scene.dt);
+          engines[k]->step(s);
+        }
+        v[k].block_seconds.push_back(watch.seconds());
+      }
+      b_faster += v[1].block_seconds.back() < v[0].block_seconds.back();
+      if ((blocks + 1) % 10 == 0)
+        std::fprintf(stderr, "engine_ab: %ld of %ld steps\n", done + n, steps);
+    }
+    double total[2] = {0, 0};
+    for (int k = 0; k < 2; ++k)
+      for (double t : v[k].block_seconds) total[k] += t;
+    const double ma = median(v[0].block_seconds), mb = median(v[1].block_seconds);
+    std::printf("%zu particles, %ld steps in blocks of %ld, %d thread(s)\n",
+                v[0].rc.state.size(), steps, block, engine_a.threads());
+    for (int k = 0; k < 2; ++k) {
+      std::string s;
+      for (const auto& x : v[k].sets) s += " " + x;
+      std::printf("%c:%s\n   median block %.4f s, total %.3f s\n", k ? 'B' : 'A',
+                  s.empty() ? " (no overrides)" : s.c_str(), k ? mb : ma, total[k]);
+    }
+    std::printf("B/A %.3f (medians), %.3f (totals); B faster in %d of %d blocks\n",
+                ma > 0 ? mb / ma : 0.0, total[0] > 0 ? total[1] / total[0] : 0.0, b_faster,
+                blocks);
+    const std::string diff = differing(v[0].rc.state, v[1].rc.state);
+    std::printf("final states: %s\n", diff.empty() ? "identical" : ("differ in" + diff).c_str());
+    if (const std::string c = dem::close_pairs_summary(engine_b, steps); !c.empty())
+      std::printf("B: %s\n", c.c_str());
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "engine_ab: %s\n", e.what());
+    return 2;
+  }
+  return 0;
+}
