@@ -90,6 +90,9 @@ Box read_box(const std::string& file) {
   return b;
 }
 
+// --close-margin: scene.close_margin of our runs (0: every candidate read, the default).
+double g_close_margin = 0;
+
 // interval 0: rebuild only when the skin guard fires.
 dem::Scene make_scene(const Box& b, int threads, int interval, bool friction = true) {
   dem::Scene s;
@@ -115,6 +118,7 @@ dem::Scene make_scene(const Box& b, int threads, int interval, bool friction = t
   s.particle_wall = pw;
   s.dt = kDt;
   s.skin = kSkin;
+  s.close_margin = g_close_margin;
   s.threads = threads;
   s.broad_phase_interval = interval > 0 ? interval : 1 << 30;
   s.guard = dem::GuardMode::rebuild;
@@ -330,6 +334,7 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "usage: dem_side_by_side prepare|run|trace --kind bed|gas --n N "
                          "--dir DIR [--threads T --interval I --steps S --duration D --every E]"
                          " [--thread-wait passive|brief|spin] [--pair-kernel vector|scalar]"
+                         " [--close-margin M]"
                          "\n(see the header of bench/lammps/side_by_side.cpp)\n");
     return 2;
   }
@@ -341,7 +346,8 @@ int main(int argc, char** argv) {
                                          {"--every", "0.002"},
                                          {"--thread-wait",
                                           dem::thread_wait_name(dem::Scene{}.thread_wait)},
-                                         {"--pair-kernel", "vector"}};
+                                         {"--pair-kernel", "vector"},
+                                         {"--close-margin", "0"}};
   if (!bench::parse_options(argc, argv, 2, "dem_side_by_side", opt)) return 2;
   try {
     const std::string kind = opt["--kind"], dir = opt["--dir"];
@@ -349,6 +355,13 @@ int main(int argc, char** argv) {
     if (cmd == "prepare") {
       prepare(kind, n, dir);
       return 0;
+    }
+    g_close_margin = std::stod(opt["--close-margin"]);
+    if (!(g_close_margin >= 0 && g_close_margin < kSkin)) {
+      std::fprintf(stderr, "dem_side_by_side: --close-margin %s: use a fraction of r from 0 "
+                   "(every candidate) to below the skin factor %g\n",
+                   opt["--close-margin"].c_str(), kSkin);
+      return 2;
     }
     const std::string kernel = opt["--pair-kernel"];
     if (kernel != "vector" && kernel != "scalar") {

@@ -204,7 +204,7 @@ def steps_for(args, n):
 def time_ours(args, kind, n, threads, policy, steps):
     out = ours(args, "run", "--kind", kind, "--n", str(n), "--dir", args.dir, "--threads",
                str(threads), "--interval", str(policy), "--steps", str(steps),
-               "--thread-wait", args.thread_wait)
+               "--thread-wait", args.thread_wait, "--close-margin", str(args.close_margin))
     f = out.split()
     return (float(f[f.index("rate") + 1]), int(f[f.index("rebuilds") + 1]),
             float(f[f.index("cpu_share") + 1]))
@@ -287,6 +287,8 @@ def main():
     p.add_argument("--dir", default="results/bench_lammps")
     p.add_argument("--thread-wait", default="passive", choices=["passive", "brief", "spin"],
                    help="how our idle threads wait (scene.thread_wait; default: the product's)")
+    p.add_argument("--close-margin", type=float, default=0.0,
+                   help="scene.close_margin of our runs (fraction of r; 0: every candidate)")
     p.add_argument("--dem", required=True, help="path of dem_side_by_side")
     args = p.parse_args()
     args.threads = [int(t) for t in args.threads.split(",")]
@@ -316,11 +318,12 @@ def main():
         json.dump({"started": started.isoformat(), "ended": ended.isoformat(), "cpu": cpu,
                    "load_average_end": os.getloadavg(),
                    "cores": os.cpu_count(), "lammps": lmp_version, "check": check,
-                   "repeats": args.repeats, "rows": rows}, f, indent=1)
+                   "repeats": args.repeats, "close_margin": args.close_margin, "rows": rows}, f, indent=1)
     with open(os.path.join(args.dir, f"side_by_side_{stamp}.md"), "w") as f:
         f.write(f"Side by side with LAMMPS {lmp_version}, {os.cpu_count()} x {cpu}, "
                 f"{started:%Y-%m-%d %H:%M}-{ended:%H:%M} UTC, median of {args.repeats}, "
-                f"load average at the end {os.getloadavg()[0]:.1f}\n\n"
+                f"load average at the end {os.getloadavg()[0]:.1f}; ours with "
+                f"scene.close_margin {args.close_margin:g}\n\n"
                 + text + "\n")
     print(f"\nwritten to {args.dir}/side_by_side_{stamp}.md and .json "
           f"({(ended - started).total_seconds() / 60:.1f} min)")
