@@ -51,20 +51,6 @@ long parse_count(const char* text, const char* what) {
   return v;
 }
 
-// Every array of two states, byte for byte; the names of those that differ.
-std::string differing(const dem::State& a, const dem::State& b) {
-  std::string names;
-  dem::for_each_array(a, [&](const char* name, const auto& x, dem::Field) {
-    dem::for_each_array(b, [&](const char* n2, const auto& y, dem::Field) {
-      if (std::strcmp(name, n2) != 0) return;
-      const std::size_t bytes = x.size() * sizeof(x[0]);
-      if (y.size() != x.size() || (bytes > 0 && std::memcmp(x.data(), y.data(), bytes) != 0))
-        names += std::string(" ") + name;
-    });
-  });
-  return names;
-}
-
 struct Variant {
   std::vector<std::string> sets;
   dem::RunConfig rc;
@@ -159,7 +145,7 @@ int main(int argc, char** argv) {
     std::printf("B/A %.3f (medians), %.3f (totals); B faster in %d of %d blocks\n",
                 ma > 0 ? mb / ma : 0.0, total[0] > 0 ? total[1] / total[0] : 0.0, b_faster,
                 blocks);
-    const std::string diff = differing(v[0].rc.state, v[1].rc.state);
+    const std::string diff = dem::differing_arrays(v[0].rc.state, v[1].rc.state);
     std::printf("final states: %s\n", diff.empty() ? "identical" : ("differ in" + diff).c_str());
     if (const std::string c = dem::close_pairs_summary(engine_b, steps); !c.empty())
       std::printf("B: %s\n", c.c_str());

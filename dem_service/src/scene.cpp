@@ -1,5 +1,6 @@
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <string_view>
 
 #include "dem/scene.hpp"
@@ -110,6 +111,19 @@ std::size_t remove_particles(State& s, const std::vector<std::uint8_t>& remove) 
   s.removed_count += static_cast<std::int64_t>(n - m);
   s.removed_mass += mass;
   return n - m;
+}
+
+std::string differing_arrays(const State& a, const State& b) {
+  std::string names;
+  for_each_array(a, [&](const char* name, const auto& x, Field) {
+    for_each_array(b, [&](const char* other, const auto& y, Field) {
+      if (std::strcmp(name, other) != 0) return;
+      const std::size_t size = x.size() * sizeof(x[0]);
+      if (y.size() != x.size() || (size > 0 && std::memcmp(x.data(), y.data(), size) != 0))
+        names += std::string(" ") + name;
+    });
+  });
+  return names;
 }
 
 }  // namespace dem

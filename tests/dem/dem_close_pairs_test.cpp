@@ -6,6 +6,7 @@
 // service's repeated macro steps).
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstring>
 #include <random>
 
@@ -44,20 +45,20 @@ dem::State lattice_state() {
   return st;
 }
 
-// Every array of State, compared byte for byte; returns the names that differ.
-std::string differing_arrays(const dem::State& a, const dem::State& b, int* arrays) {
-  std::string names;
-  *arrays = 0;
-  dem::for_each_array(a, [&](const char* name, const auto& x, dem::Field) {
-    dem::for_each_array(b, [&](const char* n2, const auto& y, dem::Field) {
-      if (std::strcmp(name, n2) != 0) return;
-      const std::size_t bytes = x.size() * sizeof(x[0]);
-      if (y.size() != x.size() || (bytes > 0 && std::memcmp(x.data(), y.data(), bytes) != 0))
-        names += std::string(" ") + name;
-    });
-    ++*arrays;
-  });
-  return names;
+// The comparison the tests below rest on names what differs, and only that.
+TEST(dem_ClosePairs, DifferingArraysNamesTheArrays) {
+  const dem::Scene scene = lattice_scene(1, 0.0);
+  dem::State a = lattice_state();
+  dem::Engine engine(scene);
+  for (int k = 0; k < 50; ++k) engine.step(a);
+  dem::State b = a;
+  EXPECT_EQ(dem::differing_arrays(a, b), "");
+  ASSERT_FALSE(b.pair_spring.empty());
+  b.pair_spring.back().x = std::nextafter(b.pair_spring.back().x, 1.0);
+  b.u[7].z = -b.u[7].z;  // the sign bit flips, even of a zero
+  EXPECT_EQ(dem::differing_arrays(a, b), " u pair_spring");
+  b.rest_steps.push_back(0);
+  EXPECT_EQ(dem::differing_arrays(a, b), " u pair_spring rest_steps");
 }
 
 TEST(dem_ClosePairs, SameBitsAsEveryCandidate) {
@@ -91,11 +92,9 @@ TEST(dem_ClosePairs, SameBitsAsEveryCandidate) {
         EXPECT_GT(engine.close_builds(), st.rebuilds) << margin;
         EXPECT_GT(used_steps, 600) << margin;
         EXPECT_LT(engine.close_share(), 0.9) << margin;
-        int arrays = 0;
-        EXPECT_EQ(differing_arrays(reference, st, &arrays), "")
+        EXPECT_EQ(dem::differing_arrays(reference, st), "")
             << "margin " << margin << ", " << threads << " thread(s), "
             << (vector ? "vector" : "scalar") << " kernel";
-        EXPECT_GT(arrays, 20);
       }
     }
   }
@@ -117,8 +116,7 @@ TEST(dem_ClosePairs, StatePutBackIsListedAgain) {
     for (int k = 0; k < 40; ++k) engine.step(st);
     result[margin > 0] = st;
   }
-  int arrays = 0;
-  EXPECT_EQ(differing_arrays(result[0], result[1], &arrays), "");
+  EXPECT_EQ(dem::differing_arrays(result[0], result[1]), "");
 }
 
 // Two slow particles closing on each other from beyond the margin, in a lattice at rest: the
@@ -154,8 +152,7 @@ TEST(dem_ClosePairs, SlowApproachFromBeyondTheMarginIsCaught) {
   }
   ASSERT_GT(first_contact[0], 100);
   EXPECT_EQ(first_contact[0], first_contact[1]);
-  int arrays = 0;
-  EXPECT_EQ(differing_arrays(result[0], result[1], &arrays), "");
+  EXPECT_EQ(dem::differing_arrays(result[0], result[1]), "");
 }
 
 }  // namespace

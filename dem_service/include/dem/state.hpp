@@ -6,6 +6,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <string>
 #include <type_traits>
 #include <vector>
 
@@ -137,6 +138,10 @@ inline std::size_t bytes(const State& s) {
   });
   return b;
 }
+
+// The names of the arrays of State whose sizes or bytes differ between a and b, each after a
+// space; empty when every array is the same, bit for bit (the checks of runs that must agree).
+std::string differing_arrays(const State& a, const State& b);
 
 // Fills pair_row_offset and pair_row from pair_offset and pair_j.
 void build_pair_rows(State& s);
