@@ -1122,6 +1122,11 @@ std::size_t Engine::workspace_bytes() const {
                   row_mark_.capacity() * sizeof(std::int32_t);
   for (const auto& v : tool_vertices_) b += v.capacity() * sizeof(Vec3);
   for (const auto& v : remote_) b += v.capacity() * sizeof(detail::PairRemote);
+  const ClosePairs& c = close_;  // close pairs (scene.close_margin)
+  b += (c.offset.capacity() + c.partner.capacity() + c.index.capacity() + c.count.capacity()) *
+           sizeof(std::int32_t) +
+       (c.spring.capacity() + c.x_at.capacity()) * sizeof(Vec3) + c.keep.capacity() +
+       c.fast.capacity() + c.thread_base.capacity() * sizeof(std::int64_t);
   return b;
 }
 
