@@ -569,6 +569,9 @@ void Engine::step(State& s) {
 constexpr double kCloseSteps = 400;
 // The margin the check allows: a little below the listed one (the rounding of the distances).
 constexpr double kCloseSlack = 0.999;
+// Above this share of the candidates kept (a gas, or most particles fast), the half list is
+// read: the copies cost more than the few pairs they spare.
+constexpr double kCloseMaxShare = 0.9;
 
 bool Engine::close_pairs_hold(const State& s) const {
   const ClosePairs& c = close_;
@@ -589,7 +592,6 @@ void Engine::list_close_pairs(State& s) {
   const double fast = margin / (2 * kCloseSteps * scene_.dt);
   const double fast2 = fast * fast;
   c.offset.resize(n + 1);
-  c.count.resize(n);
   c.fast.resize(n);
   c.x_at.resize(n);
   c.keep.resize(s.pair_j.size());
@@ -617,19 +619,16 @@ void Engine::list_close_pairs(State& s) {
       const Vec3 xi = X[i];
       const double ri = R[i];
       const bool fi = c.fast[i];
-      std::int32_t row = 0;
       for (std::int32_t k = off[i]; k < off[i + 1]; ++k) {
         const std::int32_t j = J[k];
         const double reach = ri + R[j] + margin;
         const bool keep = fi || c.fast[j] || norm2(xi - X[j]) < reach * reach;
         c.keep[k] = keep;
-        row += keep;
+        kept += keep;
         // Farther apart than the margin: out of contact this step, so the pair loop would
         // clear its history now; it is cleared here.
         if (!keep && nonzero(spring[k])) spring[k] = Vec3{};
       }
-      c.count[i] = row;
-      kept += row;
     }
     c.thread_base[t + 1] = kept;
 #pragma omp barrier
@@ -665,9 +664,7 @@ void Engine::list_close_pairs(State& s) {
   c.d1 = c.d2 = 0;
   c.u2 = slow_u2;
   close_share_ = c.candidates ? static_cast<double>(c.thread_base[T]) / c.candidates : 0;
-  // Nearly every candidate kept (a gas, or most particles fast): the indirection costs more
-  // than the few pairs it spares.
-  c.use = close_share_ <= 0.9;
+  c.use = close_share_ <= kCloseMaxShare;
   ++close_builds_;
 }
 
@@ -1123,7 +1120,7 @@ std::size_t Engine::workspace_bytes() const {
   for (const auto& v : tool_vertices_) b += v.capacity() * sizeof(Vec3);
   for (const auto& v : remote_) b += v.capacity() * sizeof(detail::PairRemote);
   const ClosePairs& c = close_;  // close pairs (scene.close_margin)
-  b += (c.offset.capacity() + c.partner.capacity() + c.index.capacity() + c.count.capacity()) *
+  b += (c.offset.capacity() + c.partner.capacity() + c.index.capacity()) *
            sizeof(std::int32_t) +
        (c.spring.capacity() + c.x_at.capacity()) * sizeof(Vec3) + c.keep.capacity() +
        c.fast.capacity() + c.thread_base.capacity() * sizeof(std::int64_t);
@@ -1140,7 +1137,9 @@ std::string close_pairs_summary(const Engine& engine, long long steps) {
                 "Close pairs: listed %lld times in %lld steps; the last listing kept %.1f %% of "
                 "the candidates%s",
                 static_cast<long long>(engine.close_builds()), steps, 100 * engine.close_share(),
-                engine.close_share() > 0.9 ? " (over 90 %: every candidate read instead)" : "");
+                engine.close_builds() == 0 || engine.close_used()
+                    ? ""
+                    : " (over 90 %: every candidate read instead)");
   return line;
 }
 

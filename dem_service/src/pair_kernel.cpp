@@ -200,7 +200,7 @@ struct ChunkIn {
   __m512d xix, xiy, xiz, uix, uiy, uiz, ri, mi;  // the i side of each lane
   __m256i j;                                     // partners (0 in dead lanes)
   const std::int32_t* jl;                        // the same, stored
-  const std::int32_t* kl;                        // Indexed: the lanes' springs (0 in dead lanes)
+  const std::int32_t* kl;                        // Indexed: the homes of the lanes' springs
   __mmask8 live;                                 // lanes to compute
   int left;                                      // candidates from this chunk's first on
 };
@@ -278,7 +278,8 @@ struct ChunkKernel {
   // their parts are computed without a branch (a branch taken at random costs more than the
   // masked lanes). Else (row by row, 61 % of the lanes used) they are skipped when no lane
   // needs them.
-  // Indexed: the springs of the lanes are spring[in.kl[l]] (close pairs), else spring[k + l].
+  // Indexed (close pairs): the springs at spring + k are copies; each one written is also
+  // written to its home, spring_home[in.kl[l]].
   template <bool Full, bool Indexed = false>
   DEM_AVX512 ChunkOut compute(const ChunkIn& in, std::int32_t k);
   // The two kernels (below): row by row with the sleeping rules, or the stream of pairs.

@@ -84,6 +84,7 @@ class Engine {
   // list's candidates the last listing kept (0 if never listed).
   std::int64_t close_builds() const { return close_builds_; }
   double close_share() const { return close_share_; }
+  bool close_used() const { return close_.use; }  // false: the last listing kept too many
   // The broad phase's own stages (grid, sort, permute, ...): where section broad_phase goes.
   const cosim::Timer& broad_phase_stages() const { return broad_.stages(); }
   cosim::Timer& broad_phase_stages() { return broad_.stages(); }
@@ -132,7 +133,6 @@ class Engine {
   struct ClosePairs {
     std::vector<std::int32_t> offset, partner, index;  // CSR rows; index: the pair in the half list
     std::vector<Vec3> spring;  // copies of their springs, in their order (both are written)
-    std::vector<std::int32_t> count;                   // per row, while listing
     std::vector<std::uint8_t> keep, fast;              // per candidate; per particle
     std::vector<Vec3> x_at;                            // positions when listed
     std::vector<std::int64_t> thread_base;
