@@ -11,6 +11,7 @@
 #include <limits>
 #include <mutex>
 #include <sstream>
+#include <thread>
 
 #include "dem/contact_law.hpp"
 #include "dem/mesh_contact.hpp"
@@ -668,6 +669,40 @@ void Engine::list_close_pairs(State& s) {
   ++close_builds_;
 }
 
+// Pair blocks: about kPairBlocks of them, none shorter than kPairBlockMin rows (a function of
+// the lists alone, never of the thread count, so the sums are the same on any number of
+// threads). Block k + 2 starts after the last partner of block k, so block k's partners lie
+// in blocks k and k + 1.
+constexpr std::size_t kPairBlocks = 64;
+constexpr std::size_t kPairBlockMin = 512;
+
+void Engine::make_pair_blocks(const State& s) {
+  PairBlocks& b = blocks_;
+  const std::size_t n = s.size();
+  if (b.state == &s && b.size == n && b.candidates == s.pair_j.size() &&
+      b.rebuilds == s.rebuilds && b.built_at == s.step - s.steps_since_rebuild)
+    return;
+  const std::int32_t* const off = s.pair_offset.data();
+  const std::int32_t* const J = s.pair_j.data();
+  const std::size_t target = std::max(kPairBlockMin, n / kPairBlocks);
+  b.start.assign(1, 0);
+  if (n > 0) b.start.push_back(std::min(n, target));
+  while (b.start.back() < n) {
+    const std::size_t k0 = b.start[b.start.size() - 2], k1 = b.start.back();
+    std::size_t reach = k1;  // one past the last partner of block [k0, k1)
+    for (std::int32_t q = off[k0]; q < off[k1]; ++q)
+      reach = std::max(reach, static_cast<std::size_t>(J[q]) + 1);
+    b.start.push_back(std::min(n, std::max(k1 + target, reach)));
+  }
+  b.done.assign(b.start.size() - 1, 0);
+  b.pass = 0;
+  b.state = &s;
+  b.size = n;
+  b.candidates = s.pair_j.size();
+  b.rebuilds = s.rebuilds;
+  b.built_at = s.step - s.steps_since_rebuild;
+}
+
 void Engine::pair_forces(State& s) {
   if (scene_.sleep.enabled)
     pair_forces_impl<true>(s);
@@ -758,6 +793,77 @@ void Engine::pair_forces_impl(State& s) {
     }
   }
   const bool vector = vector_pairs.load(std::memory_order_relaxed);
+  if (scene_.pair_schedule == PairSchedule::blocks) {
+    make_pair_blocks(s);
+    PairBlocks& b = blocks_;
+    const std::int64_t K = static_cast<std::int64_t>(b.start.size()) - 1;
+    const std::int64_t evens = (K + 1) / 2;
+    const std::int64_t pass = ++b.pass;
+    b.next = 0;
+    const std::size_t* const B = b.start.data();
+    std::int64_t* const DONE = b.done.data();
+    rows.direct_end = n;  // a block's partners: in it or in the next block (made so)
+#pragma omp parallel num_threads(T)
+    {
+      const int t = omp_get_thread_num();
+      if (skip_rows) {
+        const std::int32_t* const ro = s.pair_row_offset.data();
+        const std::int32_t* const rr = s.pair_row.data();
+        for (std::size_t j = bounds_[t]; j < bounds_[t + 1]; ++j) {
+          if (REST[j] >= S) continue;
+          for (std::int32_t q = ro[j]; q < ro[j + 1]; ++q) {
+            const std::int32_t i = rr[q];
+            if (REST[i] >= S) __atomic_store_n(&MARK[i], stamp, __ATOMIC_RELAXED);
+          }
+        }
+#pragma omp barrier
+      }
+      std::vector<detail::PairRemote> remote;  // stays empty: every partner is direct
+      std::vector<std::int32_t> remote_wake;
+      detail::PairSleep sl = sleep_rules;
+      sl.remote_wake = &remote_wake;
+      detail::PairRowStats st;
+      for (;;) {
+        const std::int64_t task = __atomic_fetch_add(&b.next, 1, __ATOMIC_RELAXED);
+        if (task >= K) break;
+        const std::int64_t k = task < evens ? 2 * task : 2 * (task - evens) + 1;
+        if (k % 2 == 0) {
+          // This block's and the next block's particles start from gravity (no one else
+          // writes the next block before this block is done).
+          const std::size_t i1 = B[std::min(k + 2, K)];
+          if (Sleep) {
+            for (std::size_t i = B[k]; i < i1; ++i) {
+              force_[i] = REST[i] >= S ? Vec3{} : s.mass[i] * g;  // a sleeper feels no gravity
+              WAKE[i] = 0;
+            }
+          } else {
+            for (std::size_t i = B[k]; i < i1; ++i) force_[i] = s.mass[i] * g;
+          }
+        } else {
+          // The even blocks beside it: the one before has set up this block and written into
+          // it, the one after is written into by this one.
+          int spins = 0;
+          while (__atomic_load_n(&DONE[k - 1], __ATOMIC_ACQUIRE) != pass ||
+                 (k + 1 < K && __atomic_load_n(&DONE[k + 1], __ATOMIC_ACQUIRE) != pass)) {
+            if (++spins < 4000) {
+#if defined(__x86_64__) || defined(__i386__)
+              __builtin_ia32_pause();
+#endif
+            } else {
+              std::this_thread::yield();
+            }
+          }
+        }
+        if (Sleep)
+          detail::pair_rows_sleep(rows, sl, B[k], B[k + 1], remote, st, vector);
+        else
+          detail::pair_rows(rows, B[k], B[k + 1], remote, st, vector);
+        __atomic_store_n(&DONE[k], pass, __ATOMIC_RELEASE);
+      }
+      thread_stats_[t] = ContactStats{st.contacts, 0, st.max_overlap, st.max_overlap_ratio};
+    }
+    return;
+  }
 #pragma omp parallel num_threads(T)
   {
     const int t = omp_get_thread_num();
