@@ -166,7 +166,8 @@ void parse_region(const YAML::Node& r, RegionOptions& o) {
 void parse_scene_options(const YAML::Node& s, Scene& sc) {
   if (!s) throw ConfigError("scene: missing (expected a map with dt, gravity, ...)");
   cfg::check_keys(s, "scene", {"dt", "gravity", "broad_phase_interval", "skin", "close_margin",
-                               "pair_schedule", "guard", "threads", "min_particles_per_thread", "thread_wait",
+                               "pair_schedule", "guard", "threads", "min_particles_per_thread",
+                               "thread_wait",
                                "stability", "sleep", "region"});
   sc.dt = cfg::get_positive(s, "scene", "dt");
   if (s["gravity"]) sc.gravity = vec3(s, "scene", "gravity");

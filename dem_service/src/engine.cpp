@@ -149,10 +149,8 @@ Engine::Engine(const Scene& scene) : scene_(scene) {
   max_threads_ = threads_ = std::max(1, scene.threads);
   remote_.resize(max_threads_);
   remote_wake_.resize(max_threads_);
-  thread_tool_wrench_.assign(max_threads_, std::vector<Wrench>(scene.tools.size()));
   thread_stats_.assign(max_threads_, ContactStats{});
   boundary_stats_.assign(max_threads_, ContactStats{});
-  thread_wall_force_.assign(max_threads_, std::vector<Vec3>(scene.walls.size()));
   tool_wrench_.resize(scene.tools.size());
   wall_force_.resize(scene.walls.size());
   tool_vertices_.resize(scene.tools.size());
@@ -674,6 +672,7 @@ void Engine::list_close_pairs(State& s) {
 // threads). Block k + 2 starts after the last partner of block k, so block k's partners lie
 // in blocks k and k + 1.
 constexpr std::size_t kPairBlocks = 64;
+constexpr std::size_t kBoundaryChunks = 64;  // see boundary_forces
 constexpr std::size_t kPairBlockMin = 512;
 
 void Engine::make_pair_blocks(const State& s) {
@@ -924,89 +923,95 @@ void Engine::boundary_forces(State& s) {
   std::fill(boundary_stats_.begin(), boundary_stats_.end(), ContactStats{});
   if (ntools == 0 && nwalls == 0) return;
   std::int64_t overflow = -1;
+  // Only particles with a slot block can touch a wall or a tool (the broad phase handed the
+  // blocks out). They are cut into chunks, a number that depends on the blocks alone; each chunk
+  // sums its tools' and walls' forces on its own, threads take the chunks as they come free,
+  // and the chunks' sums are added in chunk order: the same bits on any thread count.
+  const std::size_t nb = s.slot_particle.size();
+  const std::size_t C = std::max<std::size_t>(1, std::min(kBoundaryChunks, nb));
+  chunk_tool_wrench_.assign(C * ntools, Wrench{});
+  chunk_wall_force_.assign(C * nwalls, Vec3{});
 #pragma omp parallel num_threads(T)
   {
     const int t = omp_get_thread_num();
-    auto& tw = thread_tool_wrench_[t];
-    auto& wf = thread_wall_force_[t];
-    std::fill(tw.begin(), tw.end(), Wrench{});
-    std::fill(wf.begin(), wf.end(), Vec3{});
     BoundaryContact cs[kBoundarySlots];
     TriangleHit hits[kMaxHits];
     std::int64_t my_overflow = -1;
     ContactStats my_stats;
-    // Only particles with a slot block can touch a wall or a tool (the broad phase handed the
-    // blocks out): threads share those equally, wherever they are in the bed.
-    const std::size_t nb = s.slot_particle.size();
-    const std::size_t k0 = nb * t / T, k1 = nb * (t + 1) / T;
     const bool sleep_on = scene_.sleep.enabled;
     const std::int32_t S = scene_.sleep.steps;
-    for (std::size_t k = k0; k < k1; ++k) {
-      const std::size_t i = static_cast<std::size_t>(s.slot_particle[k]);
-      // A sleeper has no wall or mesh forces; its boundary history stays as it was.
-      if (sleep_on && s.rest_steps[i] >= S) continue;
-      // Nothing near and nothing remembered.
-      if (s.wall_mask[i] == 0 && s.tri_offset[i] == s.tri_offset[i + 1] && s.slot_count[i] == 0)
-        continue;
-      const int nc = gather_boundary(scene_, s, i, tool_vertices_, cs, hits, dt);
-      if (nc < 0) {
-        if (my_overflow < 0) my_overflow = static_cast<std::int64_t>(i);
-        continue;
-      }
-      const int nold = s.slot_count[i];
-      if (nc == 0 && nold == 0) continue;
-      const std::size_t base = k * kBoundarySlots;  // this particle's block
-      std::uint64_t old_key[kBoundarySlots];
-      Vec3 old_spring[kBoundarySlots], spring[kBoundarySlots];
-      bool used[kBoundarySlots] = {}, matched[kBoundarySlots] = {};
-      // The whole block, a fixed size: a copy of nold entries became a rep movs, slow to start.
-      std::memcpy(old_key, &s.slot_key[base], sizeof old_key);
-      std::memcpy(old_spring, &s.slot_spring[base], sizeof old_spring);
-      for (int c = 0; c < nc; ++c)
-        for (int o = 0; o < nold; ++o)
-          if (!used[o] && old_key[o] == cs[c].key) {
-            spring[c] = old_spring[o];
-            used[o] = matched[c] = true;
-            break;
-          }
-      // A sphere sliding from a face onto an edge or vertex (or on to the next face) keeps its
-      // tangential spring: the new feature inherits from an adjacent one that just ended.
-      for (int c = 0; c < nc; ++c) {
-        if (matched[c]) continue;
-        spring[c] = Vec3{};
-        for (int o = 0; o < nold; ++o)
-          if (!used[o] && shares_vertex(scene_, old_key[o], cs[c].key)) {
-            spring[c] = old_spring[o];
-            used[o] = true;
-            break;
-          }
-      }
-      const double ri = s.radius[i], mi = s.mass[i];
-      const ContactCoefficients coef = coefficients(law, ri, mi);
-      Vec3 fi{};
-      int active = 0;
-      for (int c = 0; c < nc; ++c) {
-        Vec3 f;
-        if (!contact_force(law, coef, cs[c].overlap, cs[c].normal, s.u[i] - cs[c].body_velocity,
-                           spring[c], dt, f))
+#pragma omp for schedule(dynamic, 1) nowait
+    for (std::size_t chunk = 0; chunk < C; ++chunk) {
+      Wrench* const tw = chunk_tool_wrench_.data() + chunk * ntools;
+      Vec3* const wf = chunk_wall_force_.data() + chunk * nwalls;
+      const std::size_t k0 = nb * chunk / C, k1 = nb * (chunk + 1) / C;
+      for (std::size_t k = k0; k < k1; ++k) {
+        const std::size_t i = static_cast<std::size_t>(s.slot_particle[k]);
+        // A sleeper has no wall or mesh forces; its boundary history stays as it was.
+        if (sleep_on && s.rest_steps[i] >= S) continue;
+        // Nothing near and nothing remembered.
+        if (s.wall_mask[i] == 0 && s.tri_offset[i] == s.tri_offset[i + 1] && s.slot_count[i] == 0)
           continue;
-        ++my_stats.boundary_contacts;
-        my_stats.max_overlap = std::max(my_stats.max_overlap, cs[c].overlap);
-        my_stats.max_overlap_ratio = std::max(my_stats.max_overlap_ratio, cs[c].overlap / ri);
-        fi += f;
-        const std::uint32_t body = key_body(cs[c].key);
-        if (key_kind(cs[c].key) == FeatureKind::wall) {
-          wf[body] -= f;
-        } else {
-          tw[body].force -= f;
-          tw[body].torque -= cross(cs[c].point - s.tool_pose[body].position, f);
+        const int nc = gather_boundary(scene_, s, i, tool_vertices_, cs, hits, dt);
+        if (nc < 0) {
+          if (my_overflow < 0) my_overflow = static_cast<std::int64_t>(i);
+          continue;
         }
-        s.slot_key[base + active] = cs[c].key;
-        s.slot_spring[base + active] = spring[c];
-        ++active;
+        const int nold = s.slot_count[i];
+        if (nc == 0 && nold == 0) continue;
+        const std::size_t base = k * kBoundarySlots;  // this particle's block
+        std::uint64_t old_key[kBoundarySlots];
+        Vec3 old_spring[kBoundarySlots], spring[kBoundarySlots];
+        bool used[kBoundarySlots] = {}, matched[kBoundarySlots] = {};
+        // The whole block, a fixed size: a copy of nold entries became a rep movs, slow to start.
+        std::memcpy(old_key, &s.slot_key[base], sizeof old_key);
+        std::memcpy(old_spring, &s.slot_spring[base], sizeof old_spring);
+        for (int c = 0; c < nc; ++c)
+          for (int o = 0; o < nold; ++o)
+            if (!used[o] && old_key[o] == cs[c].key) {
+              spring[c] = old_spring[o];
+              used[o] = matched[c] = true;
+              break;
+            }
+        // A sphere sliding from a face onto an edge or vertex (or on to the next face) keeps its
+        // tangential spring: the new feature inherits from an adjacent one that just ended.
+        for (int c = 0; c < nc; ++c) {
+          if (matched[c]) continue;
+          spring[c] = Vec3{};
+          for (int o = 0; o < nold; ++o)
+            if (!used[o] && shares_vertex(scene_, old_key[o], cs[c].key)) {
+              spring[c] = old_spring[o];
+              used[o] = true;
+              break;
+            }
+        }
+        const double ri = s.radius[i], mi = s.mass[i];
+        const ContactCoefficients coef = coefficients(law, ri, mi);
+        Vec3 fi{};
+        int active = 0;
+        for (int c = 0; c < nc; ++c) {
+          Vec3 f;
+          if (!contact_force(law, coef, cs[c].overlap, cs[c].normal, s.u[i] - cs[c].body_velocity,
+                             spring[c], dt, f))
+            continue;
+          ++my_stats.boundary_contacts;
+          my_stats.max_overlap = std::max(my_stats.max_overlap, cs[c].overlap);
+          my_stats.max_overlap_ratio = std::max(my_stats.max_overlap_ratio, cs[c].overlap / ri);
+          fi += f;
+          const std::uint32_t body = key_body(cs[c].key);
+          if (key_kind(cs[c].key) == FeatureKind::wall) {
+            wf[body] -= f;
+          } else {
+            tw[body].force -= f;
+            tw[body].torque -= cross(cs[c].point - s.tool_pose[body].position, f);
+          }
+          s.slot_key[base + active] = cs[c].key;
+          s.slot_spring[base + active] = spring[c];
+          ++active;
+        }
+        s.slot_count[i] = static_cast<std::uint8_t>(active);
+        force_[i] += fi;
       }
-      s.slot_count[i] = static_cast<std::uint8_t>(active);
-      force_[i] += fi;
     }
     boundary_stats_[t] = my_stats;
 #pragma omp critical(dem_overflow)
@@ -1021,18 +1026,18 @@ void Engine::boundary_forces(State& s) {
         << "than the particles (coarsen it) or the particle was pushed through it (lower dt)";
     throw SimulationError(msg.str());
   }
-  // Reduce per-thread sums in fixed thread order.
+  // The chunks' sums in chunk order.
   for (std::size_t m = 0; m < ntools; ++m) {
     Wrench w{};
-    for (int t = 0; t < T; ++t) {
-      w.force += thread_tool_wrench_[t][m].force;
-      w.torque += thread_tool_wrench_[t][m].torque;
+    for (std::size_t c = 0; c < C; ++c) {
+      w.force += chunk_tool_wrench_[c * ntools + m].force;
+      w.torque += chunk_tool_wrench_[c * ntools + m].torque;
     }
     tool_wrench_[m] = w;
   }
   for (std::size_t w = 0; w < nwalls; ++w) {
     Vec3 f{};
-    for (int t = 0; t < T; ++t) f += thread_wall_force_[t][w];
+    for (std::size_t c = 0; c < C; ++c) f += chunk_wall_force_[c * nwalls + w];
     wall_force_[w] = f;
   }
 }

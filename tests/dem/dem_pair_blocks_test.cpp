@@ -2,12 +2,14 @@
 // whose partners lie in the block or the next one, evens first, an odd block when the even
 // blocks beside it are done. Every sum is then made in an order that does not depend on the
 // number of threads or on which thread took which block: a run is the same bit for bit on 1, 2
-// and 3 threads, with either kernel, with close pairs and with sleepers. Against the ranges
+// and 3 threads, with either kernel, with close pairs and with sleepers, and so are the forces
+// on walls and tools (their sums are made per fixed chunk of particles, then in chunk order). Against the ranges
 // schedule only the summation order differs, so the forces agree to rounding.
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <random>
 
 #include "dem_test_util.hpp"
@@ -32,6 +34,11 @@ dem::Scene blocks_scene(int threads) {
   floor.point = {0, 0, -1.5e-3};
   floor.normal = {0, 0, 1};
   scene.walls.push_back(floor);
+  // A plate across the thrown grains' path (x = 27 mm), reached after about 200 steps.
+  std::vector<Vec3> corners;
+  demtest::quad(corners, {0.027, -0.005, -0.002}, {0.027, 0.03, -0.002}, {0.027, 0.03, 0.1},
+                {0.027, -0.005, 0.1});
+  scene.tools.push_back(demtest::static_tool("plate", corners));
   return scene;
 }
 
@@ -47,22 +54,31 @@ dem::State blocks_state() {
     if (k % 25 == 0) v = {0.5, 0.1 * (U01(rng) - 0.5), -0.2};
     demtest::add(st, {pitch * (k % 12), pitch * ((k / 12) % 12), pitch * (k / 144)}, v, r);
   }
+  st.tool_pose.resize(1);
   return st;
 }
 
+bool same_bits(const Vec3& a, const Vec3& b) { return std::memcmp(&a, &b, sizeof a) == 0; }
+
 struct BlockRun {
   dem::State state;
+  std::vector<dem::Wrench> plate;  // the tool's wrench, every step
+  std::vector<dem::Vec3> floor;    // the floor's force, every step
   std::size_t blocks = 0;
-  std::int64_t contact_steps = 0, sleeper_steps = 0;
+  std::int64_t contact_steps = 0, sleeper_steps = 0, tool_contact_steps = 0;
 };
 
 BlockRun run(dem::Scene scene, int steps) {
   BlockRun r;
   r.state = blocks_state();
+  r.state.tool_pose.resize(scene.tools.size());
   dem::Engine engine(scene);
   for (int k = 0; k < steps; ++k) {
     engine.step(r.state);
     r.contact_steps += engine.contact_stats().particle_contacts;
+    r.tool_contact_steps += engine.contact_stats().boundary_contacts;
+    if (!scene.tools.empty()) r.plate.push_back(engine.tool_wrenches()[0]);
+    r.floor.push_back(engine.wall_forces()[0]);
     r.sleeper_steps += engine.sleeping();
     if (!engine.pair_block_starts().empty())
       r.blocks = std::max(r.blocks, engine.pair_block_starts().size() - 1);
@@ -107,6 +123,8 @@ TEST(dem_PairBlocks, SameBitsOnOneTwoAndThreeThreads) {
         BlockRun r = run(scene, 400);
         EXPECT_GE(r.blocks, 6u);
         EXPECT_GT(r.contact_steps, 40000);  // about 160 touching pairs per step
+        EXPECT_GT(r.tool_contact_steps, 1000);  // floor and plate contacts
+        EXPECT_GT(std::abs(r.plate.back().force.x), 0.0);  // the plate is hit
         if (threads == 1) {
           one = std::move(r);
           continue;
@@ -114,6 +132,14 @@ TEST(dem_PairBlocks, SameBitsOnOneTwoAndThreeThreads) {
         EXPECT_EQ(dem::differing_arrays(one.state, r.state), "")
             << threads << " threads against 1, margin " << margin << ", "
             << (vector ? "vector" : "scalar") << " kernel";
+        // The forces on the plate and the floor, every step: summed per chunk, then in order.
+        ASSERT_EQ(r.plate.size(), one.plate.size());
+        for (std::size_t k = 0; k < r.plate.size(); ++k) {
+          EXPECT_TRUE(same_bits(r.plate[k].force, one.plate[k].force) &&
+                      same_bits(r.plate[k].torque, one.plate[k].torque) &&
+                      same_bits(r.floor[k], one.floor[k]))
+              << "step " << k << ", " << threads << " threads";
+        }
       }
     }
   }
@@ -132,6 +158,7 @@ TEST(dem_PairBlocks, SameBitsOnOneAndTwoThreadsWithSleepers) {
       scene.sleep.speed = 2e-2;  // the creeping grains fall asleep, the thrown ones wake them
       scene.sleep.steps = 20;
       scene.sleep.tool_distance = 0;
+      scene.tools.clear();  // its neighbourhood would keep the lattice awake
       r[threads - 1] = run(scene, 400);
     }
     EXPECT_GT(r[0].sleeper_steps, 100000);
@@ -161,7 +188,8 @@ TEST(dem_PairBlocks, RangesGiveTheSameForcesToRounding) {
   }
   EXPECT_GT(scale, 0.1);
   EXPECT_LT(worst, 1e-10 * scale);
-  EXPECT_NE(dem::differing_arrays(st[0], st[1]), "");  // the order did change: not the same code path
+  // The order did change: the two schedules are not one code path.
+  EXPECT_NE(dem::differing_arrays(st[0], st[1]), "");
 }
 
 }  // namespace

@@ -222,8 +222,8 @@ class Engine {
   void build_mesh_grids();
   bool unlisted_triangle_near(const State& s, std::size_t e, std::size_t m, double reach) const;
   std::int64_t removed_last_ = 0;
-  std::vector<std::vector<Wrench>> thread_tool_wrench_;  // per thread
-  std::vector<std::vector<Vec3>> thread_wall_force_;     // per thread
+  std::vector<Wrench> chunk_tool_wrench_;  // boundary_forces: per chunk of slot blocks and tool
+  std::vector<Vec3> chunk_wall_force_;     // per chunk and wall
   std::vector<ContactStats> thread_stats_, boundary_stats_;  // per thread
   ContactStats stats_;
   std::vector<Wrench> tool_wrench_;

@@ -55,8 +55,9 @@ struct PairRowStats {
 
 // Rows i in [a0, a1): force[i] gains the sum of its pairs' forces (in pair order), each
 // partner j < a1 (or PairRows::direct_end) loses its pair's force directly, a later partner is
-// appended to `remote` (in pair order). Springs of active pairs advance; springs of pairs out of contact are
-// cleared. `vector` asks for the AVX-512 version (used only if pair_rows_vector_available()).
+// appended to `remote` (in pair order). Springs of active pairs advance; springs of pairs out
+// of contact are cleared. `vector` asks for the AVX-512 version (used only if
+// pair_rows_vector_available()).
 void pair_rows(const PairRows& p, std::size_t a0, std::size_t a1, std::vector<PairRemote>& remote,
                PairRowStats& stats, bool vector);
 
