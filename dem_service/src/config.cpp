@@ -166,7 +166,8 @@ void parse_region(const YAML::Node& r, RegionOptions& o) {
 void parse_scene_options(const YAML::Node& s, Scene& sc) {
   if (!s) throw ConfigError("scene: missing (expected a map with dt, gravity, ...)");
   cfg::check_keys(s, "scene", {"dt", "gravity", "broad_phase_interval", "skin", "close_margin",
-                               "guard", "threads", "min_particles_per_thread", "thread_wait",
+                               "pair_schedule", "guard", "threads", "min_particles_per_thread",
+                               "thread_wait",
                                "stability", "sleep", "region"});
   sc.dt = cfg::get_positive(s, "scene", "dt");
   if (s["gravity"]) sc.gravity = vec3(s, "scene", "gravity");
@@ -183,6 +184,11 @@ void parse_scene_options(const YAML::Node& s, Scene& sc) {
         << "), a fraction of r_max like the skin, e.g. 0.08; 0 turns close pairs off";
     throw ConfigError(msg.str());
   }
+  sc.pair_schedule =
+      cfg::get_choice(s, "scene", "pair_schedule", {"blocks", "ranges"},
+                      sc.pair_schedule == PairSchedule::blocks ? "blocks" : "ranges") == "blocks"
+          ? PairSchedule::blocks
+          : PairSchedule::ranges;
   const bool strict = sc.guard == GuardMode::strict;
   sc.guard = cfg::get_choice(s, "scene", "guard", {"rebuild", "strict"},
                              strict ? "strict" : "rebuild") == "strict"

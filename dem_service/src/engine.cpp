@@ -11,6 +11,7 @@
 #include <limits>
 #include <mutex>
 #include <sstream>
+#include <thread>
 
 #include "dem/contact_law.hpp"
 #include "dem/mesh_contact.hpp"
@@ -148,10 +149,8 @@ Engine::Engine(const Scene& scene) : scene_(scene) {
   max_threads_ = threads_ = std::max(1, scene.threads);
   remote_.resize(max_threads_);
   remote_wake_.resize(max_threads_);
-  thread_tool_wrench_.assign(max_threads_, std::vector<Wrench>(scene.tools.size()));
   thread_stats_.assign(max_threads_, ContactStats{});
   boundary_stats_.assign(max_threads_, ContactStats{});
-  thread_wall_force_.assign(max_threads_, std::vector<Vec3>(scene.walls.size()));
   tool_wrench_.resize(scene.tools.size());
   wall_force_.resize(scene.walls.size());
   tool_vertices_.resize(scene.tools.size());
@@ -668,6 +667,54 @@ void Engine::list_close_pairs(State& s) {
   ++close_builds_;
 }
 
+// Pair blocks: about kPairBlocks of them, none shorter than kPairBlockMin rows (a function of
+// the lists alone, never of the thread count, so the sums are the same on any number of
+// threads). Block k + 2 starts after the last partner of block k, so block k's partners lie
+// in blocks k and k + 1.
+constexpr std::size_t kPairBlocks = 64;
+constexpr std::size_t kBoundaryChunks = 64;  // see boundary_forces
+constexpr std::size_t kPairBlockMin = 512;
+
+void Engine::make_pair_blocks(const State& s) {
+  PairBlocks& b = blocks_;
+  const std::size_t n = s.size();
+  if (b.state == &s && b.size == n && b.candidates == s.pair_j.size() &&
+      b.rebuilds == s.rebuilds && b.built_at == s.step - s.steps_since_rebuild)
+    return;
+  const std::int32_t* const off = s.pair_offset.data();
+  const std::int32_t* const J = s.pair_j.data();
+  const std::size_t target = std::max(kPairBlockMin, n / kPairBlocks);
+  b.start.assign(1, 0);
+  if (n > 0) b.start.push_back(std::min(n, target));
+  while (b.start.back() < n) {
+    const std::size_t k0 = b.start[b.start.size() - 2], k1 = b.start.back();
+    std::size_t reach = k1;  // one past the last partner of block [k0, k1)
+    for (std::int32_t q = off[k0]; q < off[k1]; ++q)
+      reach = std::max(reach, static_cast<std::size_t>(J[q]) + 1);
+    b.start.push_back(std::min(n, std::max(k1 + target, reach)));
+  }
+  const std::int32_t K = static_cast<std::int32_t>(b.start.size()) - 1;
+  b.done.assign(K, 0);
+  // The order the blocks are taken in: the evens, each odd block two evens after its right
+  // neighbour (E0 E2 E4 O1 E6 O3 ...), so that one thread walks the rows nearly in order and
+  // a second rarely waits for an odd block's neighbours.
+  b.order.clear();
+  const std::int32_t evens = (K + 1) / 2, odds = K / 2;
+  for (std::int32_t e = 0, o = 0; e < evens || o < odds;) {
+    if (e < evens) b.order.push_back(2 * e++);
+    if (o < odds && (e == evens || e - 1 >= o + 2)) {
+      b.order.push_back(2 * o + 1);
+      ++o;
+    }
+  }
+  b.pass = 0;
+  b.state = &s;
+  b.size = n;
+  b.candidates = s.pair_j.size();
+  b.rebuilds = s.rebuilds;
+  b.built_at = s.step - s.steps_since_rebuild;
+}
+
 void Engine::pair_forces(State& s) {
   if (scene_.sleep.enabled)
     pair_forces_impl<true>(s);
@@ -758,6 +805,76 @@ void Engine::pair_forces_impl(State& s) {
     }
   }
   const bool vector = vector_pairs.load(std::memory_order_relaxed);
+  if (scene_.pair_schedule == PairSchedule::blocks) {
+    make_pair_blocks(s);
+    PairBlocks& b = blocks_;
+    const std::int64_t K = static_cast<std::int64_t>(b.start.size()) - 1;
+    const std::int64_t pass = ++b.pass;
+    b.next = 0;
+    const std::size_t* const B = b.start.data();
+    std::int64_t* const DONE = b.done.data();
+    rows.direct_end = n;  // a block's partners: in it or in the next block (made so)
+#pragma omp parallel num_threads(T)
+    {
+      const int t = omp_get_thread_num();
+      if (skip_rows) {
+        const std::int32_t* const ro = s.pair_row_offset.data();
+        const std::int32_t* const rr = s.pair_row.data();
+        for (std::size_t j = bounds_[t]; j < bounds_[t + 1]; ++j) {
+          if (REST[j] >= S) continue;
+          for (std::int32_t q = ro[j]; q < ro[j + 1]; ++q) {
+            const std::int32_t i = rr[q];
+            if (REST[i] >= S) __atomic_store_n(&MARK[i], stamp, __ATOMIC_RELAXED);
+          }
+        }
+#pragma omp barrier
+      }
+      std::vector<detail::PairRemote> remote;  // stays empty: every partner is direct
+      std::vector<std::int32_t> remote_wake;
+      detail::PairSleep sl = sleep_rules;
+      sl.remote_wake = &remote_wake;
+      detail::PairRowStats st;
+      for (;;) {
+        const std::int64_t task = __atomic_fetch_add(&b.next, 1, __ATOMIC_RELAXED);
+        if (task >= K) break;
+        const std::int64_t k = b.order[task];
+        if (k % 2 == 0) {
+          // This block's and the next block's particles start from gravity (no one else
+          // writes the next block before this block is done).
+          const std::size_t i1 = B[std::min(k + 2, K)];
+          if (Sleep) {
+            for (std::size_t i = B[k]; i < i1; ++i) {
+              force_[i] = REST[i] >= S ? Vec3{} : s.mass[i] * g;  // a sleeper feels no gravity
+              WAKE[i] = 0;
+            }
+          } else {
+            for (std::size_t i = B[k]; i < i1; ++i) force_[i] = s.mass[i] * g;
+          }
+        } else {
+          // The even blocks beside it: the one before has set up this block and written into
+          // it, the one after is written into by this one.
+          int spins = 0;
+          while (__atomic_load_n(&DONE[k - 1], __ATOMIC_ACQUIRE) != pass ||
+                 (k + 1 < K && __atomic_load_n(&DONE[k + 1], __ATOMIC_ACQUIRE) != pass)) {
+            if (++spins < 4000) {
+#if defined(__x86_64__) || defined(__i386__)
+              __builtin_ia32_pause();
+#endif
+            } else {
+              std::this_thread::yield();
+            }
+          }
+        }
+        if (Sleep)
+          detail::pair_rows_sleep(rows, sl, B[k], B[k + 1], remote, st, vector);
+        else
+          detail::pair_rows(rows, B[k], B[k + 1], remote, st, vector);
+        __atomic_store_n(&DONE[k], pass, __ATOMIC_RELEASE);
+      }
+      thread_stats_[t] = ContactStats{st.contacts, 0, st.max_overlap, st.max_overlap_ratio};
+    }
+    return;
+  }
 #pragma omp parallel num_threads(T)
   {
     const int t = omp_get_thread_num();
@@ -818,89 +935,95 @@ void Engine::boundary_forces(State& s) {
   std::fill(boundary_stats_.begin(), boundary_stats_.end(), ContactStats{});
   if (ntools == 0 && nwalls == 0) return;
   std::int64_t overflow = -1;
+  // Only particles with a slot block can touch a wall or a tool (the broad phase handed the
+  // blocks out). They are cut into chunks, a number that depends on the blocks alone; each chunk
+  // sums its tools' and walls' forces on its own, threads take the chunks as they come free,
+  // and the chunks' sums are added in chunk order: the same bits on any thread count.
+  const std::size_t nb = s.slot_particle.size();
+  const std::size_t C = std::max<std::size_t>(1, std::min(kBoundaryChunks, nb));
+  chunk_tool_wrench_.assign(C * ntools, Wrench{});
+  chunk_wall_force_.assign(C * nwalls, Vec3{});
 #pragma omp parallel num_threads(T)
   {
     const int t = omp_get_thread_num();
-    auto& tw = thread_tool_wrench_[t];
-    auto& wf = thread_wall_force_[t];
-    std::fill(tw.begin(), tw.end(), Wrench{});
-    std::fill(wf.begin(), wf.end(), Vec3{});
     BoundaryContact cs[kBoundarySlots];
     TriangleHit hits[kMaxHits];
     std::int64_t my_overflow = -1;
     ContactStats my_stats;
-    // Only particles with a slot block can touch a wall or a tool (the broad phase handed the
-    // blocks out): threads share those equally, wherever they are in the bed.
-    const std::size_t nb = s.slot_particle.size();
-    const std::size_t k0 = nb * t / T, k1 = nb * (t + 1) / T;
     const bool sleep_on = scene_.sleep.enabled;
     const std::int32_t S = scene_.sleep.steps;
-    for (std::size_t k = k0; k < k1; ++k) {
-      const std::size_t i = static_cast<std::size_t>(s.slot_particle[k]);
-      // A sleeper has no wall or mesh forces; its boundary history stays as it was.
-      if (sleep_on && s.rest_steps[i] >= S) continue;
-      // Nothing near and nothing remembered.
-      if (s.wall_mask[i] == 0 && s.tri_offset[i] == s.tri_offset[i + 1] && s.slot_count[i] == 0)
-        continue;
-      const int nc = gather_boundary(scene_, s, i, tool_vertices_, cs, hits, dt);
-      if (nc < 0) {
-        if (my_overflow < 0) my_overflow = static_cast<std::int64_t>(i);
-        continue;
-      }
-      const int nold = s.slot_count[i];
-      if (nc == 0 && nold == 0) continue;
-      const std::size_t base = k * kBoundarySlots;  // this particle's block
-      std::uint64_t old_key[kBoundarySlots];
-      Vec3 old_spring[kBoundarySlots], spring[kBoundarySlots];
-      bool used[kBoundarySlots] = {}, matched[kBoundarySlots] = {};
-      // The whole block, a fixed size: a copy of nold entries became a rep movs, slow to start.
-      std::memcpy(old_key, &s.slot_key[base], sizeof old_key);
-      std::memcpy(old_spring, &s.slot_spring[base], sizeof old_spring);
-      for (int c = 0; c < nc; ++c)
-        for (int o = 0; o < nold; ++o)
-          if (!used[o] && old_key[o] == cs[c].key) {
-            spring[c] = old_spring[o];
-            used[o] = matched[c] = true;
-            break;
-          }
-      // A sphere sliding from a face onto an edge or vertex (or on to the next face) keeps its
-      // tangential spring: the new feature inherits from an adjacent one that just ended.
-      for (int c = 0; c < nc; ++c) {
-        if (matched[c]) continue;
-        spring[c] = Vec3{};
-        for (int o = 0; o < nold; ++o)
-          if (!used[o] && shares_vertex(scene_, old_key[o], cs[c].key)) {
-            spring[c] = old_spring[o];
-            used[o] = true;
-            break;
-          }
-      }
-      const double ri = s.radius[i], mi = s.mass[i];
-      const ContactCoefficients coef = coefficients(law, ri, mi);
-      Vec3 fi{};
-      int active = 0;
-      for (int c = 0; c < nc; ++c) {
-        Vec3 f;
-        if (!contact_force(law, coef, cs[c].overlap, cs[c].normal, s.u[i] - cs[c].body_velocity,
-                           spring[c], dt, f))
+#pragma omp for schedule(dynamic, 1) nowait
+    for (std::size_t chunk = 0; chunk < C; ++chunk) {
+      Wrench* const tw = chunk_tool_wrench_.data() + chunk * ntools;
+      Vec3* const wf = chunk_wall_force_.data() + chunk * nwalls;
+      const std::size_t k0 = nb * chunk / C, k1 = nb * (chunk + 1) / C;
+      for (std::size_t k = k0; k < k1; ++k) {
+        const std::size_t i = static_cast<std::size_t>(s.slot_particle[k]);
+        // A sleeper has no wall or mesh forces; its boundary history stays as it was.
+        if (sleep_on && s.rest_steps[i] >= S) continue;
+        // Nothing near and nothing remembered.
+        if (s.wall_mask[i] == 0 && s.tri_offset[i] == s.tri_offset[i + 1] && s.slot_count[i] == 0)
           continue;
-        ++my_stats.boundary_contacts;
-        my_stats.max_overlap = std::max(my_stats.max_overlap, cs[c].overlap);
-        my_stats.max_overlap_ratio = std::max(my_stats.max_overlap_ratio, cs[c].overlap / ri);
-        fi += f;
-        const std::uint32_t body = key_body(cs[c].key);
-        if (key_kind(cs[c].key) == FeatureKind::wall) {
-          wf[body] -= f;
-        } else {
-          tw[body].force -= f;
-          tw[body].torque -= cross(cs[c].point - s.tool_pose[body].position, f);
+        const int nc = gather_boundary(scene_, s, i, tool_vertices_, cs, hits, dt);
+        if (nc < 0) {
+          if (my_overflow < 0) my_overflow = static_cast<std::int64_t>(i);
+          continue;
         }
-        s.slot_key[base + active] = cs[c].key;
-        s.slot_spring[base + active] = spring[c];
-        ++active;
+        const int nold = s.slot_count[i];
+        if (nc == 0 && nold == 0) continue;
+        const std::size_t base = k * kBoundarySlots;  // this particle's block
+        std::uint64_t old_key[kBoundarySlots];
+        Vec3 old_spring[kBoundarySlots], spring[kBoundarySlots];
+        bool used[kBoundarySlots] = {}, matched[kBoundarySlots] = {};
+        // The whole block, a fixed size: a copy of nold entries became a rep movs, slow to start.
+        std::memcpy(old_key, &s.slot_key[base], sizeof old_key);
+        std::memcpy(old_spring, &s.slot_spring[base], sizeof old_spring);
+        for (int c = 0; c < nc; ++c)
+          for (int o = 0; o < nold; ++o)
+            if (!used[o] && old_key[o] == cs[c].key) {
+              spring[c] = old_spring[o];
+              used[o] = matched[c] = true;
+              break;
+            }
+        // A sphere sliding from a face onto an edge or vertex (or on to the next face) keeps its
+        // tangential spring: the new feature inherits from an adjacent one that just ended.
+        for (int c = 0; c < nc; ++c) {
+          if (matched[c]) continue;
+          spring[c] = Vec3{};
+          for (int o = 0; o < nold; ++o)
+            if (!used[o] && shares_vertex(scene_, old_key[o], cs[c].key)) {
+              spring[c] = old_spring[o];
+              used[o] = true;
+              break;
+            }
+        }
+        const double ri = s.radius[i], mi = s.mass[i];
+        const ContactCoefficients coef = coefficients(law, ri, mi);
+        Vec3 fi{};
+        int active = 0;
+        for (int c = 0; c < nc; ++c) {
+          Vec3 f;
+          if (!contact_force(law, coef, cs[c].overlap, cs[c].normal, s.u[i] - cs[c].body_velocity,
+                             spring[c], dt, f))
+            continue;
+          ++my_stats.boundary_contacts;
+          my_stats.max_overlap = std::max(my_stats.max_overlap, cs[c].overlap);
+          my_stats.max_overlap_ratio = std::max(my_stats.max_overlap_ratio, cs[c].overlap / ri);
+          fi += f;
+          const std::uint32_t body = key_body(cs[c].key);
+          if (key_kind(cs[c].key) == FeatureKind::wall) {
+            wf[body] -= f;
+          } else {
+            tw[body].force -= f;
+            tw[body].torque -= cross(cs[c].point - s.tool_pose[body].position, f);
+          }
+          s.slot_key[base + active] = cs[c].key;
+          s.slot_spring[base + active] = spring[c];
+          ++active;
+        }
+        s.slot_count[i] = static_cast<std::uint8_t>(active);
+        force_[i] += fi;
       }
-      s.slot_count[i] = static_cast<std::uint8_t>(active);
-      force_[i] += fi;
     }
     boundary_stats_[t] = my_stats;
 #pragma omp critical(dem_overflow)
@@ -915,18 +1038,18 @@ void Engine::boundary_forces(State& s) {
         << "than the particles (coarsen it) or the particle was pushed through it (lower dt)";
     throw SimulationError(msg.str());
   }
-  // Reduce per-thread sums in fixed thread order.
+  // The chunks' sums in chunk order.
   for (std::size_t m = 0; m < ntools; ++m) {
     Wrench w{};
-    for (int t = 0; t < T; ++t) {
-      w.force += thread_tool_wrench_[t][m].force;
-      w.torque += thread_tool_wrench_[t][m].torque;
+    for (std::size_t c = 0; c < C; ++c) {
+      w.force += chunk_tool_wrench_[c * ntools + m].force;
+      w.torque += chunk_tool_wrench_[c * ntools + m].torque;
     }
     tool_wrench_[m] = w;
   }
   for (std::size_t w = 0; w < nwalls; ++w) {
     Vec3 f{};
-    for (int t = 0; t < T; ++t) f += thread_wall_force_[t][w];
+    for (std::size_t c = 0; c < C; ++c) f += chunk_wall_force_[c * nwalls + w];
     wall_force_[w] = f;
   }
 }

@@ -40,7 +40,7 @@ inline void add_stats(PairRowStats& stats, std::int64_t contacts, double max_ove
 
 template <bool Sleep>
 void pair_rows_scalar(const PairRows& p, const PairSleep& sl, std::size_t a0, std::size_t a1,
-                      std::vector<PairRemote>& remote, PairRowStats& stats) {
+                      std::size_t direct, std::vector<PairRemote>& remote, PairRowStats& stats) {
   const ContactLaw law = p.law;  // a local copy: no reloads after stores
   const double dt = p.dt;
   const Vec3* const X = p.x;
@@ -89,7 +89,7 @@ void pair_rows_scalar(const PairRows& p, const PairSleep& sl, std::size_t a0, st
         // Contact ended: history is forgotten (write only if there is something to clear).
         if (nonzero(sk)) {
           // A sleeper whose contact with an awake particle ends may have lost its support.
-          if (Sleep && (si || sj)) wake(sl, si ? i : static_cast<std::size_t>(j), a1);
+          if (Sleep && (si || sj)) wake(sl, si ? i : static_cast<std::size_t>(j), direct);
           sk = Vec3{};
           if (SI) HOME[SI[k]] = sk;
         }
@@ -115,9 +115,9 @@ void pair_rows_scalar(const PairRows& p, const PairSleep& sl, std::size_t a0, st
       // Awake against asleep: the force acts on the awake particle only; a partner moving
       // faster than scene.sleep.speed relative to the sleeper wakes it.
       if (Sleep && (si || sj) && norm2(urel) > sl.wake_speed2)
-        wake(sl, si ? i : static_cast<std::size_t>(j), a1);
+        wake(sl, si ? i : static_cast<std::size_t>(j), direct);
       if (!Sleep || !si) fi += f;
-      if (!Sleep || !sj) on_partner(F, remote, j, f, a1);
+      if (!Sleep || !sj) on_partner(F, remote, j, f, direct);
     }
     F[i] += fi;
   }
@@ -283,11 +283,11 @@ struct ChunkKernel {
   template <bool Full, bool Indexed = false>
   DEM_AVX512 ChunkOut compute(const ChunkIn& in, std::int32_t k);
   // The two kernels (below): row by row with the sleeping rules, or the stream of pairs.
-  DEM_AVX512 void rows(const PairSleep& sl, std::size_t a0, std::size_t a1,
+  DEM_AVX512 void rows(const PairSleep& sl, std::size_t a0, std::size_t a1, std::size_t direct,
                        std::vector<PairRemote>& remote, PairRowStats& stats);
   template <bool Indexed>
-  DEM_AVX512 void stream(std::size_t a0, std::size_t a1, std::vector<PairRemote>& remote,
-                         PairRowStats& stats);
+  DEM_AVX512 void stream(std::size_t a0, std::size_t a1, std::size_t direct,
+                         std::vector<PairRemote>& remote, PairRowStats& stats);
   DEM_AVX512 void finish(PairRowStats& stats) const {
     add_stats(stats, contacts, _mm512_reduce_max_pd(max_overlap),
               _mm512_reduce_max_pd(max_ratio));
@@ -508,7 +508,8 @@ DEM_AVX512 inline void prefetch_indexed(const Vec3* spring, const Vec3* home,
 
 // With sleepers: row by row, 8 candidates of a row at a time (the sleeping rules are per row).
 DEM_AVX512 void ChunkKernel::rows(const PairSleep& sl, std::size_t a0, std::size_t a1,
-                                  std::vector<PairRemote>& remote, PairRowStats& stats) {
+                                  std::size_t direct, std::vector<PairRemote>& remote,
+                                  PairRowStats& stats) {
   alignas(32) std::int32_t jl[8];
   const std::int32_t kend = off[a1];
   const __m256i sleep_steps = _mm256_set1_epi32(sl.steps);
@@ -552,13 +553,13 @@ DEM_AVX512 void ChunkKernel::rows(const PairSleep& sl, std::size_t a0, std::size
         const ChunkOut out = compute<false>(in, k);
         // A sleeper whose contact with an awake particle ends may have lost its support.
         for (unsigned m = out.clear & sleepy; m != 0; m &= m - 1)
-            wake(sl, si ? i : static_cast<std::size_t>(jl[__builtin_ctz(m)]), a1);
+            wake(sl, si ? i : static_cast<std::size_t>(jl[__builtin_ctz(m)]), direct);
         if (out.act == 0) continue;
         {  // a partner faster than scene.sleep.speed relative to a sleeper wakes it
           const __mmask8 fast =
               _mm512_mask_cmp_pd_mask(out.act & sleepy, out.urel2, wake_speed2, _CMP_GT_OQ);
           for (unsigned m = fast; m != 0; m &= m - 1)
-            wake(sl, si ? i : static_cast<std::size_t>(jl[__builtin_ctz(m)]), a1);
+            wake(sl, si ? i : static_cast<std::size_t>(jl[__builtin_ctz(m)]), direct);
         }
         // The forces in pair order, as the scalar loop applies them (awake against asleep: on
         // the awake particle only).
@@ -566,7 +567,7 @@ DEM_AVX512 void ChunkKernel::rows(const PairSleep& sl, std::size_t a0, std::size
           const int l = __builtin_ctz(m);
           const Vec3 f{fx[l], fy[l], fz[l]};
           if (!si) fi += f;
-          if (!((sj >> l) & 1)) on_partner(F, remote, jl[l], f, a1);
+          if (!((sj >> l) & 1)) on_partner(F, remote, jl[l], f, direct);
         }
       }
     }
@@ -581,7 +582,7 @@ DEM_AVX512 void ChunkKernel::rows(const PairSleep& sl, std::size_t a0, std::size
 // the chunk's rows, which are consecutive. Row i's force is added when the stream has passed
 // it, after its pairs' partners, as the row loop does.
 template <bool Indexed>
-DEM_AVX512 void ChunkKernel::stream(std::size_t a0, std::size_t a1,
+DEM_AVX512 void ChunkKernel::stream(std::size_t a0, std::size_t a1, std::size_t direct,
                                     std::vector<PairRemote>& remote, PairRowStats& stats) {
   alignas(32) std::int32_t jl[8], il[8], kl[8];
   const std::int32_t kend = off[a1];
@@ -677,7 +678,7 @@ DEM_AVX512 void ChunkKernel::stream(std::size_t a0, std::size_t a1,
         fi = Vec3{};
       }
       fi += Vec3{fx[l], fy[l], fz[l]};
-      on_partner(F, remote, jl[l], Vec3{fx[l], fy[l], fz[l]}, a1);
+      on_partner(F, remote, jl[l], Vec3{fx[l], fy[l], fz[l]}, direct);
     }
   }
   for (; done < a1; ++done) {
@@ -705,20 +706,22 @@ bool pair_rows_vector_available() {
 template <bool Sleep>
 static void dispatch(const PairRows& p, const PairSleep& sleep, std::size_t a0, std::size_t a1,
                      std::vector<PairRemote>& remote, PairRowStats& stats, bool vector) {
+  // Partners below `direct` are written directly (PairRows::direct_end; 0: the rows' end).
+  const std::size_t direct = p.direct_end ? std::max(p.direct_end, a1) : a1;
 #if defined(__x86_64__) && defined(__GNUC__)
   static const bool available = pair_rows_vector_available();
   if (vector && available) {
     ChunkKernel kernel(p);
     if (Sleep)
-      kernel.rows(sleep, a0, a1, remote, stats);
+      kernel.rows(sleep, a0, a1, direct, remote, stats);
     else if (p.spring_index)
-      kernel.stream<true>(a0, a1, remote, stats);
+      kernel.stream<true>(a0, a1, direct, remote, stats);
     else
-      kernel.stream<false>(a0, a1, remote, stats);
+      kernel.stream<false>(a0, a1, direct, remote, stats);
     return;
   }
 #endif
-  pair_rows_scalar<Sleep>(p, sleep, a0, a1, remote, stats);
+  pair_rows_scalar<Sleep>(p, sleep, a0, a1, direct, remote, stats);
 }
 
 void pair_rows(const PairRows& p, std::size_t a0, std::size_t a1, std::vector<PairRemote>& remote,

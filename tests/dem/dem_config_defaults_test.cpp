@@ -78,7 +78,8 @@ std::string describe(const dem::RunConfig& rc) {
   const dem::Scene& s = rc.scene;
   o << "scene " << s.dt << ' ';
   v(s.gravity);
-  o << s.broad_phase_interval << ' ' << s.skin << ' ' << static_cast<int>(s.guard) << ' '
+  o << s.broad_phase_interval << ' ' << s.skin << ' ' << s.close_margin << ' '
+    << static_cast<int>(s.pair_schedule) << ' ' << static_cast<int>(s.guard) << ' '
     << s.threads << ' ' << s.min_particles_per_thread << ' ' << static_cast<int>(s.thread_wait)
     << '\n';
   o << "stability " << s.stability.min_steps_per_contact << ' '

@@ -85,6 +85,9 @@ class Engine {
   std::int64_t close_builds() const { return close_builds_; }
   double close_share() const { return close_share_; }
   bool close_used() const { return close_.use; }  // false: the last listing kept too many
+  // Pair blocks (Scene::pair_schedule blocks): the first row of each block and the end, as made
+  // for the lists of the last step (empty with ranges).
+  const std::vector<std::size_t>& pair_block_starts() const { return blocks_.start; }
   // The broad phase's own stages (grid, sort, permute, ...): where section broad_phase goes.
   const cosim::Timer& broad_phase_stages() const { return broad_.stages(); }
   cosim::Timer& broad_phase_stages() { return broad_.stages(); }
@@ -143,6 +146,21 @@ class Engine {
     double d1 = 0, d2 = 0, u2 = 0;  // slow particles since: two largest squared displacements, speed^2
     bool use = false;  // false: they kept nearly every candidate, the half list is read instead
   };
+  // Pair blocks (Scene::pair_schedule blocks): consecutive row ranges of the half list, every
+  // partner of block k's rows in block k or k + 1, made from the lists at each broad phase. Even
+  // blocks run first (each also sets up the next block's forces), an odd block once the two even
+  // blocks beside it are done; a thread takes the next block of that order when it is free.
+  struct PairBlocks {
+    std::vector<std::size_t> start;  // K + 1 boundaries
+    std::vector<std::int64_t> done;  // the pass in which block k's rows were done
+    std::vector<std::int32_t> order;  // the order the blocks are taken in
+    std::int64_t pass = 0;
+    std::int64_t next = 0;  // the next task of this pass (taken atomically)
+    const State* state = nullptr;  // the lists they were made for
+    std::size_t size = 0, candidates = 0;
+    std::int64_t rebuilds = -1, built_at = -1;
+  };
+  void make_pair_blocks(const State& s);
   bool close_pairs_hold(const State& s) const;
   void list_close_pairs(State& s);
   void pair_forces(State& s);
@@ -166,6 +184,7 @@ class Engine {
   std::vector<double> tool_box_radius_;             // farthest box corner from the reference point
   std::vector<std::vector<detail::PairRemote>> remote_;  // per thread
   std::vector<std::size_t> bounds_;  // particle ranges of the threads in pair_forces
+  PairBlocks blocks_;
   ClosePairs close_;
   std::int64_t close_builds_ = 0;
   double close_share_ = 0;
@@ -204,8 +223,8 @@ class Engine {
   void build_mesh_grids();
   bool unlisted_triangle_near(const State& s, std::size_t e, std::size_t m, double reach) const;
   std::int64_t removed_last_ = 0;
-  std::vector<std::vector<Wrench>> thread_tool_wrench_;  // per thread
-  std::vector<std::vector<Vec3>> thread_wall_force_;     // per thread
+  std::vector<Wrench> chunk_tool_wrench_;  // boundary_forces: per chunk of slot blocks and tool
+  std::vector<Vec3> chunk_wall_force_;     // per chunk and wall
   std::vector<ContactStats> thread_stats_, boundary_stats_;  // per thread
   ContactStats stats_;
   std::vector<Wrench> tool_wrench_;

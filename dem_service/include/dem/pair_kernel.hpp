@@ -39,6 +39,10 @@ struct PairRows {
   const std::int32_t* spring_index = nullptr;
   Vec3* spring_home = nullptr;
   Vec3* force = nullptr;                  // per particle, accumulated
+  // Partners j < direct_end lose their share directly, later ones go to `remote`; 0: the end
+  // of the rows (a1). The engine's pair blocks set it to the particle count: a block's
+  // partners lie in it or in the next block, which no other thread writes meanwhile.
+  std::size_t direct_end = 0;
   ContactLaw law;
   double dt = 0;
 };
@@ -50,9 +54,10 @@ struct PairRowStats {
 };
 
 // Rows i in [a0, a1): force[i] gains the sum of its pairs' forces (in pair order), each
-// partner j < a1 loses its pair's force directly, a partner j >= a1 is appended to `remote`
-// (in pair order). Springs of active pairs advance; springs of pairs out of contact are
-// cleared. `vector` asks for the AVX-512 version (used only if pair_rows_vector_available()).
+// partner j < a1 (or PairRows::direct_end) loses its pair's force directly, a later partner is
+// appended to `remote` (in pair order). Springs of active pairs advance; springs of pairs out
+// of contact are cleared. `vector` asks for the AVX-512 version (used only if
+// pair_rows_vector_available()).
 void pair_rows(const PairRows& p, std::size_t a0, std::size_t a1, std::vector<PairRemote>& remote,
                PairRowStats& stats, bool vector);
 

@@ -50,6 +50,8 @@ struct Tool {
 };
 
 enum class GuardMode { rebuild, strict };
+// How the threads share the pair forces (Scene::pair_schedule).
+enum class PairSchedule { blocks, ranges };
 enum class DtViolation { refuse, warn };
 
 struct StabilityOptions {
@@ -98,6 +100,11 @@ struct Scene {
   // margin; the results are the same bits as with every candidate. 0: every candidate, every
   // step. Used when all particles are awake (sleeping off).
   double close_margin = 0.0;
+  // blocks: the rows in blocks whose partners lie in the block or the next, taken by whichever
+  // thread is free (evens, then odds once their neighbours are done); the sums do not depend
+  // on the thread count. ranges: one contiguous range of equal work per thread, partners in a
+  // later range applied after the loop (the sums depend on the thread count).
+  PairSchedule pair_schedule = PairSchedule::blocks;
   int threads = 1;
   // Fewer particles per thread than this and the step uses fewer threads: for small scenes
   // the barriers cost more than the work (and a lot more on a loaded machine).
