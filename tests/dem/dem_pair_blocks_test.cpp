@@ -1,10 +1,10 @@
 // Pair blocks (scene.pair_schedule: blocks): the threads take blocks of rows of the half list
-// whose partners lie in the block or the next one, evens first, an odd block when the even
-// blocks beside it are done. Every sum is then made in an order that does not depend on the
-// number of threads or on which thread took which block: a run is the same bit for bit on 1, 2
-// and 3 threads, with either kernel, with close pairs and with sleepers, and so are the forces
-// on walls and tools (their sums are made per fixed chunk of particles, then in chunk order). Against the ranges
-// schedule only the summation order differs, so the forces agree to rounding.
+// whose partners lie in the block or the next one; an odd block runs when the even blocks
+// beside it are done. Every sum is then made in an order that does not depend on the number of
+// threads or on which thread took which block: a run is the same bit for bit on 1, 2 and 3
+// threads, with either kernel, with close pairs and with sleepers, and so are the forces on
+// walls and tools (summed per fixed chunk of particles, then in chunk order). Against the
+// ranges schedule only the summation order differs, so the forces agree to rounding.
 #include <gtest/gtest.h>
 
 #include <algorithm>

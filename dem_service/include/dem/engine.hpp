@@ -147,9 +147,10 @@ class Engine {
     bool use = false;  // false: they kept nearly every candidate, the half list is read instead
   };
   // Pair blocks (Scene::pair_schedule blocks): consecutive row ranges of the half list, every
-  // partner of block k's rows in block k or k + 1, made from the lists at each broad phase. Even
-  // blocks run first (each also sets up the next block's forces), an odd block once the two even
-  // blocks beside it are done; a thread takes the next block of that order when it is free.
+  // partner of block k's rows in block k or k + 1, made from the lists at each broad phase. An
+  // even block sets up its own and the next block's forces and runs its rows; an odd block runs
+  // once the two even blocks beside it are done. They are taken in the order E0 E2 E4 O1 E6 O3
+  // ... (`order`), each by the thread that is free next.
   struct PairBlocks {
     std::vector<std::size_t> start;  // K + 1 boundaries
     std::vector<std::int64_t> done;  // the pass in which block k's rows were done

@@ -101,7 +101,7 @@ struct Scene {
   // step. Used when all particles are awake (sleeping off).
   double close_margin = 0.0;
   // blocks: the rows in blocks whose partners lie in the block or the next, taken by whichever
-  // thread is free (evens, then odds once their neighbours are done); the sums do not depend
+  // thread is free (an odd block once the even ones beside it are done); the sums do not depend
   // on the thread count. ranges: one contiguous range of equal work per thread, partners in a
   // later range applied after the loop (the sums depend on the thread count).
   PairSchedule pair_schedule = PairSchedule::blocks;
