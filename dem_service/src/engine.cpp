@@ -1247,6 +1247,10 @@ std::size_t Engine::workspace_bytes() const {
            sizeof(std::int32_t) +
        (c.spring.capacity() + c.x_at.capacity()) * sizeof(Vec3) + c.keep.capacity() +
        c.fast.capacity() + c.thread_base.capacity() * sizeof(std::int64_t);
+  b += blocks_.start.capacity() * sizeof(std::size_t) +  // pair blocks, boundary chunks
+       blocks_.done.capacity() * sizeof(std::int64_t) +
+       blocks_.order.capacity() * sizeof(std::int32_t) +
+       chunk_tool_wrench_.capacity() * sizeof(Wrench) + chunk_wall_force_.capacity() * sizeof(Vec3);
   return b;
 }
 
