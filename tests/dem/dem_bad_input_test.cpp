@@ -356,3 +356,8 @@ TEST(dem_BadInput, CloseMarginOutsideZeroToSkinIsRefused) {
              "scene.close_margin: must be >= 0 and below scene.skin (now 0.5");
   expect_has(error_of({"scene.close_margin=0.5", "scene.skin=0.5"}), "0 turns close pairs off");
 }
+
+TEST(dem_BadInput, UnknownPairScheduleIsRefused) {
+  expect_has(error_of({"scene.pair_schedule=fast"}),
+             "scene.pair_schedule: 'fast' is not allowed (allowed: blocks, ranges)");
+}
