@@ -3,7 +3,8 @@
 // config knob or engine option that this VM's drifting speed leaves possible (a 30-40 % swing
 // between minutes hides a 5 % change between two runs; within a block pair both see the same
 // machine). Prints per-variant medians of the blocks' wall times, their ratio, how often B was
-// faster, and whether the two final states are the same bit for bit. Not a test
+// faster, each variant's seconds per section of the engine's timing table (where a difference
+// lies), and whether the two final states are the same bit for bit. Not a test
 // (docs/performance.md, "Close pairs").
 //
 //   build/bin/engine_ab CONFIG [--set KEY=VALUE ...] --a KEY=VALUE [--a ...] --b KEY=VALUE
@@ -20,6 +21,7 @@
 #include <vector>
 
 #include "cosim/stopwatch.hpp"
+#include "cosim/timer.hpp"
 #include "cosim/yaml_config.hpp"
 #include "dem/config.hpp"
 #include "dem/engine.hpp"
@@ -142,6 +144,12 @@ int main(int argc, char** argv) {
       std::printf("%c:%s\n   median block %.4f s, total %.3f s\n", k ? 'B' : 'A',
                   s.empty() ? " (no overrides)" : s.c_str(), k ? mb : ma, total[k]);
     }
+    // Seconds per section, A then B (both timers ran over the same alternating blocks).
+    const std::vector<cosim::TimingRow> ra = engine_a.timing().rows(), rb = engine_b.timing().rows();
+    std::printf("   %-16s %9s %9s %7s\n", "section", "A [s]", "B [s]", "B/A");
+    for (std::size_t r = 0; r < ra.size() && r < rb.size(); ++r)
+      std::printf("   %-16s %9.3f %9.3f %7.3f\n", ra[r].section.c_str(), ra[r].seconds,
+                  rb[r].seconds, ra[r].seconds > 0 ? rb[r].seconds / ra[r].seconds : 0.0);
     std::printf("B/A %.3f (medians), %.3f (totals); B faster in %d of %d blocks\n",
                 ma > 0 ? mb / ma : 0.0, total[0] > 0 ? total[1] / total[0] : 0.0, b_faster,
                 blocks);

@@ -693,26 +693,87 @@ void Engine::make_pair_blocks(const State& s) {
       reach = std::max(reach, static_cast<std::size_t>(J[q]) + 1);
     b.start.push_back(std::min(n, std::max(k1 + target, reach)));
   }
-  const std::int32_t K = static_cast<std::int32_t>(b.start.size()) - 1;
+  const std::size_t K = b.start.size() - 1;
   b.done.assign(K, 0);
-  // The order the blocks are taken in: the evens, each odd block two evens after its right
-  // neighbour (E0 E2 E4 O1 E6 O3 ...), so that one thread walks the rows nearly in order and
-  // a second rarely waits for an odd block's neighbours.
-  b.order.clear();
-  const std::int32_t evens = (K + 1) / 2, odds = K / 2;
-  for (std::int32_t e = 0, o = 0; e < evens || o < odds;) {
-    if (e < evens) b.order.push_back(2 * e++);
-    if (o < odds && (e == evens || e - 1 >= o + 2)) {
-      b.order.push_back(2 * o + 1);
-      ++o;
-    }
-  }
+  b.claim.assign(K, 0);
+  b.owner.assign(K, 0);
   b.pass = 0;
   b.state = &s;
   b.size = n;
   b.candidates = s.pair_j.size();
   b.rebuilds = s.rebuilds;
   b.built_at = s.step - s.steps_since_rebuild;
+}
+
+namespace detail {
+
+std::vector<std::int32_t> pair_block_walk(std::int32_t K, int t, int T) {
+  std::vector<std::int32_t> w;
+  if (K <= 0) return w;
+  w.reserve(K);
+  if (T >= 2 && t == T - 1) {
+    // Backward from the top: E_L (L the last even), O_{K-1} if K - 1 is odd, then each even
+    // followed by the odd block above it.
+    const std::int32_t L = (K - 1) / 2 * 2;
+    w.push_back(L);
+    if (L + 1 < K) w.push_back(L + 1);
+    for (std::int32_t e = L - 2; e >= 0; e -= 2) {
+      w.push_back(e);
+      w.push_back(e + 1);
+    }
+    return w;
+  }
+  // Forward over [a, b) (a even): each even, then the odd block below it; the odd block below
+  // b last (its upper neighbour, b, was walked first or does not exist).
+  auto forward = [&w](std::int32_t a, std::int32_t b) {
+    for (std::int32_t e = a; e < b; e += 2) {
+      w.push_back(e);
+      if (e > a) w.push_back(e - 1);
+    }
+    const std::int32_t last_even = a + (b - 1 - a) / 2 * 2;
+    if (last_even + 1 < b) w.push_back(last_even + 1);
+  };
+  const std::int32_t s = static_cast<std::int32_t>(static_cast<std::int64_t>(K) * t / T) / 2 * 2;
+  forward(s, K);
+  if (s > 0) forward(0, s);
+  return w;
+}
+
+}  // namespace detail
+
+// Sleeping: the awake particles among [j0, j1) mark the rows of the sleepers that hold them
+// (State::pair_row) with this step's stamp. Another thread may mark the same row: the same
+// value, stored atomically.
+void Engine::mark_sleeper_rows(const State& s, std::size_t j0, std::size_t j1,
+                               std::int32_t stamp) {
+  const std::int32_t S = scene_.sleep.steps;
+  const std::int32_t* const REST = s.rest_steps.data();
+  const std::int32_t* const ro = s.pair_row_offset.data();
+  const std::int32_t* const rr = s.pair_row.data();
+  std::int32_t* const MARK = row_mark_.data();
+  for (std::size_t j = j0; j < j1; ++j) {
+    if (REST[j] >= S) continue;
+    for (std::int32_t q = ro[j]; q < ro[j + 1]; ++q) {
+      const std::int32_t i = rr[q];
+      if (REST[i] >= S) __atomic_store_n(&MARK[i], stamp, __ATOMIC_RELAXED);
+    }
+  }
+}
+
+// The forces on particles [i0, i1) start from gravity (a sleeper feels none), and with
+// sleeping no one has woken them yet.
+template <bool Sleep>
+void Engine::start_forces(const State& s, std::size_t i0, std::size_t i1) {
+  const Vec3 g = scene_.gravity;
+  if (Sleep) {
+    const std::int32_t S = scene_.sleep.steps;
+    for (std::size_t i = i0; i < i1; ++i) {
+      force_[i] = s.rest_steps[i] >= S ? Vec3{} : s.mass[i] * g;
+      wake_[i] = 0;
+    }
+  } else {
+    for (std::size_t i = i0; i < i1; ++i) force_[i] = s.mass[i] * g;
+  }
 }
 
 void Engine::pair_forces(State& s) {
@@ -738,7 +799,6 @@ void Engine::pair_forces_impl(State& s) {
   const int T = threads_;
   const ContactLaw law = scene_.particle_particle;  // a local copy: no reloads after stores
   const double dt = scene_.dt;
-  const Vec3 g = scene_.gravity;
   // Threads take contiguous particle ranges of equal work (State::pair_work), not of equal
   // length: the bottom of a bed has about twice the contacts of its top half.
   bounds_.resize(T + 1);
@@ -810,23 +870,15 @@ void Engine::pair_forces_impl(State& s) {
     PairBlocks& b = blocks_;
     const std::int64_t K = static_cast<std::int64_t>(b.start.size()) - 1;
     const std::int64_t pass = ++b.pass;
-    b.next = 0;
     const std::size_t* const B = b.start.data();
     std::int64_t* const DONE = b.done.data();
+    std::int64_t* const CLAIM = b.claim.data();
     rows.direct_end = n;  // a block's partners: in it or in the next block (made so)
 #pragma omp parallel num_threads(T)
     {
       const int t = omp_get_thread_num();
       if (skip_rows) {
-        const std::int32_t* const ro = s.pair_row_offset.data();
-        const std::int32_t* const rr = s.pair_row.data();
-        for (std::size_t j = bounds_[t]; j < bounds_[t + 1]; ++j) {
-          if (REST[j] >= S) continue;
-          for (std::int32_t q = ro[j]; q < ro[j + 1]; ++q) {
-            const std::int32_t i = rr[q];
-            if (REST[i] >= S) __atomic_store_n(&MARK[i], stamp, __ATOMIC_RELAXED);
-          }
-        }
+        mark_sleeper_rows(s, bounds_[t], bounds_[t + 1], stamp);
 #pragma omp barrier
       }
       std::vector<detail::PairRemote> remote;  // stays empty: every partner is direct
@@ -834,22 +886,19 @@ void Engine::pair_forces_impl(State& s) {
       detail::PairSleep sl = sleep_rules;
       sl.remote_wake = &remote_wake;
       detail::PairRowStats st;
-      for (;;) {
-        const std::int64_t task = __atomic_fetch_add(&b.next, 1, __ATOMIC_RELAXED);
-        if (task >= K) break;
-        const std::int64_t k = b.order[task];
+      // This thread's walk: it runs each block that no one has claimed before it. Before an odd
+      // block the walk has passed both evens beside it, so they are claimed and, as an even
+      // block never waits, done or being done.
+      for (const std::int32_t kk : detail::pair_block_walk(static_cast<std::int32_t>(K), t, T)) {
+        const std::int64_t k = kk;
+        if (__atomic_load_n(&CLAIM[k], __ATOMIC_RELAXED) == pass ||
+            __atomic_exchange_n(&CLAIM[k], pass, __ATOMIC_ACQ_REL) == pass)
+          continue;
+        b.owner[k] = t;
         if (k % 2 == 0) {
           // This block's and the next block's particles start from gravity (no one else
           // writes the next block before this block is done).
-          const std::size_t i1 = B[std::min(k + 2, K)];
-          if (Sleep) {
-            for (std::size_t i = B[k]; i < i1; ++i) {
-              force_[i] = REST[i] >= S ? Vec3{} : s.mass[i] * g;  // a sleeper feels no gravity
-              WAKE[i] = 0;
-            }
-          } else {
-            for (std::size_t i = B[k]; i < i1; ++i) force_[i] = s.mass[i] * g;
-          }
+          start_forces<Sleep>(s, B[k], B[std::min(k + 2, K)]);
         } else {
           // The even blocks beside it: the one before has set up this block and written into
           // it, the one after is written into by this one.
@@ -873,23 +922,24 @@ void Engine::pair_forces_impl(State& s) {
       }
       thread_stats_[t] = ContactStats{st.contacts, 0, st.max_overlap, st.max_overlap_ratio};
     }
+    // The integration's ranges follow the blocks' owners: thread t starts at the first block
+    // that a thread t or above ran (a split of the particles only, never of a sum).
+    split_.assign(T + 1, n);
+    split_[0] = 0;
+    for (int t = 1; t < T; ++t) {
+      std::int64_t k = 0;
+      while (k < K && b.owner[k] < t) ++k;
+      split_[t] = std::max(split_[t - 1], B[k]);
+    }
     return;
   }
+  split_.assign(bounds_.begin(), bounds_.end());
 #pragma omp parallel num_threads(T)
   {
     const int t = omp_get_thread_num();
     const std::size_t a0 = bounds_[t], a1 = bounds_[t + 1];
     if (skip_rows) {
-      const std::int32_t* const ro = s.pair_row_offset.data();
-      const std::int32_t* const rr = s.pair_row.data();
-      for (std::size_t j = a0; j < a1; ++j) {
-        if (REST[j] >= S) continue;
-        for (std::int32_t q = ro[j]; q < ro[j + 1]; ++q) {
-          const std::int32_t i = rr[q];
-          // Another thread may mark the same row: the same value, stored atomically.
-          if (REST[i] >= S) __atomic_store_n(&MARK[i], stamp, __ATOMIC_RELAXED);
-        }
-      }
+      mark_sleeper_rows(s, a0, a1, stamp);
 #pragma omp barrier
     }
     std::vector<detail::PairRemote> remote;  // local for the loop (no false sharing), capacity kept
@@ -900,14 +950,7 @@ void Engine::pair_forces_impl(State& s) {
       remote_wake.swap(remote_wake_[t]);
       remote_wake.clear();
     }
-    if (Sleep) {
-      for (std::size_t i = a0; i < a1; ++i) {
-        force_[i] = REST[i] >= S ? Vec3{} : s.mass[i] * g;  // a sleeper feels no gravity
-        WAKE[i] = 0;
-      }
-    } else {
-      for (std::size_t i = a0; i < a1; ++i) force_[i] = s.mass[i] * g;
-    }
+    start_forces<Sleep>(s, a0, a1);
     detail::PairRowStats st;
     if (Sleep) {
       detail::PairSleep sl = sleep_rules;
@@ -943,6 +986,8 @@ void Engine::boundary_forces(State& s) {
   const std::size_t C = std::max<std::size_t>(1, std::min(kBoundaryChunks, nb));
   chunk_tool_wrench_.assign(C * ntools, Wrench{});
   chunk_wall_force_.assign(C * nwalls, Vec3{});
+  if (chunk_claim_.size() < C) chunk_claim_.resize(C, 0);
+  const std::int64_t pass = ++chunk_pass_;
 #pragma omp parallel num_threads(T)
   {
     const int t = omp_get_thread_num();
@@ -952,8 +997,16 @@ void Engine::boundary_forces(State& s) {
     ContactStats my_stats;
     const bool sleep_on = scene_.sleep.enabled;
     const std::int32_t S = scene_.sleep.steps;
-#pragma omp for schedule(dynamic, 1) nowait
-    for (std::size_t chunk = 0; chunk < C; ++chunk) {
+    // Thread t walks the chunks from t C / T upward (the last thread from C - 1 downward) and
+    // runs those it claims first: each thread keeps its part of the particles from step to step.
+    std::int64_t* const CLAIM = chunk_claim_.data();
+    const bool down = T >= 2 && t == T - 1;
+    const std::size_t first = down ? C - 1 : C * t / T;
+    for (std::size_t w = 0; w < C; ++w) {
+      const std::size_t chunk = down ? C - 1 - w : (first + w) % C;
+      if (__atomic_load_n(&CLAIM[chunk], __ATOMIC_RELAXED) == pass ||
+          __atomic_exchange_n(&CLAIM[chunk], pass, __ATOMIC_ACQ_REL) == pass)
+        continue;
       Wrench* const tw = chunk_tool_wrench_.data() + chunk * ntools;
       Vec3* const wf = chunk_wall_force_.data() + chunk * nwalls;
       const std::size_t k0 = nb * chunk / C, k1 = nb * (chunk + 1) / C;
@@ -1096,7 +1149,9 @@ void Engine::integrate_impl(State& s) {
 #pragma omp parallel num_threads(T)
   {
     const int t = omp_get_thread_num();
-    const std::size_t a0 = n * t / T, a1 = n * (t + 1) / T;
+    // The particles whose pair forces this thread ran (pair_forces), which are in its cache.
+    const bool own = split_.size() == static_cast<std::size_t>(T) + 1 && split_[T] == n;
+    const std::size_t a0 = own ? split_[t] : n * t / T, a1 = own ? split_[t + 1] : n * (t + 1) / T;
     double my_d2 = 0, my_second = 0;  // this thread's two largest
     FarTally my_tally;  // far movers: the others' largest displacement and speed, the largest
     std::vector<std::int32_t>& my_far = thread_far_[t];
@@ -1249,7 +1304,7 @@ std::size_t Engine::workspace_bytes() const {
        c.fast.capacity() + c.thread_base.capacity() * sizeof(std::int64_t);
   b += blocks_.start.capacity() * sizeof(std::size_t) +  // pair blocks, boundary chunks
        blocks_.done.capacity() * sizeof(std::int64_t) +
-       blocks_.order.capacity() * sizeof(std::int32_t) +
+       (blocks_.claim.capacity() + chunk_claim_.capacity()) * sizeof(std::int64_t) +
        chunk_tool_wrench_.capacity() * sizeof(Wrench) + chunk_wall_force_.capacity() * sizeof(Vec3);
   return b;
 }

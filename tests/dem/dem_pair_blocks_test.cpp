@@ -1,6 +1,7 @@
 // Pair blocks (scene.pair_schedule: blocks): the threads take blocks of rows of the half list
 // whose partners lie in the block or the next one; an odd block runs when the even blocks
-// beside it are done. Every sum is then made in an order that does not depend on the number of
+// beside it are done. Each thread walks the blocks in its own order and runs those it claims
+// first. Every sum is then made in an order that does not depend on the number of
 // threads or on which thread took which block: a run is the same bit for bit on 1, 2 and 3
 // threads, with either kernel, with close pairs and with sleepers, and so are the forces on
 // walls and tools (summed per fixed chunk of particles, then in chunk order). Against the
@@ -84,6 +85,37 @@ BlockRun run(dem::Scene scene, int steps) {
       r.blocks = std::max(r.blocks, engine.pair_block_starts().size() - 1);
   }
   return r;
+}
+
+// The threads' walks: each visits every block once, and an odd block only after both even
+// blocks beside it (so a thread waiting on them waits for blocks already claimed, which never
+// wait themselves: no deadlock). On two threads one starts at the bottom and the other at the
+// top; on T threads the first T - 1 start at about t K / T.
+TEST(dem_PairBlocks, EveryWalkVisitsEachBlockOnceAndEvensFirst) {
+  for (int T = 1; T <= 5; ++T)
+    for (std::int32_t K = 1; K <= 41; ++K)
+      for (int t = 0; t < T; ++t) {
+        const std::vector<std::int32_t> w = dem::detail::pair_block_walk(K, t, T);
+        ASSERT_EQ(static_cast<std::int32_t>(w.size()), K) << "K " << K << " t " << t << " T " << T;
+        std::vector<int> at(K, -1);
+        for (std::size_t p = 0; p < w.size(); ++p) {
+          ASSERT_GE(w[p], 0);
+          ASSERT_LT(w[p], K);
+          ASSERT_EQ(at[w[p]], -1) << "block " << w[p] << " twice (K " << K << " t " << t << ")";
+          at[w[p]] = static_cast<int>(p);
+        }
+        for (std::int32_t k = 1; k < K; k += 2) {
+          EXPECT_LT(at[k - 1], at[k]) << "K " << K << " t " << t << " T " << T << " block " << k;
+          if (k + 1 < K) {
+            EXPECT_LT(at[k + 1], at[k]) << "K " << K << " t " << t << " T " << T << " block " << k;
+          }
+        }
+        if (T >= 2 && t == T - 1) {
+          EXPECT_EQ(w[0], (K - 1) / 2 * 2);  // the top even block
+        } else {
+          EXPECT_EQ(w[0], static_cast<std::int32_t>(static_cast<std::int64_t>(K) * t / T) / 2 * 2);
+        }
+      }
 }
 
 // The construction: every partner of block k's rows lies in block k or k + 1, the blocks

@@ -149,14 +149,15 @@ class Engine {
   // Pair blocks (Scene::pair_schedule blocks): consecutive row ranges of the half list, every
   // partner of block k's rows in block k or k + 1, made from the lists at each broad phase. An
   // even block sets up its own and the next block's forces and runs its rows; an odd block runs
-  // once the two even blocks beside it are done. They are taken in the order E0 E2 E4 O1 E6 O3
-  // ... (`order`), each by the thread that is free next.
+  // once the two even blocks beside it are done. Each thread walks all blocks in its own order
+  // (detail::pair_block_walk) and runs those it claims first, so a thread keeps the same part
+  // of the bed from step to step and a slowed thread runs fewer blocks.
   struct PairBlocks {
     std::vector<std::size_t> start;  // K + 1 boundaries
-    std::vector<std::int64_t> done;  // the pass in which block k's rows were done
-    std::vector<std::int32_t> order;  // the order the blocks are taken in
+    std::vector<std::int64_t> done;   // the pass in which block k's rows were done
+    std::vector<std::int64_t> claim;  // the pass in which block k was claimed by a thread
+    std::vector<int> owner;            // the thread that ran block k in the last pass
     std::int64_t pass = 0;
-    std::int64_t next = 0;  // the next task of this pass (taken atomically)
     const State* state = nullptr;  // the lists they were made for
     std::size_t size = 0, candidates = 0;
     std::int64_t rebuilds = -1, built_at = -1;
@@ -167,6 +168,9 @@ class Engine {
   void pair_forces(State& s);
   template <bool Sleep>
   void pair_forces_impl(State& s);
+  void mark_sleeper_rows(const State& s, std::size_t j0, std::size_t j1, std::int32_t stamp);
+  template <bool Sleep>
+  void start_forces(const State& s, std::size_t i0, std::size_t i1);
   void boundary_forces(State& s);
   void integrate(State& s);
   template <bool Sleep>
@@ -185,6 +189,7 @@ class Engine {
   std::vector<double> tool_box_radius_;             // farthest box corner from the reference point
   std::vector<std::vector<detail::PairRemote>> remote_;  // per thread
   std::vector<std::size_t> bounds_;  // particle ranges of the threads in pair_forces
+  std::vector<std::size_t> split_;   // and the ranges the integration gives them (T + 1)
   PairBlocks blocks_;
   ClosePairs close_;
   std::int64_t close_builds_ = 0;
@@ -226,6 +231,8 @@ class Engine {
   std::int64_t removed_last_ = 0;
   std::vector<Wrench> chunk_tool_wrench_;  // boundary_forces: per chunk of slot blocks and tool
   std::vector<Vec3> chunk_wall_force_;     // per chunk and wall
+  std::vector<std::int64_t> chunk_claim_;  // the pass in which a chunk was claimed
+  std::int64_t chunk_pass_ = 0;
   std::vector<ContactStats> thread_stats_, boundary_stats_;  // per thread
   ContactStats stats_;
   std::vector<Wrench> tool_wrench_;
@@ -250,6 +257,11 @@ void use_sleeper_row_skip(bool skip);
 // Whether the all-awake pair forces use the AVX-512 kernel where the processor has it (the
 // default) or the scalar loop; both give the same bits (dem/pair_kernel.hpp), tests compare.
 void use_vector_pairs(bool vector);
+// The order in which thread t of T visits K pair blocks: every block once, an even block before
+// the odd blocks beside it. Threads 0 .. T-2 walk forward from the (even) block near t K / T,
+// wrapping round to block 0; the last thread (T >= 2) walks backward from block K - 1. On two
+// threads one walks up from the bottom of the bed and the other down from its top.
+std::vector<std::int32_t> pair_block_walk(std::int32_t K, int t, int T);
 }  // namespace detail
 
 // Kinetic energy of all particles.
