@@ -119,8 +119,6 @@ bool vector_pairs_from_environment() {
 std::atomic<bool> vector_pairs{true};
 std::once_flag vector_pairs_read;
 
-// Keeps the two largest of the squared displacements seen so far (first >= second), each of
-// another particle: what the guard adds up.
 // One step of semi-implicit Euler: the new velocity moves the particle (symplectic, one force
 // evaluation per step; docs/physics.md); u is the velocity at the next force time. Returns |v|^2.
 inline double advance(double dt, double m, const Vec3& f, Vec3& v, Vec3& u, Vec3& x) {
@@ -132,6 +130,15 @@ inline double advance(double dt, double m, const Vec3& f, Vec3& v, Vec3& u, Vec3
   return norm2(vn);
 }
 
+// True for the first thread to claim task k in this pass (pair blocks, boundary chunks): a
+// relaxed look first, so a task already taken costs no exchange.
+inline bool claim_first(std::int64_t* claim, std::size_t k, std::int64_t pass) {
+  return __atomic_load_n(&claim[k], __ATOMIC_RELAXED) != pass &&
+         __atomic_exchange_n(&claim[k], pass, __ATOMIC_ACQ_REL) != pass;
+}
+
+// Keeps the two largest of the squared displacements seen so far (first >= second), each of
+// another particle: what the guard adds up.
 inline void keep_two_largest(double& first, double& second, double d2) {
   if (d2 > second) {
     second = std::min(d2, first);
@@ -902,9 +909,7 @@ void Engine::pair_forces_impl(State& s) {
       // block never waits, done or being done.
       for (const std::int32_t kk : detail::pair_block_walk(static_cast<std::int32_t>(K), t, T)) {
         const std::int64_t k = kk;
-        if (__atomic_load_n(&CLAIM[k], __ATOMIC_RELAXED) == pass ||
-            __atomic_exchange_n(&CLAIM[k], pass, __ATOMIC_ACQ_REL) == pass)
-          continue;
+        if (!claim_first(CLAIM, k, pass)) continue;
         b.owner[k] = t;
         if (k % 2 == 0) {
           // This block's and the next block's particles start from gravity (no one else
@@ -991,8 +996,8 @@ void Engine::boundary_forces(State& s) {
   std::int64_t overflow = -1;
   // Only particles with a slot block can touch a wall or a tool (the broad phase handed the
   // blocks out). They are cut into chunks, a number that depends on the blocks alone; each chunk
-  // sums its tools' and walls' forces on its own, threads take the chunks as they come free,
-  // and the chunks' sums are added in chunk order: the same bits on any thread count.
+  // sums its tools' and walls' forces on its own, each chunk is run by the thread that claims it
+  // first, and the chunks' sums are added in chunk order: the same bits on any thread count.
   const std::size_t nb = s.slot_particle.size();
   const std::size_t C = std::max<std::size_t>(1, std::min(kBoundaryChunks, nb));
   chunk_tool_wrench_.assign(C * ntools, Wrench{});
@@ -1008,16 +1013,13 @@ void Engine::boundary_forces(State& s) {
     ContactStats my_stats;
     const bool sleep_on = scene_.sleep.enabled;
     const std::int32_t S = scene_.sleep.steps;
-    // Thread t walks the chunks from t C / T upward (the last thread from C - 1 downward) and
-    // runs those it claims first: each thread keeps its part of the particles from step to step.
+    // Each thread walks the chunks as it walks the pair blocks (on two threads one up from the
+    // first, one down from the last) and runs those it claims first: a thread keeps its part of
+    // the particles from step to step.
     std::int64_t* const CLAIM = chunk_claim_.data();
-    const bool down = T >= 2 && t == T - 1;
-    const std::size_t first = down ? C - 1 : C * t / T;
-    for (std::size_t w = 0; w < C; ++w) {
-      const std::size_t chunk = down ? C - 1 - w : (first + w) % C;
-      if (__atomic_load_n(&CLAIM[chunk], __ATOMIC_RELAXED) == pass ||
-          __atomic_exchange_n(&CLAIM[chunk], pass, __ATOMIC_ACQ_REL) == pass)
-        continue;
+    for (const std::int32_t walked : detail::pair_block_walk(static_cast<std::int32_t>(C), t, T)) {
+      const std::size_t chunk = static_cast<std::size_t>(walked);
+      if (!claim_first(CLAIM, chunk, pass)) continue;
       Wrench* const tw = chunk_tool_wrench_.data() + chunk * ntools;
       Vec3* const wf = chunk_wall_force_.data() + chunk * nwalls;
       const std::size_t k0 = nb * chunk / C, k1 = nb * (chunk + 1) / C;
@@ -1324,6 +1326,7 @@ std::size_t Engine::workspace_bytes() const {
   b += blocks_.start.capacity() * sizeof(std::size_t) +  // pair blocks, boundary chunks
        blocks_.done.capacity() * sizeof(std::int64_t) +
        (blocks_.claim.capacity() + chunk_claim_.capacity()) * sizeof(std::int64_t) +
+       blocks_.owner.capacity() * sizeof(int) + split_.capacity() * sizeof(std::size_t) +
        chunk_tool_wrench_.capacity() * sizeof(Wrench) + chunk_wall_force_.capacity() * sizeof(Vec3);
   return b;
 }

@@ -257,10 +257,11 @@ void use_sleeper_row_skip(bool skip);
 // Whether the all-awake pair forces use the AVX-512 kernel where the processor has it (the
 // default) or the scalar loop; both give the same bits (dem/pair_kernel.hpp), tests compare.
 void use_vector_pairs(bool vector);
-// The order in which thread t of T visits K pair blocks: every block once, an even block before
-// the odd blocks beside it. Threads 0 .. T-2 walk forward from the (even) block near t K / T,
-// wrapping round to block 0; the last thread (T >= 2) walks backward from block K - 1. On two
-// threads one walks up from the bottom of the bed and the other down from its top.
+// The order in which thread t of T visits K pair blocks (and the boundary chunks): every block
+// once, an even block before the odd blocks beside it. Threads 0 .. T-2 walk forward from the
+// (even) block near t K / T, wrapping round to block 0; the last thread (T >= 2) walks backward
+// from block K - 1. On two threads one walks up from the bottom of the bed and the other down
+// from its top.
 std::vector<std::int32_t> pair_block_walk(std::int32_t K, int t, int T);
 }  // namespace detail
 

@@ -100,8 +100,9 @@ struct Scene {
   // margin; the results are the same bits as with every candidate. 0: every candidate, every
   // step. Used when all particles are awake (sleeping off).
   double close_margin = 0.0;
-  // blocks: the rows in blocks whose partners lie in the block or the next, taken by whichever
-  // thread is free (an odd block once the even ones beside it are done); the sums do not depend
+  // blocks: the rows in blocks whose partners lie in the block or the next, each run by the
+  // thread that claims it first on its walk (an odd block once the even ones beside it are
+  // done; detail::pair_block_walk); the sums do not depend
   // on the thread count. ranges: one contiguous range of equal work per thread, partners in a
   // later range applied after the loop (the sums depend on the thread count).
   PairSchedule pair_schedule = PairSchedule::blocks;
