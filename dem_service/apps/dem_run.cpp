@@ -55,6 +55,34 @@ std::string extent(const dem::State& s) {
   return buf;
 }
 
+// Per thread, the seconds each of the three parallel sections kept it working, and the share
+// of the cores the section used (sum of the busy times over threads x its wall time): where a
+// share is well below 1 the work was not split evenly, or the machine took a core away.
+std::string threads_busy_summary(const dem::Engine& engine) {
+  const int T = engine.threads();
+  if (T < 2) return "";
+  std::string line = "Threads busy [s] (share of the cores):";
+  const char* sep = " ";
+  for (const std::size_t sec : {dem::section::pair_forces, dem::section::mesh_contacts,
+                                dem::section::integration}) {
+    const double wall = engine.timing().seconds(sec);
+    double sum = 0;
+    line += sep + engine.timing().name(sec) + " ";
+    for (int t = 0; t < T; ++t) {
+      const double b = engine.thread_busy(sec, t);
+      sum += b;
+      char v[32];
+      std::snprintf(v, sizeof v, "%s%.2f", t ? " / " : "", b);
+      line += v;
+    }
+    char share[32];
+    std::snprintf(share, sizeof share, " (%.2f)", wall > 0 ? sum / (T * wall) : 0.0);
+    line += share;
+    sep = ", ";
+  }
+  return line;
+}
+
 void print_timing(const dem::Engine& engine, const dem::State& s, double sim_time, long long steps,
                   double wall, long long rebuilds, long long early, double asleep_share) {
   if (steps == 0) {
@@ -90,6 +118,7 @@ void print_timing(const dem::Engine& engine, const dem::State& s, double sim_tim
   const dem::Scene& scene = engine.scene();
   if (const std::string close = dem::close_pairs_summary(engine, steps); !close.empty())
     notes.push_back(close);
+  if (const std::string busy = threads_busy_summary(engine); !busy.empty()) notes.push_back(busy);
   if (scene.sleep.enabled) {
     char line[160];
     std::snprintf(line, sizeof line, "Sleeping: %.1f %% of particle-steps asleep, %lld asleep at the end",
@@ -174,6 +203,7 @@ int run(int argc, char** argv) {
       std::fprintf(stderr, "settle: saved %s\n", rc.settle.checkpoint.c_str());
     }
     engine.timing().reset();  // the tables below are for the run itself
+    engine.reset_thread_busy();
     engine.broad_phase_stages().reset();
   }
 

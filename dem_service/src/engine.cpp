@@ -169,6 +169,7 @@ Engine::Engine(const Scene& scene) : scene_(scene) {
   remote_wake_.resize(max_threads_);
   thread_stats_.assign(max_threads_, ContactStats{});
   boundary_stats_.assign(max_threads_, ContactStats{});
+  reset_thread_busy();
   tool_wrench_.resize(scene.tools.size());
   wall_force_.resize(scene.walls.size());
   tool_vertices_.resize(scene.tools.size());
@@ -187,6 +188,16 @@ Engine::Engine(const Scene& scene) : scene_(scene) {
                    std::max(std::abs(lo.z), std::abs(hi.z))};
     tool_box_radius_.push_back(norm(far));
   }
+}
+
+double Engine::thread_busy(std::size_t sec, int t) const {
+  if (sec < section::pair_forces || sec > section::integration || t < 0 || t >= max_threads_)
+    return 0;
+  return busy_[sec * static_cast<std::size_t>(max_threads_) + static_cast<std::size_t>(t)];
+}
+
+void Engine::reset_thread_busy() {
+  busy_.assign((section::integration + 1) * static_cast<std::size_t>(max_threads_), 0.0);
 }
 
 void Engine::update_tool_geometry(const State& s) {
@@ -620,6 +631,12 @@ void Engine::list_close_pairs(State& s) {
   const std::int32_t* const off = s.pair_offset.data();
   const std::int32_t* const J = s.pair_j.data();
   Vec3* const spring = s.pair_spring.data();
+  // Sleeping: two sleepers keep their spring while both sleep (the pair loop skips them), so a
+  // pair of two sleepers that holds one stays listed (they do not move: it cannot have come
+  // apart beyond the margin, but nothing here relies on that).
+  const bool sleep = scene_.sleep.enabled && s.rest_steps.size() == n;
+  const std::int32_t* const REST = sleep ? s.rest_steps.data() : nullptr;
+  const std::int32_t S = scene_.sleep.steps;
 #pragma omp parallel num_threads(T) reduction(max : slow_u2)
   {
     const int t = omp_get_thread_num();
@@ -639,7 +656,8 @@ void Engine::list_close_pairs(State& s) {
       for (std::int32_t k = off[i]; k < off[i + 1]; ++k) {
         const std::int32_t j = J[k];
         const double reach = ri + R[j] + margin;
-        const bool keep = fi || c.fast[j] || norm2(xi - X[j]) < reach * reach;
+        const bool keep = fi || c.fast[j] || norm2(xi - X[j]) < reach * reach ||
+                          (sleep && REST[i] >= S && REST[j] >= S && nonzero(spring[k]));
         c.keep[k] = keep;
         kept += keep;
         // Farther apart than the margin: out of contact this step, so the pair loop would
@@ -872,7 +890,7 @@ void Engine::pair_forces_impl(State& s) {
     sleep_rules.stamp = stamp;
     sleep_rules.wake = WAKE;
   }
-  if (!Sleep && scene_.close_margin > 0) {
+  if (scene_.close_margin > 0) {
     if (!close_pairs_hold(s)) list_close_pairs(s);
     if (close_.use) {
       rows.offset = close_.offset.data();
@@ -899,6 +917,8 @@ void Engine::pair_forces_impl(State& s) {
         mark_sleeper_rows(s, bounds_[t], bounds_[t + 1], stamp);
 #pragma omp barrier
       }
+      cosim::Stopwatch busy;
+      double waited = 0;  // for the even blocks beside an odd one
       std::vector<detail::PairRemote> remote;  // stays empty: every partner is direct
       std::vector<std::int32_t> remote_wake;
       detail::PairSleep sl = sleep_rules;
@@ -918,16 +938,23 @@ void Engine::pair_forces_impl(State& s) {
         } else {
           // The even blocks beside it: the one before has set up this block and written into
           // it, the one after is written into by this one.
-          int spins = 0;
-          while (__atomic_load_n(&DONE[k - 1], __ATOMIC_ACQUIRE) != pass ||
-                 (k + 1 < K && __atomic_load_n(&DONE[k + 1], __ATOMIC_ACQUIRE) != pass)) {
-            if (++spins < 4000) {
+          const auto ready = [&] {
+            return __atomic_load_n(&DONE[k - 1], __ATOMIC_ACQUIRE) == pass &&
+                   (k + 1 >= K || __atomic_load_n(&DONE[k + 1], __ATOMIC_ACQUIRE) == pass);
+          };
+          if (!ready()) {
+            const cosim::Stopwatch wait;
+            int spins = 0;
+            while (!ready()) {
+              if (++spins < 4000) {
 #if defined(__x86_64__) || defined(__i386__)
-              __builtin_ia32_pause();
+                __builtin_ia32_pause();
 #endif
-            } else {
-              std::this_thread::yield();
+              } else {
+                std::this_thread::yield();
+              }
             }
+            waited += wait.seconds();
           }
         }
         if (Sleep)
@@ -937,6 +964,7 @@ void Engine::pair_forces_impl(State& s) {
         __atomic_store_n(&DONE[k], pass, __ATOMIC_RELEASE);
       }
       thread_stats_[t] = ContactStats{st.contacts, 0, st.max_overlap, st.max_overlap_ratio};
+      add_busy(section::pair_forces, t, busy.seconds() - waited);
     }
     // The integration's ranges follow the blocks' owners: thread t starts at the first block
     // that a thread t or above ran (a split of the particles only, never of a sum).
@@ -958,6 +986,7 @@ void Engine::pair_forces_impl(State& s) {
       mark_sleeper_rows(s, a0, a1, stamp);
 #pragma omp barrier
     }
+    const cosim::Stopwatch busy;
     std::vector<detail::PairRemote> remote;  // local for the loop (no false sharing), capacity kept
     remote.swap(remote_[t]);
     remote.clear();
@@ -978,6 +1007,7 @@ void Engine::pair_forces_impl(State& s) {
     remote.swap(remote_[t]);
     if (Sleep) remote_wake.swap(remote_wake_[t]);
     thread_stats_[t] = ContactStats{st.contacts, 0, st.max_overlap, st.max_overlap_ratio};
+    add_busy(section::pair_forces, t, busy.seconds());
   }
   for (int t = 0; t < T; ++t)
     for (const detail::PairRemote& r : remote_[t]) force_[r.j] -= r.f;
@@ -1007,6 +1037,7 @@ void Engine::boundary_forces(State& s) {
 #pragma omp parallel num_threads(T)
   {
     const int t = omp_get_thread_num();
+    const cosim::Stopwatch busy;
     BoundaryContact cs[kBoundarySlots];
     TriangleHit hits[kMaxHits];
     std::int64_t my_overflow = -1;
@@ -1092,6 +1123,7 @@ void Engine::boundary_forces(State& s) {
       }
     }
     boundary_stats_[t] = my_stats;
+    add_busy(section::mesh_contacts, t, busy.seconds());
 #pragma omp critical(dem_overflow)
     if (my_overflow >= 0 && (overflow < 0 || my_overflow < overflow)) overflow = my_overflow;
   }
@@ -1155,27 +1187,32 @@ void Engine::integrate_impl(State& s) {
   thread_far_.resize(static_cast<std::size_t>(T));
   std::int64_t bad = -1;
   // Close pairs in use: the slow particles' displacements since they were listed, and speeds.
-  const bool close = !Sleep && close_.use && close_.state == &s && close_.size == n;
+  const bool close = close_.use && close_.state == &s && close_.size == n;
   const std::uint8_t* const FAST = close ? close_.fast.data() : nullptr;
   const Vec3* const X_CLOSE = close ? close_.x_at.data() : nullptr;
   double close_d1 = 0, close_d2 = 0, close_u2 = 0;
 #pragma omp parallel num_threads(T)
   {
     const int t = omp_get_thread_num();
+    const cosim::Stopwatch busy;
     // The particles whose pair forces this thread ran (pair_forces), which are in its cache.
     const bool own = split_.size() == static_cast<std::size_t>(T) + 1 && split_[T] == n;
     const std::size_t a0 = own ? split_[t] : n * t / T, a1 = own ? split_[t + 1] : n * (t + 1) / T;
     double my_d2 = 0, my_second = 0;  // this thread's two largest
+    double my_close_d1 = 0, my_close_d2 = 0, my_close_u2 = 0;  // close pairs (slow particles)
     FarTally my_tally;  // far movers: the others' largest displacement and speed, the largest
     std::vector<std::int32_t>& my_far = thread_far_[t];
     my_far.clear();
     auto moved = [&](std::size_t i, double d2) {
       keep_two_largest(my_d2, my_second, d2);
       note_far_mover(my_far, my_tally, i, d2, norm2(s.u[i]), limits);
+      if (close && !FAST[i]) {  // as in the all-awake loop below
+        keep_two_largest(my_close_d1, my_close_d2, norm2(s.x[i] - X_CLOSE[i]));
+        my_close_u2 = std::max(my_close_u2, norm2(s.u[i]));
+      }
     };
     std::int64_t my_bad = -1;
     std::int64_t my_sleeping = 0;
-    double my_close_d1 = 0, my_close_d2 = 0, my_close_u2 = 0;
     auto near_tool = [&](std::size_t i) {
       for (std::size_t m = 0; m < tool_centre.size(); ++m) {
         const double reach = tool_reach[m] + s.radius[i];
@@ -1248,6 +1285,7 @@ void Engine::integrate_impl(State& s) {
         s.rest_steps[i] = r;
       }
     }
+    add_busy(section::integration, t, busy.seconds());
 #pragma omp critical(dem_integrate)
     {
       keep_two_largest(max_d2, second_d2, my_d2);
@@ -1333,9 +1371,6 @@ std::size_t Engine::workspace_bytes() const {
 
 std::string close_pairs_summary(const Engine& engine, long long steps) {
   if (engine.scene().close_margin <= 0) return {};
-  if (engine.scene().sleep.enabled)
-    return "Close pairs: not used (scene.sleep is enabled; the pair loop with sleepers reads "
-           "every candidate)";
   char line[200];
   std::snprintf(line, sizeof line,
                 "Close pairs: listed %lld times in %lld steps; the last listing kept %.1f %% of "

@@ -283,6 +283,7 @@ struct ChunkKernel {
   template <bool Full, bool Indexed = false>
   DEM_AVX512 ChunkOut compute(const ChunkIn& in, std::int32_t k);
   // The two kernels (below): row by row with the sleeping rules, or the stream of pairs.
+  template <bool Indexed>
   DEM_AVX512 void rows(const PairSleep& sl, std::size_t a0, std::size_t a1, std::size_t direct,
                        std::vector<PairRemote>& remote, PairRowStats& stats);
   template <bool Indexed>
@@ -507,6 +508,8 @@ DEM_AVX512 inline void prefetch_indexed(const Vec3* spring, const Vec3* home,
 }
 
 // With sleepers: row by row, 8 candidates of a row at a time (the sleeping rules are per row).
+// Indexed: the rows are the close pairs' (PairRows::spring_index), as in stream<true>.
+template <bool Indexed>
 DEM_AVX512 void ChunkKernel::rows(const PairSleep& sl, std::size_t a0, std::size_t a1,
                                   std::size_t direct, std::vector<PairRemote>& remote,
                                   PairRowStats& stats) {
@@ -549,8 +552,13 @@ DEM_AVX512 void ChunkKernel::rows(const PairSleep& sl, std::size_t a0, std::size
           sleepy = si ? in.live : sj;
           if (in.live == 0) continue;
         }
-        prefetch_ahead(spring, J, k, kend);
-        const ChunkOut out = compute<false>(in, k);
+        if constexpr (Indexed) {
+          in.kl = spring_index + k;
+          prefetch_indexed(spring, spring_home, spring_index, J, k, kend);
+        } else {
+          prefetch_ahead(spring, J, k, kend);
+        }
+        const ChunkOut out = compute<false, Indexed>(in, k);
         // A sleeper whose contact with an awake particle ends may have lost its support.
         for (unsigned m = out.clear & sleepy; m != 0; m &= m - 1)
             wake(sl, si ? i : static_cast<std::size_t>(jl[__builtin_ctz(m)]), direct);
@@ -712,8 +720,10 @@ static void dispatch(const PairRows& p, const PairSleep& sleep, std::size_t a0, 
   static const bool available = pair_rows_vector_available();
   if (vector && available) {
     ChunkKernel kernel(p);
-    if (Sleep)
-      kernel.rows(sleep, a0, a1, direct, remote, stats);
+    if (Sleep && p.spring_index)
+      kernel.rows<true>(sleep, a0, a1, direct, remote, stats);
+    else if (Sleep)
+      kernel.rows<false>(sleep, a0, a1, direct, remote, stats);
     else if (p.spring_index)
       kernel.stream<true>(a0, a1, direct, remote, stats);
     else
@@ -731,8 +741,6 @@ void pair_rows(const PairRows& p, std::size_t a0, std::size_t a1, std::vector<Pa
 
 void pair_rows_sleep(const PairRows& p, const PairSleep& sleep, std::size_t a0, std::size_t a1,
                      std::vector<PairRemote>& remote, PairRowStats& stats, bool vector) {
-  if (p.spring_index)
-    throw std::logic_error("pair_rows_sleep: close pairs (spring_index) are for all-awake rows only");
   dispatch<true>(p, sleep, a0, a1, remote, stats, vector);
 }
 

@@ -71,6 +71,12 @@ class Engine {
   Timing& timing() { return timing_; }
   const Timing& timing() const { return timing_; }
   int threads() const { return threads_; }  // threads of the last step
+  // Seconds thread t spent working in a section's parallel loops (pair_forces, mesh_contacts,
+  // integration), its waits for other threads left out; summed over the run like timing().
+  // Their sum over the threads against threads x the section's wall time is the share of the
+  // cores the section used: below 1 where the work was not split evenly.
+  double thread_busy(std::size_t section, int t) const;
+  void reset_thread_busy();  // with timing().reset(), where a caller starts the tables anew
   // Bytes of workspace the engine and its broad phase keep between steps (not State).
   std::size_t workspace_bytes() const;
   // Particles asleep after the last step (scene.sleep; 0 when sleeping is disabled) and
@@ -234,6 +240,11 @@ class Engine {
   std::vector<std::int64_t> chunk_claim_;  // the pass in which a chunk was claimed
   std::int64_t chunk_pass_ = 0;
   std::vector<ContactStats> thread_stats_, boundary_stats_;  // per thread
+  // thread_busy(): section * max_threads_ + t, for the three sections with parallel loops.
+  std::vector<double> busy_;
+  void add_busy(std::size_t section, int t, double seconds) {
+    busy_[section * static_cast<std::size_t>(max_threads_) + static_cast<std::size_t>(t)] += seconds;
+  }
   ContactStats stats_;
   std::vector<Wrench> tool_wrench_;
   std::vector<Vec3> wall_force_;
