@@ -112,8 +112,11 @@ ThreadWait parse_thread_wait(const YAML::Node& s, ThreadWait fallback) {
 void parse_sleep(const YAML::Node& sl, const Scene& sc, SleepOptions& o) {
   const std::string p = "scene.sleep";
   if (!sl.IsMap())
-    throw ConfigError(p + ": expected a map {enabled, speed, steps, tool_distance, neighbourhood}");
-  cfg::check_keys(sl, p, {"enabled", "speed", "steps", "tool_distance", "neighbourhood"});
+    throw ConfigError(p + ": expected a map {enabled, speed, steps, tool_distance, neighbourhood, "
+                          "close_pairs}");
+  cfg::check_keys(sl, p, {"enabled", "speed", "steps", "tool_distance", "neighbourhood",
+                          "close_pairs"});
+  o.close_pairs = cfg::get_bool_or(sl, p, "close_pairs", o.close_pairs);
   o.neighbourhood =
       cfg::get_choice(sl, p, "neighbourhood", {"sphere", "box"},
                       o.neighbourhood == SleepNeighbourhood::box ? "box" : "sphere") == "box"

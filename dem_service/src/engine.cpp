@@ -890,7 +890,7 @@ void Engine::pair_forces_impl(State& s) {
     sleep_rules.stamp = stamp;
     sleep_rules.wake = WAKE;
   }
-  if (scene_.close_margin > 0) {
+  if (scene_.close_pairs_on()) {
     if (!close_pairs_hold(s)) list_close_pairs(s);
     if (close_.use) {
       rows.offset = close_.offset.data();
@@ -1370,7 +1370,7 @@ std::size_t Engine::workspace_bytes() const {
 }
 
 std::string close_pairs_summary(const Engine& engine, long long steps) {
-  if (engine.scene().close_margin <= 0) return {};
+  if (!engine.scene().close_pairs_on()) return {};
   char line[200];
   std::snprintf(line, sizeof line,
                 "Close pairs: listed %lld times in %lld steps; the last listing kept %.1f %% of "

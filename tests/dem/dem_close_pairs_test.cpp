@@ -120,6 +120,7 @@ TEST(dem_ClosePairs, SameBitsAsEveryCandidateWithSleepers) {
         scene.sleep.speed = 3e-3;  // most creeping grains fall asleep; hits wake them
         scene.sleep.steps = 20;
         scene.sleep.tool_distance = 0;
+        scene.sleep.close_pairs = true;  // off by default with sleeping
         dem::State st = lattice_state();
         dem::Engine engine(scene);
         for (int k = 0; k < 1200; ++k) {
@@ -141,6 +142,26 @@ TEST(dem_ClosePairs, SameBitsAsEveryCandidateWithSleepers) {
     }
   }
   dem::detail::use_vector_pairs(true);
+}
+
+// With sleeping on, close pairs are listed only when scene.sleep.close_pairs asks for them.
+TEST(dem_ClosePairs, OffWithSleepingUnlessAsked) {
+  for (const bool asked : {false, true}) {
+    dem::Scene scene = lattice_scene(1, 0.05);
+    scene.sleep.enabled = true;
+    scene.sleep.speed = 3e-3;
+    scene.sleep.steps = 20;
+    scene.sleep.tool_distance = 0;
+    scene.sleep.close_pairs = asked;
+    EXPECT_EQ(scene.close_pairs_on(), asked);
+    dem::State st = lattice_state();
+    dem::Engine engine(scene);
+    for (int k = 0; k < 50; ++k) engine.step(st);
+    if (asked)
+      EXPECT_GT(engine.close_builds(), 0);
+    else
+      EXPECT_EQ(engine.close_builds(), 0);
+  }
 }
 
 // A repeated macro step puts the state back (copy assignment into the same object): the close

@@ -86,7 +86,7 @@ std::string describe(const dem::RunConfig& rc) {
     << static_cast<int>(s.stability.on_violation) << ' ' << s.stability.max_speed << ' '
     << s.stability.overlap_tolerance << '\n';
   o << "sleep " << s.sleep.enabled << ' ' << s.sleep.speed << ' ' << s.sleep.steps << ' '
-    << s.sleep.tool_distance << '\n';
+    << s.sleep.tool_distance << ' ' << s.sleep.close_pairs << '\n';
   o << "region " << s.region.enabled << ' ';
   v(s.region.min);
   v(s.region.max);
@@ -204,7 +204,7 @@ TEST(dem_ConfigDefaults, AWrongDefaultIsNoticed) {
                           "tools.0.scale=2", "particles.keep_time=true", "settle.max_time=4",
                           "particles.fill.0.seed=2", "walls.0.open_top=false",
                           "scene.sleep.speed=0.02", "scene.sleep.steps=400",
-                          "scene.sleep.tool_distance=0.4"}) {
+                          "scene.sleep.tool_distance=0.4", "scene.sleep.close_pairs=true"}) {
     YAML::Node root = minimal_config();
     cosim::config::apply_override(root, set);
     EXPECT_NE(describe(dem::load_config(root, dir())), base) << set;
