@@ -1203,20 +1203,32 @@ void Engine::integrate_impl(State& s) {
     FarTally my_tally;  // far movers: the others' largest displacement and speed, the largest
     std::vector<std::int32_t>& my_far = thread_far_[t];
     my_far.clear();
+    // State's arrays as raw pointers that cannot alias: the compiler keeps their addresses and
+    // the running maxima in registers (through State's vectors it reloads them after every
+    // store). Both loops below use them.
+    const double* __restrict const M = s.mass.data();
+    const double* __restrict const RAD = s.radius.data();
+    const Vec3* __restrict const FORCE = force_.data();
+    const Vec3* __restrict const XR = s.x_at_rebuild.data();
+    Vec3* __restrict const V = s.v.data();
+    Vec3* __restrict const U = s.u.data();
+    Vec3* __restrict const X = s.x.data();
+    std::int32_t* __restrict const REST = Sleep ? s.rest_steps.data() : nullptr;
+    const std::uint8_t* __restrict const WAKE = Sleep ? wake_.data() : nullptr;
     auto moved = [&](std::size_t i, double d2) {
       keep_two_largest(my_d2, my_second, d2);
-      note_far_mover(my_far, my_tally, i, d2, norm2(s.u[i]), limits);
+      note_far_mover(my_far, my_tally, i, d2, norm2(U[i]), limits);
       if (close && !FAST[i]) {  // as in the all-awake loop below
-        keep_two_largest(my_close_d1, my_close_d2, norm2(s.x[i] - X_CLOSE[i]));
-        my_close_u2 = std::max(my_close_u2, norm2(s.u[i]));
+        keep_two_largest(my_close_d1, my_close_d2, norm2(X[i] - X_CLOSE[i]));
+        my_close_u2 = std::max(my_close_u2, norm2(U[i]));
       }
     };
     std::int64_t my_bad = -1;
     std::int64_t my_sleeping = 0;
     auto near_tool = [&](std::size_t i) {
       for (std::size_t m = 0; m < tool_centre.size(); ++m) {
-        const double reach = tool_reach[m] + s.radius[i];
-        const Vec3 d = s.x[i] - tool_centre[m];
+        const double reach = tool_reach[m] + RAD[i];
+        const Vec3 d = X[i] - tool_centre[m];
         if (!box) {
           if (norm2(d) < reach * reach) return true;
           continue;
@@ -1239,14 +1251,7 @@ void Engine::integrate_impl(State& s) {
       return false;
     };
     if (!Sleep) {
-      // All awake: raw pointers that cannot alias, so the compiler keeps the arrays' addresses
-      // and the running maxima in registers (0.88 of the time through State's vectors).
-      const double* __restrict const M = s.mass.data();
-      const Vec3* __restrict const FORCE = force_.data();
-      const Vec3* __restrict const XR = s.x_at_rebuild.data();
-      Vec3* __restrict const V = s.v.data();
-      Vec3* __restrict const U = s.u.data();
-      Vec3* __restrict const X = s.x.data();
+      // All awake (0.88 of the time with the raw pointers than through State's vectors).
       for (std::size_t i = a0; i < a1; ++i) {
         const double v2 = advance(dt, M[i], FORCE[i], V[i], U[i], X[i]);
         if (!(v2 <= vmax2) && my_bad < 0) my_bad = static_cast<std::int64_t>(i);
@@ -1260,29 +1265,29 @@ void Engine::integrate_impl(State& s) {
       }
     } else {
       for (std::size_t i = a0; i < a1; ++i) {
-        if (s.rest_steps[i] >= S) {
+        if (REST[i] >= S) {
           // Asleep: not integrated. Woken by the pair loop or a tool, it is integrated from
           // the next step on, with all its forces.
-          if (wake_[i] || near_tool(i))
-            s.rest_steps[i] = 0;
+          if (WAKE[i] || near_tool(i))
+            REST[i] = 0;
           else
             ++my_sleeping;
-          moved(i, norm2(s.x[i] - s.x_at_rebuild[i]));
+          moved(i, norm2(X[i] - XR[i]));
           continue;
         }
-        const double v2 = advance(dt, s.mass[i], force_[i], s.v[i], s.u[i], s.x[i]);
+        const double v2 = advance(dt, M[i], FORCE[i], V[i], U[i], X[i]);
         if (!(v2 <= vmax2) && my_bad < 0) my_bad = static_cast<std::int64_t>(i);
-        moved(i, norm2(s.x[i] - s.x_at_rebuild[i]));
-        std::int32_t r = s.rest_steps[i];
+        moved(i, norm2(X[i] - XR[i]));
+        std::int32_t r = REST[i];
         if (v2 < rest_speed2 && !near_tool(i)) {
           if (++r >= S) {  // falls asleep where it is
-            s.v[i] = s.u[i] = Vec3{};
+            V[i] = U[i] = Vec3{};
             ++my_sleeping;
           }
         } else {
           r = 0;
         }
-        s.rest_steps[i] = r;
+        REST[i] = r;
       }
     }
     add_busy(section::integration, t, busy.seconds());

@@ -196,8 +196,9 @@ TEST(wheel_loader_adapter, CheckpointRestoresTheStateBitForBit) {
     const auto a = m.step(cosim::StepInputs(t, t + H, in), i % 2 == 0);
     const auto b = r.step(cosim::StepInputs(t, t + H, in), i % 2 == 0);
     for (const auto& [name, s] : a.outputs) EXPECT_EQ(s.value, b.outputs.at(name).value) << name << " step " << i;
-    if (a.average)
+    if (a.average) {
       for (const auto& [name, s] : *a.average) EXPECT_EQ(s.value, b.average->at(name).value) << name;
+    }
     ASSERT_EQ(a.diagnostics.size(), b.diagnostics.size());
     for (std::size_t k = 0; k < a.diagnostics.size(); ++k) EXPECT_EQ(a.diagnostics[k].second, b.diagnostics[k].second);
   }
