@@ -225,9 +225,9 @@ TEST(dem_PairBlocks, RangesGiveTheSameForcesToRounding) {
 }
 
 // Engine::thread_busy: each thread's working time in the three parallel sections is counted,
-// is positive for both threads, is no more than the section's wall time (waits left out), and
-// together the threads did not work less than the section's wall time (one of them was busy
-// most of it). reset_thread_busy() zeroes it.
+// is positive for both threads and is no more than the section's wall time (it is timed inside
+// the section; waits left out). How much of the wall time it is depends on the machine's load,
+// so that is not asserted. reset_thread_busy() zeroes it.
 TEST(dem_PairBlocks, ThreadBusyTimeIsCountedPerThread) {
   const dem::Scene scene = blocks_scene(2);
   dem::State st = blocks_state();
@@ -237,14 +237,11 @@ TEST(dem_PairBlocks, ThreadBusyTimeIsCountedPerThread) {
   for (const std::size_t sec :
        {dem::section::pair_forces, dem::section::mesh_contacts, dem::section::integration}) {
     const double wall = engine.timing().seconds(sec);
-    double sum = 0;
     for (int t = 0; t < 2; ++t) {
       const double b = engine.thread_busy(sec, t);
       EXPECT_GT(b, 0) << engine.timing().name(sec) << ", thread " << t;
       EXPECT_LE(b, wall * 1.05 + 1e-4) << engine.timing().name(sec) << ", thread " << t;
-      sum += b;
     }
-    EXPECT_GE(sum, 0.5 * wall) << engine.timing().name(sec);
   }
   engine.reset_thread_busy();
   for (int t = 0; t < 2; ++t) EXPECT_EQ(engine.thread_busy(dem::section::pair_forces, t), 0);
