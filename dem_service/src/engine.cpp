@@ -274,6 +274,12 @@ void Engine::note_far_mover(std::vector<std::int32_t>& far, FarTally& tally, std
   }
 }
 
+void Engine::SleeperTally::clear() {
+  d1 = d2 = 0;
+  tally = FarTally{};
+  far.clear();
+}
+
 void Engine::FarTally::merge(const FarTally& o) {
   near2 = std::max(near2, o.near2);
   near_u2 = std::max(near_u2, o.near_u2);
@@ -1191,6 +1197,86 @@ void Engine::integrate_impl(State& s) {
   const std::uint8_t* const FAST = close ? close_.fast.data() : nullptr;
   const Vec3* const X_CLOSE = close ? close_.x_at.data() : nullptr;
   double close_d1 = 0, close_d2 = 0, close_u2 = 0;
+  // Sleeping without close pairs: the sleepers' share of the guard's tallies is kept between
+  // steps (SleeperTally); a particle adds its displacement when it falls asleep. Right after a
+  // broad phase every sleeper's displacement is 0, so the tally starts empty; in any other
+  // step it does not belong to, every sleeper is noted again (`renote`).
+  const bool keep_sleepers = Sleep && !close;
+  bool renote = false;
+  if (keep_sleepers) {
+    SleeperTally& k = sleepers_;
+    const bool same = k.state == &s && k.size == n && k.step == s.step;
+    bool rebox = true;
+    if (same && k.rebuilds + 1 == s.rebuilds && s.steps_since_rebuild == 0) {
+      k.clear();
+    } else if (!(same && k.rebuilds == s.rebuilds)) {
+      k.clear();
+      renote = true;
+    } else {
+      rebox = false;
+    }
+    if (rebox) {  // the sleepers' boxes per block, from every sleeper
+      const std::size_t nb = (n + kSleepBlock - 1) / kSleepBlock;
+      k.box_lo.resize(nb);
+      k.box_hi.resize(nb);
+      const std::int32_t* const REST = s.rest_steps.data();
+      const Vec3* const X = s.x.data();
+      constexpr double inf = std::numeric_limits<double>::infinity();
+#pragma omp parallel for num_threads(T) schedule(static)
+      for (std::size_t b = 0; b < nb; ++b) {
+        Vec3 lo{inf, inf, inf}, hi{-inf, -inf, -inf};
+        const std::size_t i1 = std::min(n, (b + 1) * kSleepBlock);
+        for (std::size_t i = b * kSleepBlock; i < i1; ++i)
+          if (REST[i] >= S) {
+            lo = {std::min(lo.x, X[i].x), std::min(lo.y, X[i].y), std::min(lo.z, X[i].z)};
+            hi = {std::max(hi.x, X[i].x), std::max(hi.y, X[i].y), std::max(hi.z, X[i].z)};
+          }
+        k.box_lo[b] = lo;
+        k.box_hi[b] = hi;
+      }
+    }
+    k.fell_asleep.clear();
+  }
+  // With neighbourhood: box, the world frame's box around each tool's box (its frame's box
+  // turned into the world), widened by the reach and a margin for rounding: a point outside
+  // it is not within the reach of the tool's box, so near_tool skips the rotation for it.
+  std::vector<Vec3> aabb_lo(Sleep && box ? ntools : 0), aabb_hi(aabb_lo.size());
+  for (std::size_t m = 0; m < aabb_lo.size(); ++m) {
+    const Mat3& R = tool_rotation_[m];
+    const Vec3 c = 0.5 * (tool_box_min_[m] + tool_box_max_[m]), h = 0.5 * (tool_box_max_[m] - tool_box_min_[m]);
+    const Vec3 cw = tool_centre[m] + Vec3{R.m[0][0] * c.x + R.m[0][1] * c.y + R.m[0][2] * c.z,
+                                          R.m[1][0] * c.x + R.m[1][1] * c.y + R.m[1][2] * c.z,
+                                          R.m[2][0] * c.x + R.m[2][1] * c.y + R.m[2][2] * c.z};
+    const Vec3 hw{std::abs(R.m[0][0]) * h.x + std::abs(R.m[0][1]) * h.y + std::abs(R.m[0][2]) * h.z,
+                  std::abs(R.m[1][0]) * h.x + std::abs(R.m[1][1]) * h.y + std::abs(R.m[1][2]) * h.z,
+                  std::abs(R.m[2][0]) * h.x + std::abs(R.m[2][1]) * h.y + std::abs(R.m[2][2]) * h.z};
+    const double margin = 1e-9 * (norm(cw) + norm(hw) + tool_reach[m] + 1.0);
+    const Vec3 w = hw + Vec3{margin, margin, margin};
+    aabb_lo[m] = cw - w;
+    aabb_hi[m] = cw + w;
+  }
+  // Whole blocks of sleepers (any radius up to r_max) against each tool's neighbourhood: the
+  // sphere about its reference point, or the world box above.
+  const double block_pad = scene_.r_max() * (1 + 1e-6);
+  const auto block_far = [&](std::size_t b) {
+    const Vec3 lo = sleepers_.box_lo[b], hi = sleepers_.box_hi[b];
+    if (!(lo.x <= hi.x)) return true;  // no sleeper in it
+    for (std::size_t m = 0; m < ntools; ++m) {
+      const double reach = (tool_reach[m] + block_pad) * (1 + 1e-6);
+      if (box) {
+        const Vec3 a = aabb_lo[m], z = aabb_hi[m];
+        if (lo.x > z.x + reach || hi.x < a.x - reach || lo.y > z.y + reach || hi.y < a.y - reach ||
+            lo.z > z.z + reach || hi.z < a.z - reach)
+          continue;
+        return false;
+      }
+      const Vec3 c = tool_centre[m];
+      const Vec3 out{std::max({lo.x - c.x, 0.0, c.x - hi.x}), std::max({lo.y - c.y, 0.0, c.y - hi.y}),
+                     std::max({lo.z - c.z, 0.0, c.z - hi.z})};
+      if (!(norm2(out) > reach * reach)) return false;
+    }
+    return true;
+  };
 #pragma omp parallel num_threads(T)
   {
     const int t = omp_get_thread_num();
@@ -1225,6 +1311,14 @@ void Engine::integrate_impl(State& s) {
     };
     std::int64_t my_bad = -1;
     std::int64_t my_sleeping = 0;
+    // The sleepers this thread adds to sleepers_ (fell asleep this step, or all with renote).
+    double sl_d1 = 0, sl_d2 = 0;
+    FarTally sl_tally;
+    std::vector<std::int32_t> sl_far, sl_fell;
+    auto note_sleeper = [&](std::size_t i, double d2) {
+      keep_two_largest(sl_d1, sl_d2, d2);
+      note_far_mover(sl_far, sl_tally, i, d2, norm2(U[i]), limits);
+    };
     auto near_tool = [&](std::size_t i) {
       for (std::size_t m = 0; m < tool_centre.size(); ++m) {
         const double reach = tool_reach[m] + RAD[i];
@@ -1233,9 +1327,15 @@ void Engine::integrate_impl(State& s) {
           if (norm2(d) < reach * reach) return true;
           continue;
         }
-        // Farther from the reference point than the box's farthest corner plus the reach: not
-        // near the box (the exact test below would say the same; a margin of 1e-9 covers its
-        // rounding). Spares the rotation for most of a large bed.
+        // Outside the world box around the tool's box widened by the reach, or farther from
+        // the reference point than the box's farthest corner plus the reach: not near the box
+        // (the exact test below would say the same; margins of 1e-9 cover its rounding).
+        // Spares the rotation for most of a large bed.
+        const Vec3 x = X[i], a = aabb_lo[m], z = aabb_hi[m];
+        const double r = reach * (1 + 1e-9);
+        if (x.x > z.x + r || x.x < a.x - r || x.y > z.y + r || x.y < a.y - r || x.z > z.z + r ||
+            x.z < a.z - r)
+          continue;
         const double bound = (tool_box_radius_[m] + reach) * (1 + 1e-9);
         if (norm2(d) > bound * bound) continue;
         // d in the tool frame (R^T d), then its distance to the mesh's box
@@ -1264,25 +1364,36 @@ void Engine::integrate_impl(State& s) {
         }
       }
     } else {
+      bool far_block = false;  // the sleepers of i's block are beyond every tool's reach
       for (std::size_t i = a0; i < a1; ++i) {
+        if (keep_sleepers && (i == a0 || i % kSleepBlock == 0)) far_block = block_far(i / kSleepBlock);
         if (REST[i] >= S) {
           // Asleep: not integrated. Woken by the pair loop or a tool, it is integrated from
           // the next step on, with all its forces.
-          if (WAKE[i] || near_tool(i))
+          if (WAKE[i] || (!far_block && near_tool(i)))
             REST[i] = 0;
           else
             ++my_sleeping;
-          moved(i, norm2(X[i] - XR[i]));
+          // It has not moved since it fell asleep (nor this step): already in sleepers_.
+          if (!keep_sleepers)
+            moved(i, norm2(X[i] - XR[i]));
+          else if (renote)
+            note_sleeper(i, norm2(X[i] - XR[i]));
           continue;
         }
         const double v2 = advance(dt, M[i], FORCE[i], V[i], U[i], X[i]);
         if (!(v2 <= vmax2) && my_bad < 0) my_bad = static_cast<std::int64_t>(i);
-        moved(i, norm2(X[i] - XR[i]));
+        const double d2 = norm2(X[i] - XR[i]);
+        moved(i, d2);
         std::int32_t r = REST[i];
         if (v2 < rest_speed2 && !near_tool(i)) {
           if (++r >= S) {  // falls asleep where it is
             V[i] = U[i] = Vec3{};
             ++my_sleeping;
+            if (keep_sleepers) {
+              note_sleeper(i, d2);
+              sl_fell.push_back(static_cast<std::int32_t>(i));
+            }
           }
         } else {
           r = 0;
@@ -1300,8 +1411,40 @@ void Engine::integrate_impl(State& s) {
       keep_two_largest(close_d1, close_d2, my_close_d2);
       close_u2 = std::max(close_u2, my_close_u2);
       sleeping += my_sleeping;
+      if (keep_sleepers) {
+        keep_two_largest(sleepers_.d1, sleepers_.d2, sl_d1);
+        keep_two_largest(sleepers_.d1, sleepers_.d2, sl_d2);
+        sleepers_.tally.merge(sl_tally);
+        sleepers_.far.insert(sleepers_.far.end(), sl_far.begin(), sl_far.end());
+        sleepers_.fell_asleep.insert(sleepers_.fell_asleep.end(), sl_fell.begin(), sl_fell.end());
+      }
       if (my_bad >= 0 && (bad < 0 || my_bad < bad)) bad = my_bad;
     }
+  }
+  int lists = T;
+  if (keep_sleepers) {
+    SleeperTally& k = sleepers_;
+    keep_two_largest(max_d2, second_d2, k.d1);
+    keep_two_largest(max_d2, second_d2, k.d2);
+    tally.merge(k.tally);
+    if (k.far.size() > kMaxFarMovers + 1) k.far.resize(kMaxFarMovers + 1);  // overflows anyway
+    if (!k.far.empty()) {
+      thread_far_.resize(static_cast<std::size_t>(T) + 1);
+      thread_far_[T] = k.far;
+      lists = T + 1;
+    }
+    for (const std::int32_t i : k.fell_asleep) {  // their blocks' boxes grow
+      const std::size_t b = static_cast<std::size_t>(i) / kSleepBlock;
+      const Vec3 x = s.x[static_cast<std::size_t>(i)];
+      Vec3& lo = k.box_lo[b];
+      Vec3& hi = k.box_hi[b];
+      lo = {std::min(lo.x, x.x), std::min(lo.y, x.y), std::min(lo.z, x.z)};
+      hi = {std::max(hi.x, x.x), std::max(hi.y, x.y), std::max(hi.z, x.z)};
+    }
+    k.state = &s;
+    k.size = n;
+    k.rebuilds = s.rebuilds;
+    k.step = s.step + 1;  // the step this integration ends in
   }
   s.max_displacement = std::sqrt(max_d2);
   s.second_displacement = std::sqrt(second_d2);
@@ -1314,7 +1457,11 @@ void Engine::integrate_impl(State& s) {
   ++s.step;
   if (close_.state == &s) close_.step = s.step;  // its copies of the springs are of this state
   ++s.steps_since_rebuild;
-  finish_far_movers(s, T, tally);  // the far movers of the new state
+  finish_far_movers(s, lists, tally);  // the far movers of the new state
+  if (lists > T) {  // ascending and each once (a woken sleeper may be in both lists)
+    std::sort(far_.begin(), far_.end());
+    far_.erase(std::unique(far_.begin(), far_.end()), far_.end());
+  }
   if (bad >= 0) {
     const std::size_t i = static_cast<std::size_t>(bad);
     std::ostringstream msg;

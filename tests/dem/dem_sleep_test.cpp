@@ -337,6 +337,70 @@ TEST(dem_Sleep, SkippingTheRowsOfSleepersChangesNoBit) {
   }
 }
 
+// A sleeper does not move, so the integration notes its displacement since the broad phase
+// once, when it falls asleep, instead of every step (Engine::SleeperTally). The guard's two
+// largest displacements must still cover every particle: equal to the ones counted over all
+// particles until someone wakes (a woken one stays counted with the displacement it slept
+// with, an upper bound, until the next broad phase), never below them. Through a pile falling
+// asleep between broad phases (only when needed) and woken in part by a thrown grain.
+TEST(dem_Sleep, SleepersCountInTheGuardsDisplacements) {
+  for (int threads : {1, 2}) {
+    Pile p = make_pile(threads, true);
+    p.scene.broad_phase_interval = 1000000;
+    dem::Engine e(p.scene);
+    std::int64_t checked = 0, equal = 0, led_by_sleeper = 0, woke = 0;
+    std::int64_t rebuilds = -1;
+    bool woken_since = false;
+    std::vector<std::int32_t> rest_before;
+    auto run = [&](int steps) {
+      for (int k = 0; k < steps; ++k) {
+        rest_before = p.st.rest_steps;
+        e.step(p.st);
+        if (p.st.rebuilds != rebuilds) {  // a broad phase this step: every displacement was 0
+          rebuilds = p.st.rebuilds;
+          woken_since = false;
+        }
+        double d1 = 0, d2 = 0, sleeper_max = 0, awake_max = 0;
+        for (std::size_t i = 0; i < p.st.size(); ++i) {
+          const double d = dem::norm(p.st.x[i] - p.st.x_at_rebuild[i]);
+          if (d > d2) {
+            d2 = std::min(d, d1);
+            d1 = std::max(d, d1);
+          }
+          const bool sleeps = p.st.rest_steps[i] >= p.scene.sleep.steps;
+          (sleeps ? sleeper_max : awake_max) = std::max(sleeps ? sleeper_max : awake_max, d);
+          if (i < rest_before.size() && rest_before[i] >= p.scene.sleep.steps && !sleeps) {
+            woken_since = true;
+            ++woke;
+          }
+        }
+        ++checked;
+        EXPECT_GE(p.st.max_displacement, d1) << "step " << p.st.step << ", " << threads << " threads";
+        EXPECT_GE(p.st.max_displacement + p.st.second_displacement, d1 + d2)
+            << "step " << p.st.step << ", " << threads << " threads";
+        if (!woken_since) {
+          equal += p.st.max_displacement == d1 && p.st.second_displacement == d2;
+          EXPECT_EQ(p.st.max_displacement, d1) << "step " << p.st.step;
+          EXPECT_EQ(p.st.second_displacement, d2) << "step " << p.st.step;
+        }
+        led_by_sleeper += sleeper_max > 0 && sleeper_max > awake_max;
+        if (::testing::Test::HasFailure()) return;
+      }
+    };
+    run(20000);
+    add(p.st, {0.001, 0.002, 0.12}, {0.2, 0, -1}, kR);
+    run(4000);
+    std::printf("%d threads: %lld steps checked, %lld equal, %lld led by a sleeper, %lld wakes\n",
+                threads, static_cast<long long>(checked), static_cast<long long>(equal),
+                static_cast<long long>(led_by_sleeper), static_cast<long long>(woke));
+    // The test means something: sleepers moved before they slept and led the displacements,
+    // and the thrown grain woke some.
+    EXPECT_GT(led_by_sleeper, 100) << threads << " threads";
+    EXPECT_GT(woke, 0) << threads << " threads";
+    EXPECT_GT(equal, 1000) << threads << " threads";
+  }
+}
+
 TEST(dem_Region, RemovalKeepsListsAndHistoryOfTheRest) {
   Pile p = make_pile(1, false);
   dem::Engine e(p.scene);

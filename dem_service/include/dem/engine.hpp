@@ -209,6 +209,28 @@ class Engine {
   std::vector<std::int32_t> row_mark_;
   std::int32_t row_stamp_ = 0;
   std::int64_t sleeping_ = 0;
+  // Sleeping: what the sleepers add to the guard's tallies (two largest displacements, the far
+  // movers' tally and list). A sleeper does not move, so its displacement since the broad phase
+  // is the one it fell asleep with (0 for one asleep at the broad phase): noted once, when it
+  // falls asleep, instead of every step. Woken ones stay in it until the next broad phase (an
+  // upper bound: the guard may rebuild earlier, never later). Valid for the state, size,
+  // broad phase and step it was kept for; else the integration notes every sleeper again.
+  struct SleeperTally {
+    double d1 = 0, d2 = 0;
+    FarTally tally;
+    std::vector<std::int32_t> far;
+    // The box around the sleepers of each block of kSleepBlock particles (by index), grown as
+    // particles fall asleep, made again after each broad phase (it reorders them): a block
+    // whose box is beyond every tool's neighbourhood needs no per-sleeper test of it.
+    std::vector<Vec3> box_lo, box_hi;
+    std::vector<std::int32_t> fell_asleep;  // this step's, to grow the boxes after the loop
+    const State* state = nullptr;
+    std::size_t size = 0;
+    std::int64_t rebuilds = -1, step = -1;
+    void clear();
+  };
+  SleeperTally sleepers_;
+  static constexpr std::size_t kSleepBlock = 64;
   // Far movers: particles that moved more than half the skin since the last broad phase, in
   // ascending order (at most kMaxFarMovers, else far_overflow_), with the largest displacement
   // of all the others and the largest speed |u| of any particle. The integration collects them
