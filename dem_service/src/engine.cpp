@@ -441,6 +441,16 @@ bool Engine::far_movers_clear(const State& s) {
     const double reach = (s.radius[a] + s.radius[b] + 0.5 * dt * (ua + norm(s.u[b]))) * (1 + 1e-9);
     return norm2(s.x[a] - s.x[b]) < reach * reach && !listed(a, b);
   };
+  // The far movers flagged (for the grid search below; cleared on every way out).
+  far_flag_.resize(s.size());
+  for (const std::int32_t e : far_) far_flag_[static_cast<std::size_t>(e)] = 1;
+  struct Unflag {
+    std::vector<std::uint8_t>& flag;
+    const std::vector<std::int32_t>& far;
+    ~Unflag() {
+      for (const std::int32_t e : far) flag[static_cast<std::size_t>(e)] = 0;
+    }
+  } unflag{far_flag_, far_};
   const RegionOptions& region = scene_.region;
   for (std::size_t k = 0; k < far_.size(); ++k) {
     const std::size_t e = static_cast<std::size_t>(far_[k]);
@@ -473,14 +483,18 @@ bool Engine::far_movers_clear(const State& s) {
       if (mesh_grid_.size() != ntools) build_mesh_grids();
       if (unlisted_triangle_near(s, e, m, reach)) return false;
     }
-    // Particles: those that moved at most half the skin, found through the grid ...
+    // Particles: those that moved at most half the skin, found through the grid ... (first
+    // against the reach with the fastest speed of all, u_max_ >= |u_b|: what it rules out,
+    // unlisted_near would too)
     bool clear = true;
     const double reach = (re + rmax + 0.5 * dt * (ue + u_max_) + 0.5 * skin) * (1 + 1e-9);
+    const double pre = re + 0.5 * dt * (ue + u_max_);
     broad_.for_each_near(xe, reach, [&](std::int32_t b) {
-      if (!clear || static_cast<std::size_t>(b) == e ||
-          std::binary_search(far_.begin(), far_.end(), b))
-        return;
-      if (unlisted_near(e, static_cast<std::size_t>(b), ue)) clear = false;
+      const std::size_t bb = static_cast<std::size_t>(b);
+      if (!clear || bb == e) return;
+      const double bound = (pre + s.radius[bb]) * (1 + 1e-9);
+      if (!(norm2(s.x[bb] - xe) < bound * bound) || far_flag_[bb]) return;
+      if (unlisted_near(e, bb, ue)) clear = false;
     });
     if (!clear) return false;
     // ... and the other far movers, wherever they are.

@@ -237,6 +237,7 @@ class Engine {
   // for the state after its step (far_step_, far_state_); find_far_movers() for any other.
   static constexpr std::size_t kMaxFarMovers = 1024;
   std::vector<std::int32_t> far_;
+  std::vector<std::uint8_t> far_flag_;  // far_movers_clear: 1 for the far movers, else 0
   std::vector<std::vector<std::int32_t>> thread_far_;  // per thread
   bool far_overflow_ = false;
   double near_max_ = 0, near_u_max_ = 0, u_max_ = 0;
