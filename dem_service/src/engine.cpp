@@ -497,9 +497,13 @@ bool Engine::far_movers_clear(const State& s) {
       if (unlisted_near(e, bb, ue)) clear = false;
     });
     if (!clear) return false;
-    // ... and the other far movers, wherever they are.
-    for (std::size_t l = k + 1; l < far_.size(); ++l)
-      if (unlisted_near(e, static_cast<std::size_t>(far_[l]), ue)) return false;
+    // ... and the other far movers, wherever they are (the same first test).
+    for (std::size_t l = k + 1; l < far_.size(); ++l) {
+      const std::size_t b = static_cast<std::size_t>(far_[l]);
+      const double bound = (pre + s.radius[b]) * (1 + 1e-9);
+      if (!(norm2(s.x[b] - xe) < bound * bound)) continue;
+      if (unlisted_near(e, b, ue)) return false;
+    }
   }
   return true;
 }
