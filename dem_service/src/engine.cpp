@@ -106,6 +106,7 @@ bool shares_vertex(const Scene& scene, std::uint64_t a, std::uint64_t b) {
 }
 
 std::atomic<bool> sleeper_row_skip{true};
+std::atomic<bool> sleeper_blocks{true};
 // The pair forces' kernel: the AVX-512 one where the processor has it, unless the environment
 // asks for the scalar loop (DEM_PAIR_KERNEL=scalar, for timing one against the other; both give
 // the same bits). Read once; a value other than vector or scalar is refused.
@@ -149,6 +150,7 @@ inline void keep_two_largest(double& first, double& second, double d2) {
 }  // namespace
 
 void detail::use_sleeper_row_skip(bool skip) { sleeper_row_skip = skip; }
+void detail::use_sleeper_blocks(bool blocks) { sleeper_blocks = blocks; }
 void read_pair_kernel_environment() {
   std::call_once(vector_pairs_read, [] { vector_pairs = vector_pairs_from_environment(); });
 }
@@ -1276,7 +1278,9 @@ void Engine::integrate_impl(State& s) {
   // Whole blocks of sleepers (any radius up to r_max) against each tool's neighbourhood: the
   // sphere about its reference point, or the world box above.
   const double block_pad = scene_.r_max() * (1 + 1e-6);
+  const bool use_blocks = sleeper_blocks.load(std::memory_order_relaxed);
   const auto block_far = [&](std::size_t b) {
+    if (!use_blocks) return false;
     const Vec3 lo = sleepers_.box_lo[b], hi = sleepers_.box_hi[b];
     if (!(lo.x <= hi.x)) return true;  // no sleeper in it
     for (std::size_t m = 0; m < ntools; ++m) {
@@ -1384,7 +1388,20 @@ void Engine::integrate_impl(State& s) {
     } else {
       bool far_block = false;  // the sleepers of i's block are beyond every tool's reach
       for (std::size_t i = a0; i < a1; ++i) {
-        if (keep_sleepers && (i == a0 || i % kSleepBlock == 0)) far_block = block_far(i / kSleepBlock);
+        if (keep_sleepers && (i == a0 || i % kSleepBlock == 0)) {
+          far_block = block_far(i / kSleepBlock);
+          // A whole block asleep, beyond every tool and woken by no one: nothing to do in it
+          // (what the loop below would find particle by particle).
+          if (far_block && !renote && i % kSleepBlock == 0 && i + kSleepBlock <= a1) {
+            int quiet = 1;
+            for (std::size_t q = i; q < i + kSleepBlock; ++q) quiet &= (REST[q] >= S) & (WAKE[q] == 0);
+            if (quiet) {
+              my_sleeping += static_cast<std::int64_t>(kSleepBlock);
+              i += kSleepBlock - 1;
+              continue;
+            }
+          }
+        }
         if (REST[i] >= S) {
           // Asleep: not integrated. Woken by the pair loop or a tool, it is integrated from
           // the next step on, with all its forces.

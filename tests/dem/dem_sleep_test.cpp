@@ -401,6 +401,66 @@ TEST(dem_Sleep, SleepersCountInTheGuardsDisplacements) {
   }
 }
 
+// The integration skips the tool-neighbourhood test for a block of 64 sleepers whose box is
+// beyond every tool's neighbourhood, and a whole such block asleep and unwoken at once. Testing
+// every sleeper as before must give the same bits: the sleeping pile with a plate swept over
+// its top, turned, waking a strip of it (box and sphere neighbourhoods, 1 and 2 threads).
+TEST(dem_Sleep, SkippingBlocksOfSleepersFarFromToolsChangesNoBit) {
+  for (const auto shape : {dem::SleepNeighbourhood::box, dem::SleepNeighbourhood::sphere})
+    for (int threads : {1, 2}) {
+      const char* what = shape == dem::SleepNeighbourhood::box ? " box" : " sphere";
+      Pile a = make_pile(threads, true), b = make_pile(threads, true);
+      std::vector<Vec3> plate;
+      quad(plate, {0, -0.005, 0}, {0.020, -0.005, 0}, {0.020, 0.005, 0}, {0, 0.005, 0});
+      for (Pile* p : {&a, &b}) {
+        p->scene.sleep.tool_distance = 0.004;
+        p->scene.sleep.neighbourhood = shape;
+        p->scene.tools.push_back(static_tool("plate", plate));
+        p->st.tool_pose.resize(1);
+        p->st.tool_pose[0].position = {1, 0, 1};
+      }
+      dem::Engine ea(a.scene), eb(b.scene);
+      auto step_both = [&] {
+        dem::detail::use_sleeper_blocks(true);
+        ea.step(a.st);
+        dem::detail::use_sleeper_blocks(false);
+        eb.step(b.st);
+        dem::detail::use_sleeper_blocks(true);
+      };
+      while (ea.sleeping() < 150 && a.st.step * a.scene.dt < 2.0) step_both();
+      ASSERT_EQ(ea.sleeping(), 150) << what;
+      double top = 0;
+      for (const Vec3& x : a.st.x) top = std::max(top, x.z);
+      std::int64_t woken = 0, quiet_block_steps = 0;
+      const int sweep = 3000;
+      for (int k = 0; k <= sweep; ++k) {
+        // from x = -0.05 to 0.05 just over the top, its own x turned 60 degrees down
+        for (Pile* p : {&a, &b}) {
+          p->st.tool_pose[0].position = {-0.05 + 0.1 * k / sweep, 0.004, top + 0.012};
+          p->st.tool_pose[0].orientation = {std::cos(M_PI / 6), 0, std::sin(M_PI / 6), 0};
+        }
+        step_both();
+        woken = std::max<std::int64_t>(woken, 150 - ea.sleeping());
+        // a block of 64 all asleep while the plate keeps others awake
+        bool block_asleep = false;
+        for (std::size_t b0 = 0; b0 + 64 <= a.st.size(); b0 += 64) {
+          bool all = true;
+          for (std::size_t i = b0; i < b0 + 64; ++i) all &= a.st.rest_steps[i] >= a.scene.sleep.steps;
+          block_asleep |= all;
+        }
+        quiet_block_steps += block_asleep && ea.sleeping() < 150;
+      }
+      std::printf("%s, %d threads: up to %lld awake, %lld steps with a whole block asleep\n", what,
+                  threads, static_cast<long long>(woken), static_cast<long long>(quiet_block_steps));
+      EXPECT_GT(woken, 5) << what << threads;
+      EXPECT_LT(woken, 140) << what << threads;
+      EXPECT_GT(quiet_block_steps, 100) << what << threads;
+      EXPECT_EQ(0, std::memcmp(a.st.x.data(), b.st.x.data(), a.st.size() * sizeof(Vec3))) << what << threads;
+      EXPECT_EQ(0, std::memcmp(a.st.v.data(), b.st.v.data(), a.st.size() * sizeof(Vec3)));
+      EXPECT_EQ(a.st.rest_steps, b.st.rest_steps) << what << threads;
+    }
+}
+
 TEST(dem_Region, RemovalKeepsListsAndHistoryOfTheRest) {
   Pile p = make_pile(1, false);
   dem::Engine e(p.scene);

@@ -288,6 +288,9 @@ namespace detail {
 // Whether the pair loop skips the rows of sleepers that hold no awake partner (the default) or
 // scans every row as before; tests compare whole runs both ways.
 void use_sleeper_row_skip(bool skip);
+// Whether the integration skips the tool-neighbourhood test for whole blocks of sleepers that are
+// beyond every tool (the default) or tests every sleeper as before; tests compare both ways.
+void use_sleeper_blocks(bool blocks);
 // Whether the all-awake pair forces use the AVX-512 kernel where the processor has it (the
 // default) or the scalar loop; both give the same bits (dem/pair_kernel.hpp), tests compare.
 void use_vector_pairs(bool vector);
