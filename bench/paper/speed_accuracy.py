@@ -2,10 +2,12 @@
 """Speed against accuracy for paper-scene runs (bench/paper/paper_scene.sh --out DIR): for each
 run its real-time factor over the whole maneuver (dem_run's loop times over simulated time) and
 the change of its bucket force against the reference run (compare.py's filtered RMS measure),
-printed as a table and drawn as a chart. Pass a scatter run (the reference setting with
-another thread count: only the summation order differs) to draw the scene's own scatter.
+printed as a table and drawn as a chart. Pass scatter runs (the reference setting with a
+physically negligible change: --set particles.perturb.amplitude=4e-9 with its own seed; another
+thread count no longer changes a bit) to draw the scene's own scatter: their mean is what the
+"x scatter" column divides by, their range the band on the chart.
 
-usage: speed_accuracy.py --reference DIR [--scatter DIR] LABEL=DIR ... [--out PNG]
+usage: speed_accuracy.py --reference DIR [--scatter DIR ...] LABEL=DIR ... [--out PNG]
 """
 import argparse
 import os
@@ -44,7 +46,7 @@ def main():
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("runs", nargs="+", metavar="LABEL=DIR")
     p.add_argument("--reference", required=True)
-    p.add_argument("--scatter")
+    p.add_argument("--scatter", action="append", default=[])
     p.add_argument("--policy", default="needed")
     p.add_argument("--filter", type=float, default=0.02)
     p.add_argument("--out", default="results/paper_speed_accuracy.png")
@@ -58,10 +60,18 @@ def main():
     ref_rtf = real_time_factor(a.reference, a.policy)
     print(f"reference {a.reference}: real-time factor {ref_rtf:.0f}")
     scatter = None
-    if a.scatter:
-        scatter = change(a.reference, a.scatter, a.policy, a.filter)
-        print(f"scatter {a.scatter}: force change raw {100 * scatter[0]:.2f} %, filtered "
-              f"{100 * scatter[1]:.2f} %")
+    members = []
+    for folder in a.scatter:
+        raw, filt = change(a.reference, folder, a.policy, a.filter)
+        members.append((raw, filt))
+        print(f"scatter {folder}: force change raw {100 * raw:.2f} %, filtered {100 * filt:.2f} %")
+    if members:
+        scatter = (sum(m[0] for m in members) / len(members),
+                   sum(m[1] for m in members) / len(members))
+        if len(members) > 1:
+            print(f"scatter, mean of {len(members)}: raw {100 * scatter[0]:.2f} %, filtered "
+                  f"{100 * scatter[1]:.2f} % (filtered {100 * min(m[1] for m in members):.2f}"
+                  f"-{100 * max(m[1] for m in members):.2f} %)")
     print("| run | real-time factor | speed-up | force change raw | filtered | x scatter (filtered) |")
     print("| --- | ---: | ---: | ---: | ---: | ---: |")
     rows = []
@@ -85,10 +95,13 @@ def main():
     for label, s, f in rows:
         ax.annotate(label, (f, s), textcoords="offset points", xytext=(-10, -14), ha="right",
                     fontsize=8)
-    ax.set_xlim(left=0, right=1.1 * max([f for _, _, f in rows] + [1e-9]))
+    ax.set_xlim(left=0, right=1.1 * max([f for _, _, f in rows] + [100 * m[1] for m in members] + [1e-9]))
     if scatter:
         ax.axvline(100 * scatter[1], color="grey", linestyle="--",
-                   label="scatter (1 vs 2 threads)")
+                   label=f"scatter (mean of {len(members)} run{'s' if len(members) > 1 else ''})")
+        if len(members) > 1:
+            ax.axvspan(100 * min(m[1] for m in members), 100 * max(m[1] for m in members),
+                       color="grey", alpha=0.15, label="scatter range")
         ax.legend()
     ax.set_xlabel(f"bucket force change, filtered {a.filter} s [%]")
     ax.set_ylabel("speed-up against all active")
