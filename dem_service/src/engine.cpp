@@ -845,10 +845,9 @@ void Engine::start_forces(const State& s, std::size_t i0, std::size_t i1) {
     const double* __restrict const M = s.mass.data();
     Vec3* __restrict const F = force_.data();
     std::uint8_t* __restrict const WAKE = wake_.data();
-    for (std::size_t i = i0; i < i1; ++i) {
+    if (i1 > i0) std::memset(WAKE + i0, 0, i1 - i0);
+    for (std::size_t i = i0; i < i1; ++i)
       if (REST[i] < S) F[i] = M[i] * g;
-      WAKE[i] = 0;
-    }
   } else {
     for (std::size_t i = i0; i < i1; ++i) force_[i] = s.mass[i] * g;
   }
