@@ -119,6 +119,20 @@ bool vector_pairs_from_environment() {
 }
 std::atomic<bool> vector_pairs{true};
 std::once_flag vector_pairs_read;
+// DEM_PAIR_CHUNKS=branch-free or branching overrides the processor's default for the stream
+// kernel (detail::use_branch_free_chunks; the same bits), for timing one against the other.
+void chunk_branches_from_environment() {
+  const char* v = std::getenv("DEM_PAIR_CHUNKS");
+  if (v == nullptr) return;
+  if (std::strcmp(v, "branch-free") == 0)
+    detail::use_branch_free_chunks(true);
+  else if (std::strcmp(v, "branching") == 0)
+    detail::use_branch_free_chunks(false);
+  else
+    throw std::invalid_argument(std::string("environment DEM_PAIR_CHUNKS=") + v +
+                                ": use branch-free or branching, or unset it (the processor "
+                                "picks)");
+}
 
 // One step of semi-implicit Euler: the new velocity moves the particle (symplectic, one force
 // evaluation per step; docs/physics.md); u is the velocity at the next force time. Returns |v|^2.
@@ -162,7 +176,10 @@ inline void keep_two_largest(double& first, double& second, double d2) {
 void detail::use_sleeper_row_skip(bool skip) { sleeper_row_skip = skip; }
 void detail::use_sleeper_blocks(bool blocks) { sleeper_blocks = blocks; }
 void read_pair_kernel_environment() {
-  std::call_once(vector_pairs_read, [] { vector_pairs = vector_pairs_from_environment(); });
+  std::call_once(vector_pairs_read, [] {
+    vector_pairs = vector_pairs_from_environment();
+    chunk_branches_from_environment();
+  });
 }
 
 void detail::use_vector_pairs(bool vector) {

@@ -1,6 +1,7 @@
 #include "dem/pair_kernel.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <stdexcept>
 
@@ -209,7 +210,7 @@ struct ChunkOut {
   __m512d urel2;                // |u_i - u_j|^2
 };
 struct ChunkKernel {
-  __m512d zero, one, two, four, half, tiny, minus_one, vdt, quarter_dt2, half_dt, kn, two_zeta,
+  __m512d zero, one, two, four, half, tiny, ratio_margin, minus_one, vdt, quarter_dt2, half_dt, kn, two_zeta,
       eta_fixed, kt_ratio, etat_ratio, mu;
   __mmask8 per_length, from_restitution, clip;
   __m512i sign;
@@ -252,6 +253,7 @@ struct ChunkKernel {
     four = _mm512_set1_pd(4.0);
     half = _mm512_set1_pd(0.5);
     tiny = _mm512_set1_pd(1e-6);
+    ratio_margin = _mm512_set1_pd(1 - 1e-9);
     minus_one = _mm512_set1_pd(-1.0);
     vdt = _mm512_set1_pd(dt);
     quarter_dt2 = _mm512_set1_pd(0.25 * dt * dt);  // surely_apart's (0.25 dt) dt
@@ -286,7 +288,8 @@ struct ChunkKernel {
   template <bool Indexed>
   DEM_AVX512 void rows(const PairSleep& sl, std::size_t a0, std::size_t a1, std::size_t direct,
                        std::vector<PairRemote>& remote, PairRowStats& stats);
-  template <bool Indexed>
+  // Full: the spring's turn and the friction cap computed in every chunk without a branch.
+  template <bool Indexed, bool Full>
   DEM_AVX512 void stream(std::size_t a0, std::size_t a1, std::size_t direct,
                          std::vector<PairRemote>& remote, PairRowStats& stats);
   DEM_AVX512 void finish(PairRowStats& stats) const {
@@ -475,8 +478,13 @@ DEM_AVX512 __attribute__((always_inline)) inline ChunkOut ChunkKernel::compute(
   _mm512_store_pd(fz, _mm512_add_pd(_mm512_mul_pd(fn, nz), ftz));
   contacts += __builtin_popcount(act);
   max_overlap = _mm512_mask_max_pd(max_overlap, act, max_overlap, overlap);
-  max_ratio = _mm512_mask_max_pd(max_ratio, act, max_ratio,
-                                 _mm512_div_pd(overlap, _mm512_min_pd(in.ri, rj)));
+  // The ratio's division only where a lane may raise its maximum: below (1 - 1e-9) times the
+  // maximum times the radius the quotient rounds to at most the maximum (the same maxima).
+  const __m512d rmin = _mm512_min_pd(in.ri, rj);
+  const __mmask8 may = _mm512_mask_cmp_pd_mask(
+      act, overlap, _mm512_mul_pd(_mm512_mul_pd(max_ratio, rmin), ratio_margin), _CMP_GE_OQ);
+  if (may)
+    max_ratio = _mm512_mask_max_pd(max_ratio, may, max_ratio, _mm512_div_pd(overlap, rmin));
   return out;
 }
 
@@ -589,7 +597,7 @@ DEM_AVX512 void ChunkKernel::rows(const PairSleep& sl, std::size_t a0, std::size
 // on average: 61 % of the lanes of a row-by-row chunk). The i side of each lane is read from
 // the chunk's rows, which are consecutive. Row i's force is added when the stream has passed
 // it, after its pairs' partners, as the row loop does.
-template <bool Indexed>
+template <bool Indexed, bool Full>
 DEM_AVX512 void ChunkKernel::stream(std::size_t a0, std::size_t a1, std::size_t direct,
                                     std::vector<PairRemote>& remote, PairRowStats& stats) {
   alignas(32) std::int32_t jl[8], il[8], kl[8];
@@ -676,7 +684,7 @@ DEM_AVX512 void ChunkKernel::stream(std::size_t a0, std::size_t a1, std::size_t 
     } else {
       prefetch_ahead(spring, J, k, kend);
     }
-    const ChunkOut out = compute<true, Indexed>(in, k);
+    const ChunkOut out = compute<Full, Indexed>(in, k);
     // The forces in pair order: a row's sum is added once the stream has left the row.
     for (unsigned m = out.act; m != 0; m &= m - 1) {
       const int l = __builtin_ctz(m);
@@ -710,6 +718,24 @@ bool pair_rows_vector_available() {
 #endif
 }
 
+// Whether the stream kernel computes the spring's turn and the friction cap in every chunk
+// without a branch, or only in chunks with a lane that needs them: the same bits either way.
+// Where 512-bit divisions are cheap the branch costs more than the work (an AMD EPYC VM: 0.93x
+// of the pair forces branch-free); where they are dear, the other way round (an Intel Xeon VM:
+// 0.90-0.94x with the branch). docs/performance.md, "Divisions where they are dear".
+static bool branch_free_by_processor() {
+#if defined(__x86_64__) && defined(__GNUC__)
+  __builtin_cpu_init();
+  return __builtin_cpu_is("amd");
+#else
+  return false;
+#endif
+}
+static std::atomic<bool> branch_free_chunks{branch_free_by_processor()};
+
+void use_branch_free_chunks(bool branch_free) { branch_free_chunks = branch_free; }
+bool branch_free_chunks_in_use() { return branch_free_chunks.load(std::memory_order_relaxed); }
+
 // The one place that picks the kernel: the vector one when asked for and available.
 template <bool Sleep>
 static void dispatch(const PairRows& p, const PairSleep& sleep, std::size_t a0, std::size_t a1,
@@ -724,10 +750,12 @@ static void dispatch(const PairRows& p, const PairSleep& sleep, std::size_t a0, 
       kernel.rows<true>(sleep, a0, a1, direct, remote, stats);
     else if (Sleep)
       kernel.rows<false>(sleep, a0, a1, direct, remote, stats);
-    else if (p.spring_index)
-      kernel.stream<true>(a0, a1, direct, remote, stats);
+    else if (branch_free_chunks.load(std::memory_order_relaxed))
+      p.spring_index ? kernel.stream<true, true>(a0, a1, direct, remote, stats)
+                     : kernel.stream<false, true>(a0, a1, direct, remote, stats);
     else
-      kernel.stream<false>(a0, a1, direct, remote, stats);
+      p.spring_index ? kernel.stream<true, false>(a0, a1, direct, remote, stats)
+                     : kernel.stream<false, false>(a0, a1, direct, remote, stats);
     return;
   }
 #endif

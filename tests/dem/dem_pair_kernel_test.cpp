@@ -215,6 +215,7 @@ TEST(dem_PairKernel, VectorAndScalarGiveTheSameBits) {
   const double dt = 1e-4;
   std::mt19937_64 rng(7);
   std::int64_t contacts = 0, rows_seen = 0, remotes = 0;
+  const bool default_chunks = dem::detail::branch_free_chunks_in_use();
   for (const int sizes : {0, 1, 2}) {
     for (const dem::ContactLaw& law : laws()) {
       for (int rep = 0; rep < 6; ++rep) {
@@ -224,7 +225,14 @@ TEST(dem_PairKernel, VectorAndScalarGiveTheSameBits) {
         // A thread's range in the middle: the partners beyond it go to the remote list.
         const std::size_t a0 = 40, a1 = 420;
         const Result s = run(rows, law, dt, a0, a1, false);
+        // The stream kernel's two ways with the spring's turn and the friction cap: every
+        // chunk without a branch, or only the chunks that need them (the processor's default
+        // is one of them).
+        const bool branch_free = rep % 2 == 0;
+        dem::detail::use_branch_free_chunks(branch_free);
         const Result v = run(rows, law, dt, a0, a1, true);
+        dem::detail::use_branch_free_chunks(default_chunks);
+        SCOPED_TRACE(branch_free ? "branch-free chunks" : "branching chunks");
         for (std::size_t i = 0; i < rows.x.size(); ++i)
           ASSERT_TRUE(same_bits(s.force[i], v.force[i]))
               << "force of particle " << i << " (sizes " << sizes << ")";
@@ -398,6 +406,22 @@ TEST(dem_PairKernel, BadKernelInTheEnvironmentIsRefusedAtStartUp) {
     EXPECT_NE(text.find("DEM_PAIR_KERNEL=avx: use vector (the default) or scalar, or unset it"),
               std::string::npos)
         << text;
+  }
+  // DEM_PAIR_CHUNKS likewise (branch-free or branching).
+  {
+    const auto [code, text] = run_command("env DEM_PAIR_CHUNKS=fast " + std::string(DEM_RUN_EXE) +
+                                          " " + config + " --set run.duration=0.001 --output " +
+                                          out);
+    EXPECT_EQ(code, 2) << text;
+    EXPECT_NE(text.find("DEM_PAIR_CHUNKS=fast: use branch-free or branching, or unset it"),
+              std::string::npos)
+        << text;
+  }
+  for (const char* v : {"branch-free", "branching"}) {
+    const auto [code, text] = run_command(std::string("env DEM_PAIR_CHUNKS=") + v + " " +
+                                          DEM_RUN_EXE + " " + config +
+                                          " --set run.duration=0.001 --output " + out);
+    EXPECT_EQ(code, 0) << v << ": " << text;
   }
   // The two good values run.
   for (const char* v : {"scalar", "vector"}) {

@@ -81,4 +81,12 @@ void pair_rows_sleep(const PairRows& p, const PairSleep& sleep, std::size_t a0, 
 
 bool pair_rows_vector_available();
 
+// The stream kernel (every particle awake) computes the spring's turn and the friction cap in
+// every chunk without a branch (true), or only in chunks that need them (false). The default
+// follows the processor (branch-free on AMD, where 512-bit divisions are cheap); the
+// environment's DEM_PAIR_CHUNKS (read_pair_kernel_environment) and tests switch it. The same
+// bits either way.
+void use_branch_free_chunks(bool branch_free);
+bool branch_free_chunks_in_use();
+
 }  // namespace dem::detail
