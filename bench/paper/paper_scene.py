@@ -76,6 +76,9 @@ def parse_table(text):
     out["spared"] = int(m[3]) if m[3] is not None else 0
     m = re.search(r"Maximum resident set size \(kbytes\): (\d+)", text)
     out["rss_kb"] = int(m[1]) if m else 0
+    user = re.search(r"User time \(seconds\): ([\d.]+)", text)
+    system = re.search(r"System time \(seconds\): ([\d.]+)", text)
+    out["cpu_s"] = float(user[1]) + float(system[1]) if user and system else 0.0
     m = re.search(r"Percent of CPU this job got: (\d+)%", text)
     out["cpu"] = int(m[1]) / 100 if m else 0.0   # of the whole process, loading included
     return out
@@ -123,9 +126,21 @@ parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
 parser.add_argument("--threads", type=int, default=2)
 parser.add_argument("--out", default=OUT, help="folder for logs, checkpoints, the motion CSV")
 parser.add_argument("--config", default=CONFIG, help=argparse.SUPPRESS)   # for testing the script
+parser.add_argument("--repeats", type=int, default=1,
+                    help="whole maneuvers per policy, interleaved (policy order reversed every "
+                         "other repeat); the summary gives the median and range (default 1)")
 parser.add_argument("--pile", default=PILE,
                     help="settled pile checkpoint (default results/pile_paper.h5)")
 args = parser.parse_args()
+if args.repeats < 1:
+    parser.error(f"--repeats {args.repeats}: give at least 1")
+if args.window <= 0:
+    parser.error(f"--window {args.window}: give a positive number of simulated seconds")
+policies = args.policies.split(",")
+for p in policies:
+    if p not in POLICIES:
+        parser.error(f"--policies: unknown policy {p!r}; use a comma-separated list of "
+                     + ", ".join(POLICIES))
 CONFIG, PILE, OUT = args.config, args.pile, args.out
 
 os.makedirs(OUT, exist_ok=True)
@@ -138,29 +153,45 @@ print("maneuver (A-pin x, z [m], pitch [deg] at the phase ends): "
 print(f"load average at start: {load()}")
 sys.stdout.flush()
 results = []
-for policy in args.policies.split(","):
-    ckpt = PILE
-    for k in range(len(PHASES)):
-        t0 = time.time()
-        row, ckpt = run_phase(args.dem_run, policy, k, args.window, ckpt,
-                              f"{OUT}/{policy}_{k + 1}_{PHASES[k][0]}.log")
-        results.append(row)
-        print(f"  {policy:7s} {row['phase']:12s} RTF {row['wall'] / row['sim']:7.1f}  "
-              f"({time.time() - t0:.0f} s wall with loading)")
-        sys.stdout.flush()
+for rep in range(args.repeats):
+    # Interleaved: a machine whose speed drifts between minutes hits every policy alike.
+    for policy in (policies if rep % 2 == 0 else policies[::-1]):
+        ckpt = PILE
+        for k in range(len(PHASES)):
+            t0 = time.time()
+            row, ckpt = run_phase(args.dem_run, policy, k, args.window, ckpt,
+                                  f"{OUT}/{policy}_{k + 1}_{PHASES[k][0]}.log")
+            row["repeat"] = rep + 1
+            results.append(row)
+            print(f"  {'repeat ' + str(rep + 1) + ' ' if args.repeats > 1 else ''}{policy:7s} "
+                  f"{row['phase']:12s} RTF {row['wall'] / row['sim']:7.1f}  "
+                  f"({time.time() - t0:.0f} s wall with loading)")
+            sys.stdout.flush()
 
 print(f"\nload average at end: {load()}")
-print("\n| policy | phase | simulated (s) | wall (s) | real-time factor | broad phase % | "
+print("\n| policy | repeat | phase | simulated (s) | wall (s) | real-time factor | broad phase % | "
       "mesh contacts % | rebuilds (early; spared by the far-mover check) | CPU share (cores) | peak RSS (MB) | bytes/particle |")
-print("| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |")
+print("| --- | ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |")
 for r in results:
     rss = r["rss_kb"] * 1024
-    print(f"| {'every 5 steps' if r['policy'] == 'every5' else 'when needed'} | {r['phase']} | "
-          f"{r['sim']:.2f} | {r['wall']:.1f} | {r['wall'] / r['sim']:.0f} | "
+    print(f"| {'every 5 steps' if r['policy'] == 'every5' else 'when needed'} | {r['repeat']} | {r['phase']} | "
+          f"{r['sim']:.3f} | {r['wall']:.1f} | {r['wall'] / r['sim']:.0f} | "
           f"{100 * r['broad_phase'] / r['wall']:.0f} | {100 * r['mesh_contacts'] / r['wall']:.0f} | "
           f"{r['rebuilds']} ({r['early']}; {r['spared']}) | {r['cpu']:.2f} | {rss / 2**20:.0f} | {rss / r['n']:.0f} |")
-for policy in args.policies.split(","):
-    rs = [r for r in results if r["policy"] == policy]
-    wall, sim = sum(r["wall"] for r in rs), sum(r["sim"] for r in rs)
-    print(f"{policy}: whole maneuver {sim:.2f} s simulated in {wall:.0f} s wall, real-time factor "
-          f"{wall / sim:.0f}")
+for policy in policies:
+    rtf, cpu = [], []
+    for rep in range(1, args.repeats + 1):
+        rs = [r for r in results if r["policy"] == policy and r["repeat"] == rep]
+        wall, sim = sum(r["wall"] for r in rs), sum(r["sim"] for r in rs)
+        rtf.append(wall / sim)
+        # CPU seconds of the processes (loading included) per simulated second: the work,
+        # steadier than the wall time where a stalled vCPU stalls the other thread's barrier.
+        cpu.append(sum(r["cpu_s"] for r in rs) / sim)
+        if args.repeats == 1:
+            print(f"{policy}: whole maneuver {sim:.2f} s simulated in {wall:.0f} s wall, real-time "
+                  f"factor {wall / sim:.0f}; CPU {cpu[-1]:.0f} core-s per simulated s")
+    if args.repeats > 1:
+        print(f"{policy}: whole maneuver, {args.repeats} repeats: real-time factor median "
+              f"{np.median(rtf):.0f} (range {min(rtf):.0f}-{max(rtf):.0f}; "
+              + ", ".join(f"{x:.0f}" for x in rtf) + f"); CPU median {np.median(cpu):.0f} "
+              f"core-s per simulated s (range {min(cpu):.0f}-{max(cpu):.0f})")
