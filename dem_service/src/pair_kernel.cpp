@@ -722,7 +722,7 @@ bool pair_rows_vector_available() {
 // without a branch, or only in chunks with a lane that needs them: the same bits either way.
 // Where 512-bit divisions are cheap the branch costs more than the work (an AMD EPYC VM: 0.93x
 // of the pair forces branch-free); where they are dear, the other way round (an Intel Xeon VM:
-// 0.90-0.94x with the branch). docs/performance.md, "Divisions where they are dear".
+// 0.935x with the branch). docs/performance.md, "Divisions where they are dear".
 static bool branch_free_by_processor() {
 #if defined(__x86_64__) && defined(__GNUC__)
   __builtin_cpu_init();
