@@ -830,23 +830,69 @@ std::vector<std::int32_t> pair_block_walk(std::int32_t K, int t, int T) {
 
 }  // namespace detail
 
-// Sleeping: the awake particles among [j0, j1) mark the rows of the sleepers that hold them
-// (State::pair_row) with this step's stamp. Another thread may mark the same row: the same
-// value, stored atomically.
-void Engine::mark_sleeper_rows(const State& s, std::size_t j0, std::size_t j1,
-                               std::int32_t stamp) {
+namespace {
+
+// The awake particles among [base, base + 64) and [j0, j1), as bits (no branch per particle:
+// in a bed that is falling asleep, awake and asleep alternate at random).
+inline std::uint64_t awake_bits(const std::int32_t* rest, std::int32_t steps, std::size_t base,
+                                std::size_t j0, std::size_t j1) {
+  const std::size_t lo = j0 > base ? j0 - base : 0, hi = std::min<std::size_t>(64, j1 - base);
+  std::uint64_t bits = 0;
+  for (std::size_t q = lo; q < hi; ++q)
+    bits |= static_cast<std::uint64_t>(rest[base + q] < steps) << q;
+  return bits;
+}
+
+}  // namespace
+
+bool Engine::AwakePartners::holds(const State& s) const {
+  return state == &s && size == s.size() && pairs == s.pair_j.size() && rebuilds == s.rebuilds &&
+         step == s.step && count.size() == s.size();
+}
+
+// Sleeping: for each row of the half list, the number of its partners that are awake
+// (State::pair_row lists the rows that hold each particle). A sleeper's row is read by the pair
+// loop only when it holds one.
+void Engine::count_awake_partners(const State& s) {
+  AwakePartners& a = awake_partners_;
+  const std::size_t n = s.size();
   const std::int32_t S = scene_.sleep.steps;
   const std::int32_t* const REST = s.rest_steps.data();
   const std::int32_t* const ro = s.pair_row_offset.data();
   const std::int32_t* const rr = s.pair_row.data();
-  std::int32_t* const MARK = row_mark_.data();
-  for (std::size_t j = j0; j < j1; ++j) {
-    if (REST[j] >= S) continue;
-    for (std::int32_t q = ro[j]; q < ro[j + 1]; ++q) {
-      const std::int32_t i = rr[q];
-      if (REST[i] >= S) __atomic_store_n(&MARK[i], stamp, __ATOMIC_RELAXED);
+  a.count.assign(n, 0);
+  std::int32_t* const C = a.count.data();
+  for (std::size_t base = 0; base < n; base += 64)
+    for (std::uint64_t b = awake_bits(REST, S, base, 0, n); b != 0; b &= b - 1) {
+      const std::size_t j = base + static_cast<std::size_t>(__builtin_ctzll(b));
+      for (std::int32_t q = ro[j]; q < ro[j + 1]; ++q) ++C[rr[q]];
     }
+  a.state = &s;
+  a.size = n;
+  a.pairs = s.pair_j.size();
+  a.rebuilds = s.rebuilds;
+  a.step = s.step;
+}
+
+// After the integration of a step (s.step already the next one): the rows that hold a particle
+// that woke gain an awake partner, those that hold one that fell asleep lose one. Only if the
+// counts were those of the step just made; else they are counted again when next needed.
+void Engine::update_awake_partners(const State& s) {
+  AwakePartners& a = awake_partners_;
+  if (!(a.state == &s && a.size == s.size() && a.pairs == s.pair_j.size() &&
+        a.rebuilds == s.rebuilds && a.step + 1 == s.step &&
+        s.pair_row_offset.size() == s.size() + 1)) {
+    a.state = nullptr;
+    return;
   }
+  const std::int32_t* const ro = s.pair_row_offset.data();
+  const std::int32_t* const rr = s.pair_row.data();
+  std::int32_t* const C = a.count.data();
+  for (const std::int32_t j : a.woke)
+    for (std::int32_t q = ro[j]; q < ro[j + 1]; ++q) ++C[rr[q]];
+  for (const std::int32_t j : a.fell)
+    for (std::int32_t q = ro[j]; q < ro[j + 1]; ++q) --C[rr[q]];
+  a.step = s.step;
 }
 
 // The forces on particles [i0, i1) start from gravity, and with sleeping no one has woken them
@@ -863,8 +909,11 @@ void Engine::start_forces(const State& s, std::size_t i0, std::size_t i1) {
     Vec3* __restrict const F = force_.data();
     std::uint8_t* __restrict const WAKE = wake_.data();
     if (i1 > i0) std::memset(WAKE + i0, 0, i1 - i0);
-    for (std::size_t i = i0; i < i1; ++i)
-      if (REST[i] < S) F[i] = M[i] * g;
+    for (std::size_t base = i0 - i0 % 64; base < i1; base += 64)
+      for (std::uint64_t b = awake_bits(REST, S, base, i0, i1); b != 0; b &= b - 1) {
+        const std::size_t i = base + static_cast<std::size_t>(__builtin_ctzll(b));
+        F[i] = M[i] * g;
+      }
   } else {
     for (std::size_t i = i0; i < i1; ++i) force_[i] = s.mass[i] * g;
   }
@@ -907,25 +956,19 @@ void Engine::pair_forces_impl(State& s) {
     }
   }
   // Sleeping: a sleeper's row is scanned only if an awake particle is among its partners (the
-  // rows of two sleepers compute nothing). The awake particles mark the rows of the sleepers
-  // that hold them (State::pair_row) with this step's stamp before the loop. Without sleepers
-  // in the last step (sleeping_) every row is read and nothing is marked or built; the pairs
+  // rows of two sleepers compute nothing): AwakePartners counts them per row. Without sleepers
+  // in the last step (sleeping_) every row is read and nothing is counted or built; the pairs
   // computed are the same either way.
-  std::int32_t* MARK = nullptr;
-  std::int32_t stamp = 0;
   const bool skip_rows = Sleep && sleeping_ > 0 && sleeper_row_skip.load(std::memory_order_relaxed);
   if (skip_rows) {
     // Built by the first step with sleeping after a broad phase (and again if a loaded
     // checkpoint's copy does not fit the lists).
     if (s.pair_row_offset.size() != n + 1 || s.pair_row.size() != s.pair_j.size() ||
-        static_cast<std::size_t>(s.pair_row_offset[n]) != s.pair_row.size())
+        static_cast<std::size_t>(s.pair_row_offset[n]) != s.pair_row.size()) {
       build_pair_rows(s);
-    if (row_mark_.size() != n || row_stamp_ == std::numeric_limits<std::int32_t>::max()) {
-      row_mark_.assign(n, 0);
-      row_stamp_ = 0;
+      awake_partners_.state = nullptr;
     }
-    stamp = ++row_stamp_;
-    MARK = row_mark_.data();
+    if (!awake_partners_.holds(s)) count_awake_partners(s);
   }
   // What every thread's rows read and write (raw pointers, see dem/pair_kernel.hpp).
   detail::PairRows rows;
@@ -944,8 +987,7 @@ void Engine::pair_forces_impl(State& s) {
     sleep_rules.rest = REST;
     sleep_rules.steps = S;
     sleep_rules.wake_speed2 = wake_speed2;
-    sleep_rules.mark = skip_rows ? MARK : nullptr;
-    sleep_rules.stamp = stamp;
+    sleep_rules.awake_partners = skip_rows ? awake_partners_.count.data() : nullptr;
     sleep_rules.wake = WAKE;
   }
   if (scene_.close_pairs_on()) {
@@ -971,10 +1013,6 @@ void Engine::pair_forces_impl(State& s) {
 #pragma omp parallel num_threads(T)
     {
       const int t = omp_get_thread_num();
-      if (skip_rows) {
-        mark_sleeper_rows(s, bounds_[t], bounds_[t + 1], stamp);
-#pragma omp barrier
-      }
       cosim::Stopwatch busy;
       double waited = 0;  // for the even blocks beside an odd one
       std::vector<detail::PairRemote> remote;  // stays empty: every partner is direct
@@ -1040,10 +1078,6 @@ void Engine::pair_forces_impl(State& s) {
   {
     const int t = omp_get_thread_num();
     const std::size_t a0 = bounds_[t], a1 = bounds_[t + 1];
-    if (skip_rows) {
-      mark_sleeper_rows(s, a0, a1, stamp);
-#pragma omp barrier
-    }
     const cosim::Stopwatch busy;
     std::vector<detail::PairRemote> remote;  // local for the loop (no false sharing), capacity kept
     remote.swap(remote_[t]);
@@ -1236,6 +1270,10 @@ void Engine::integrate_impl(State& s) {
   const std::int32_t S = scene_.sleep.steps;
   const double rest_speed2 = scene_.sleep.speed * scene_.sleep.speed;
   std::int64_t sleeping = 0;
+  if (Sleep) {
+    awake_partners_.woke.clear();
+    awake_partners_.fell.clear();
+  }
   const int T = threads_;
   const double dt = scene_.dt;
   const double vmax2 = scene_.stability.max_speed * scene_.stability.max_speed;
@@ -1369,6 +1407,7 @@ void Engine::integrate_impl(State& s) {
     double sl_d1 = 0, sl_d2 = 0;
     FarTally sl_tally;
     std::vector<std::int32_t> sl_far, sl_fell;
+    std::vector<std::int32_t> my_woke, my_fell;  // for awake_partners_
     auto note_sleeper = [&](std::size_t i, double d2) {
       keep_two_largest(sl_d1, sl_d2, d2);
       note_far_mover(sl_far, sl_tally, i, d2, norm2(U[i]), limits);
@@ -1437,9 +1476,10 @@ void Engine::integrate_impl(State& s) {
         if (REST[i] >= S) {
           // Asleep: not integrated. Woken by the pair loop or a tool, it is integrated from
           // the next step on, with all its forces.
-          if (WAKE[i] || (!far_block && near_tool(i)))
+          if (WAKE[i] || (!far_block && near_tool(i))) {
             REST[i] = 0;
-          else
+            my_woke.push_back(static_cast<std::int32_t>(i));
+          } else
             ++my_sleeping;
           // It has not moved since it fell asleep (nor this step): already in sleepers_.
           if (!keep_sleepers)
@@ -1457,6 +1497,7 @@ void Engine::integrate_impl(State& s) {
           if (++r >= S) {  // falls asleep where it is
             V[i] = U[i] = Vec3{};
             ++my_sleeping;
+            my_fell.push_back(static_cast<std::int32_t>(i));
             if (keep_sleepers) {
               note_sleeper(i, d2);
               sl_fell.push_back(static_cast<std::int32_t>(i));
@@ -1478,6 +1519,11 @@ void Engine::integrate_impl(State& s) {
       keep_two_largest(close_d1, close_d2, my_close_d2);
       close_u2 = std::max(close_u2, my_close_u2);
       sleeping += my_sleeping;
+      if (Sleep) {
+        AwakePartners& a = awake_partners_;
+        a.woke.insert(a.woke.end(), my_woke.begin(), my_woke.end());
+        a.fell.insert(a.fell.end(), my_fell.begin(), my_fell.end());
+      }
       if (keep_sleepers) {
         keep_two_largest(sleepers_.d1, sleepers_.d2, sl_d1);
         keep_two_largest(sleepers_.d1, sleepers_.d2, sl_d2);
@@ -1523,6 +1569,7 @@ void Engine::integrate_impl(State& s) {
   sleeping_ = sleeping;
   ++s.step;
   if (close_.state == &s) close_.step = s.step;  // its copies of the springs are of this state
+  if (Sleep) update_awake_partners(s);
   ++s.steps_since_rebuild;
   finish_far_movers(s, lists, tally);  // the far movers of the new state
   if (lists > T) {  // ascending and each once (a woken sleeper may be in both lists)
@@ -1572,7 +1619,9 @@ std::vector<Engine::MeshContact> Engine::mesh_contacts(const State& s) {
 
 std::size_t Engine::workspace_bytes() const {
   std::size_t b = broad_.workspace_bytes() + force_.capacity() * sizeof(Vec3) +
-                  row_mark_.capacity() * sizeof(std::int32_t);
+                  (awake_partners_.count.capacity() + awake_partners_.woke.capacity() +
+                   awake_partners_.fell.capacity()) *
+                      sizeof(std::int32_t);
   for (const auto& v : tool_vertices_) b += v.capacity() * sizeof(Vec3);
   for (const auto& v : remote_) b += v.capacity() * sizeof(detail::PairRemote);
   const ClosePairs& c = close_;  // close pairs (scene.close_margin)

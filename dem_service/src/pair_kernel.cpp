@@ -71,8 +71,7 @@ void pair_rows_scalar(const PairRows& p, const PairSleep& sl, std::size_t a0, st
     const bool si = Sleep && REST[i] >= S;
     // A sleeper with only sleepers in its row: nothing to compute (the loop below would skip
     // every pair), so its row is not read at all.
-    if (Sleep && si && sl.mark && __atomic_load_n(&sl.mark[i], __ATOMIC_RELAXED) != sl.stamp)
-      continue;
+    if (Sleep && si && sl.awake_partners && sl.awake_partners[i] == 0) continue;
     Vec3 fi{};
     for (std::int32_t k = off[i]; k < off[i + 1]; ++k) {
       const std::int32_t j = J[k];
@@ -515,8 +514,32 @@ DEM_AVX512 inline void prefetch_indexed(const Vec3* spring, const Vec3* home,
   }
 }
 
+// The rows of [base, base + 64) within [a0, a1) that the sleeping row loop reads, as bits: the
+// awake ones and the sleepers with an awake partner (with no counts, every row).
+DEM_AVX512 inline std::uint64_t rows_to_read(const PairSleep& sl, std::size_t base,
+                                             std::size_t a0, std::size_t a1) {
+  const std::size_t lo = a0 > base ? a0 - base : 0;
+  const std::size_t hi = std::min<std::size_t>(64, a1 - base);
+  const std::uint64_t range = (hi == 64 ? ~0ull : (1ull << hi) - 1) & (~0ull << lo);
+  if (!sl.awake_partners) return range;
+  const __m512i steps = _mm512_set1_epi32(sl.steps), none = _mm512_setzero_si512();
+  std::uint64_t bits = 0;
+  for (int q = 0; q < 4; ++q) {
+    const __mmask16 m = static_cast<__mmask16>(range >> (16 * q));
+    if (m == 0) continue;
+    const __m512i rest = _mm512_maskz_loadu_epi32(m, sl.rest + base + 16 * q);
+    const __m512i count = _mm512_maskz_loadu_epi32(m, sl.awake_partners + base + 16 * q);
+    const __mmask16 read = _mm512_mask_cmplt_epi32_mask(m, rest, steps) |
+                           _mm512_mask_cmpneq_epi32_mask(m, count, none);
+    bits |= static_cast<std::uint64_t>(read) << (16 * q);
+  }
+  return bits;
+}
+
 // With sleepers: row by row, 8 candidates of a row at a time (the sleeping rules are per row).
-// Indexed: the rows are the close pairs' (PairRows::spring_index), as in stream<true>.
+// Indexed: the rows are the close pairs' (PairRows::spring_index), as in stream<true>. The rows
+// are taken 64 at a time as bits (rows_to_read), so a sleeper's row that has no awake partner
+// costs no branch of its own.
 template <bool Indexed>
 DEM_AVX512 void ChunkKernel::rows(const PairSleep& sl, std::size_t a0, std::size_t a1,
                                   std::size_t direct, std::vector<PairRemote>& remote,
@@ -525,69 +548,70 @@ DEM_AVX512 void ChunkKernel::rows(const PairSleep& sl, std::size_t a0, std::size
   const std::int32_t kend = off[a1];
   const __m256i sleep_steps = _mm256_set1_epi32(sl.steps);
   const __m512d wake_speed2 = _mm512_set1_pd(sl.wake_speed2);
-  for (std::size_t i = a0; i < a1; ++i) {
-    const std::int32_t k1 = off[i + 1];
-    const bool si = sl.rest[i] >= sl.steps;
-    if (si && sl.mark && __atomic_load_n(&sl.mark[i], __ATOMIC_RELAXED) != sl.stamp)
-      continue;  // a sleeper with only sleepers in its row (as the scalar loop)
-    Vec3 fi{};
-    if (off[i] < k1) {
-      ChunkIn in;
-      in.xix = _mm512_set1_pd(X[3 * i]);
-      in.xiy = _mm512_set1_pd(X[3 * i + 1]);
-      in.xiz = _mm512_set1_pd(X[3 * i + 2]);
-      in.uix = _mm512_set1_pd(U[3 * i]);
-      in.uiy = _mm512_set1_pd(U[3 * i + 1]);
-      in.uiz = _mm512_set1_pd(U[3 * i + 2]);
-      in.ri = _mm512_set1_pd(R[i]);
-      in.mi = _mm512_set1_pd(M[i]);
-      in.jl = jl;
-      for (std::int32_t k = off[i]; k < k1; k += 8) {
-        in.left = k1 - k;
-        const __mmask8 row =
-            in.left >= 8 ? 0xFF : static_cast<__mmask8>((1u << in.left) - 1);
-        in.j = _mm256_maskz_loadu_epi32(row, J + k);
-        _mm256_store_si256(reinterpret_cast<__m256i*>(jl), in.j);
-        // Sleeping: sj = partners asleep; for a sleeper's row those pairs are skipped (their
-        // springs stay as they were), and every remaining pair is awake against asleep.
-        __mmask8 sj = 0, sleepy = 0;
-        in.live = row;
-        {
-          const __m256i rest = _mm256_mmask_i32gather_epi32(_mm256_setzero_si256(), row, in.j,
-                                                            sl.rest, 4);
-          sj = _mm256_mask_cmp_epi32_mask(row, rest, sleep_steps, _MM_CMPINT_NLT);
-          if (si) in.live = row & static_cast<__mmask8>(~sj);
-          sleepy = si ? in.live : sj;
-          if (in.live == 0) continue;
-        }
-        if constexpr (Indexed) {
-          in.kl = spring_index + k;
-          prefetch_indexed(spring, spring_home, spring_index, J, k, kend);
-        } else {
-          prefetch_ahead(spring, J, k, kend);
-        }
-        const ChunkOut out = compute<false, Indexed>(in, k);
-        // A sleeper whose contact with an awake particle ends may have lost its support.
-        for (unsigned m = out.clear & sleepy; m != 0; m &= m - 1)
-            wake(sl, si ? i : static_cast<std::size_t>(jl[__builtin_ctz(m)]), direct);
-        if (out.act == 0) continue;
-        {  // a partner faster than scene.sleep.speed relative to a sleeper wakes it
-          const __mmask8 fast =
-              _mm512_mask_cmp_pd_mask(out.act & sleepy, out.urel2, wake_speed2, _CMP_GT_OQ);
-          for (unsigned m = fast; m != 0; m &= m - 1)
-            wake(sl, si ? i : static_cast<std::size_t>(jl[__builtin_ctz(m)]), direct);
-        }
-        // The forces in pair order, as the scalar loop applies them (awake against asleep: on
-        // the awake particle only).
-        for (unsigned m = out.act; m != 0; m &= m - 1) {
-          const int l = __builtin_ctz(m);
-          const Vec3 f{fx[l], fy[l], fz[l]};
-          if (!si) fi += f;
-          if (!((sj >> l) & 1)) on_partner(F, remote, jl[l], f, direct);
+  for (std::size_t base = a0 - a0 % 64; base < a1; base += 64) {
+    for (std::uint64_t read = rows_to_read(sl, base, a0, a1); read != 0; read &= read - 1) {
+      const std::size_t i = base + static_cast<std::size_t>(__builtin_ctzll(read));
+      const std::int32_t k1 = off[i + 1];
+      const bool si = sl.rest[i] >= sl.steps;
+      Vec3 fi{};
+      if (off[i] < k1) {
+        ChunkIn in;
+        in.xix = _mm512_set1_pd(X[3 * i]);
+        in.xiy = _mm512_set1_pd(X[3 * i + 1]);
+        in.xiz = _mm512_set1_pd(X[3 * i + 2]);
+        in.uix = _mm512_set1_pd(U[3 * i]);
+        in.uiy = _mm512_set1_pd(U[3 * i + 1]);
+        in.uiz = _mm512_set1_pd(U[3 * i + 2]);
+        in.ri = _mm512_set1_pd(R[i]);
+        in.mi = _mm512_set1_pd(M[i]);
+        in.jl = jl;
+        for (std::int32_t k = off[i]; k < k1; k += 8) {
+          in.left = k1 - k;
+          const __mmask8 row =
+              in.left >= 8 ? 0xFF : static_cast<__mmask8>((1u << in.left) - 1);
+          in.j = _mm256_maskz_loadu_epi32(row, J + k);
+          _mm256_store_si256(reinterpret_cast<__m256i*>(jl), in.j);
+          // Sleeping: sj = partners asleep; for a sleeper's row those pairs are skipped (their
+          // springs stay as they were), and every remaining pair is awake against asleep.
+          __mmask8 sj = 0, sleepy = 0;
+          in.live = row;
+          {
+            const __m256i rest = _mm256_mmask_i32gather_epi32(_mm256_setzero_si256(), row, in.j,
+                                                              sl.rest, 4);
+            sj = _mm256_mask_cmp_epi32_mask(row, rest, sleep_steps, _MM_CMPINT_NLT);
+            if (si) in.live = row & static_cast<__mmask8>(~sj);
+            sleepy = si ? in.live : sj;
+            if (in.live == 0) continue;
+          }
+          if constexpr (Indexed) {
+            in.kl = spring_index + k;
+            prefetch_indexed(spring, spring_home, spring_index, J, k, kend);
+          } else {
+            prefetch_ahead(spring, J, k, kend);
+          }
+          const ChunkOut out = compute<false, Indexed>(in, k);
+          // A sleeper whose contact with an awake particle ends may have lost its support.
+          for (unsigned m = out.clear & sleepy; m != 0; m &= m - 1)
+              wake(sl, si ? i : static_cast<std::size_t>(jl[__builtin_ctz(m)]), direct);
+          if (out.act == 0) continue;
+          {  // a partner faster than scene.sleep.speed relative to a sleeper wakes it
+            const __mmask8 fast =
+                _mm512_mask_cmp_pd_mask(out.act & sleepy, out.urel2, wake_speed2, _CMP_GT_OQ);
+            for (unsigned m = fast; m != 0; m &= m - 1)
+              wake(sl, si ? i : static_cast<std::size_t>(jl[__builtin_ctz(m)]), direct);
+          }
+          // The forces in pair order, as the scalar loop applies them (awake against asleep: on
+          // the awake particle only).
+          for (unsigned m = out.act; m != 0; m &= m - 1) {
+            const int l = __builtin_ctz(m);
+            const Vec3 f{fx[l], fy[l], fz[l]};
+            if (!si) fi += f;
+            if (!((sj >> l) & 1)) on_partner(F, remote, jl[l], f, direct);
+          }
         }
       }
+      F[i] += fi;
     }
-    F[i] += fi;
   }
   finish(stats);
 }

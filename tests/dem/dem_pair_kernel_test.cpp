@@ -262,8 +262,9 @@ TEST(dem_PairKernel, VectorAndScalarGiveTheSameBits) {
   EXPECT_GT(rows_seen, 0);
 }
 
-// The same with sleepers: a third of the particles asleep, the rows of some sleepers marked to be
-// read; forces, springs, the forces handed on, the statistics and the set of sleepers to wake
+// The same with sleepers: a third of the particles asleep, the rows of some sleepers counted as
+// holding an awake partner (read), over a range that starts and ends inside a 64-row word;
+// forces, springs, the forces handed on, the statistics and the set of sleepers to wake
 // agree bit for bit.
 TEST(dem_PairKernel, WithSleepersVectorAndScalarGiveTheSameBits) {
   if (!dem::detail::pair_rows_vector_available())
@@ -274,13 +275,13 @@ TEST(dem_PairKernel, WithSleepersVectorAndScalarGiveTheSameBits) {
   std::int64_t wakes = 0, contacts = 0;
   for (const int sizes : {0, 1, 2}) {
     for (const dem::ContactLaw& law : laws()) {
-      for (const bool marks : {false, true}) {
+      for (const bool counts : {false, true}) {
         const Rows rows = make_rows(rng, 600, sizes, dt);
         const std::size_t n = rows.x.size(), a0 = 40, a1 = 420;
-        std::vector<std::int32_t> rest(n), mark(n);
+        std::vector<std::int32_t> rest(n), awake_partners(n);
         for (std::size_t i = 0; i < n; ++i) {
           rest[i] = U01(rng) < 0.35 ? 200 : static_cast<std::int32_t>(U01(rng) * 150);
-          mark[i] = U01(rng) < 0.5 ? 7 : 6;
+          awake_partners[i] = U01(rng) < 0.5 ? 1 + static_cast<std::int32_t>(U01(rng) * 3) : 0;
         }
         Result res[2];
         std::vector<std::uint8_t> woken[2];
@@ -293,8 +294,7 @@ TEST(dem_PairKernel, WithSleepersVectorAndScalarGiveTheSameBits) {
           sl.rest = rest.data();
           sl.steps = 200;
           sl.wake_speed2 = 0.03 * 0.03;
-          sl.mark = marks ? mark.data() : nullptr;
-          sl.stamp = 7;
+          sl.awake_partners = counts ? awake_partners.data() : nullptr;
           sl.wake = woken[vector].data();
           sl.remote_wake = &remote_wake;
           dem::detail::pair_rows_sleep(p, sl, a0, a1, out.remote, out.stats, vector);

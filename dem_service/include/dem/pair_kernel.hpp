@@ -69,10 +69,9 @@ struct PairSleep {
   const std::int32_t* rest = nullptr;  // State::rest_steps: asleep when >= steps
   std::int32_t steps = 0;
   double wake_speed2 = 0;              // (scene.sleep.speed)^2
-  // Rows of sleepers are read only if mark[i] == stamp (an awake partner marked them);
-  // nullptr: every row is read.
-  const std::int32_t* mark = nullptr;
-  std::int32_t stamp = 0;
+  // Rows of sleepers are read only if awake_partners[i] > 0 (the number of awake partners in
+  // row i); nullptr: every row is read.
+  const std::int32_t* awake_partners = nullptr;
   std::uint8_t* wake = nullptr;  // set to 1 for a sleeper to wake in [a0, a1)
   std::vector<std::int32_t>* remote_wake = nullptr;  // sleepers to wake beyond a1
 };
