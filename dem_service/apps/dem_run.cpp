@@ -119,12 +119,8 @@ void print_timing(const dem::Engine& engine, const dem::State& s, double sim_tim
   if (const std::string close = dem::close_pairs_summary(engine, steps); !close.empty())
     notes.push_back(close);
   if (const std::string busy = threads_busy_summary(engine); !busy.empty()) notes.push_back(busy);
-  if (scene.sleep.enabled) {
-    char line[160];
-    std::snprintf(line, sizeof line, "Sleeping: %.1f %% of particle-steps asleep, %lld asleep at the end",
-                  100 * asleep_share, static_cast<long long>(engine.sleeping()));
-    notes.emplace_back(line);
-  }
+  if (const std::string sleep = dem::sleeping_summary(engine, asleep_share, steps); !sleep.empty())
+    notes.push_back(sleep);
   if (scene.region.enabled) {
     char line[160];
     std::snprintf(line, sizeof line, "Left the region of interest: %lld particles, %.6g kg",

@@ -1569,7 +1569,11 @@ void Engine::integrate_impl(State& s) {
   sleeping_ = sleeping;
   ++s.step;
   if (close_.state == &s) close_.step = s.step;  // its copies of the springs are of this state
-  if (Sleep) update_awake_partners(s);
+  if (Sleep) {
+    woke_total_ += static_cast<std::int64_t>(awake_partners_.woke.size());
+    fell_asleep_total_ += static_cast<std::int64_t>(awake_partners_.fell.size());
+    update_awake_partners(s);
+  }
   ++s.steps_since_rebuild;
   finish_far_movers(s, lists, tally);  // the far movers of the new state
   if (lists > T) {  // ascending and each once (a woken sleeper may be in both lists)
@@ -1647,6 +1651,21 @@ std::string close_pairs_summary(const Engine& engine, long long steps) {
                 engine.close_builds() == 0 || engine.close_used()
                     ? ""
                     : " (over 90 %: every candidate read instead)");
+  return line;
+}
+
+std::string sleeping_summary(const Engine& engine, double asleep_share, long long steps) {
+  if (!engine.scene().sleep.enabled) return {};
+  const double per = steps > 0 ? 1.0 / static_cast<double>(steps) : 0.0;
+  char line[240];
+  std::snprintf(line, sizeof line,
+                "Sleeping: %.1f %% of particle-steps asleep, %lld asleep at the end; woke %lld, "
+                "fell asleep %lld (%.3g and %.3g per step)",
+                100 * asleep_share, static_cast<long long>(engine.sleeping()),
+                static_cast<long long>(engine.woke_total()),
+                static_cast<long long>(engine.fell_asleep_total()),
+                static_cast<double>(engine.woke_total()) * per,
+                static_cast<double>(engine.fell_asleep_total()) * per);
   return line;
 }
 

@@ -367,13 +367,10 @@ void ServiceModel::finish(std::ostream& report) {
                                  rtf, phases};
   if (const std::string close = dem::close_pairs_summary(*engine_, steps_done_); !close.empty())
     notes.push_back(close);
-  if (rc_->scene.sleep.enabled) {
-    char line[160];
-    std::snprintf(line, sizeof line, "Sleeping: %.1f %% of particle-steps asleep, %lld asleep at the end",
-                  particle_steps_ > 0 ? 100 * asleep_steps_ / particle_steps_ : 0.0,
-                  static_cast<long long>(engine_->sleeping()));
-    notes.emplace_back(line);
-  }
+  if (const std::string sleep = dem::sleeping_summary(
+          *engine_, particle_steps_ > 0 ? asleep_steps_ / particle_steps_ : 0.0, steps_done_);
+      !sleep.empty())
+    notes.push_back(sleep);
   if (rc_->scene.region.enabled) {
     char line[160];
     std::snprintf(line, sizeof line, "Left the region of interest: %lld particles, %.6g kg",

@@ -105,6 +105,11 @@ TEST(dem_Sleep, SettledColumnSleepsInPlaceAndWakesWhenHit) {
   EXPECT_TRUE(top_woke);
   EXPECT_EQ(fewest, 0) << "the impact should wake the whole column";
   EXPECT_EQ(e.sleeping(), 6);
+  // The churn the end-of-run notes report: five fell asleep, all five woke, six fell asleep
+  // again (each transition counted once; more if a sphere dozed off and woke during settling).
+  EXPECT_EQ(e.fell_asleep_total() - e.woke_total(), 6);
+  EXPECT_GE(e.woke_total(), 5);
+  EXPECT_GE(e.fell_asleep_total(), 11);
   const double overlap6 = 6 * sphere_mass(kR) * kG / kK;
   std::printf("after the hit: worst height error %.2e m (floor overlap %.2e m)\n",
               worst_height_error(c.st, 6), overlap6);

@@ -82,6 +82,10 @@ class Engine {
   // Particles asleep after the last step (scene.sleep; 0 when sleeping is disabled) and
   // particles removed by the region of interest in the last prepare()/rebuild().
   std::int64_t sleeping() const { return sleeping_; }
+  // Sleepers woken and particles fallen asleep over every step this engine made (repeated
+  // steps included): how much the sleeping set churns.
+  std::int64_t woke_total() const { return woke_total_; }
+  std::int64_t fell_asleep_total() const { return fell_asleep_total_; }
   std::int64_t removed_last() const { return removed_last_; }
   // Steps at which the guard's bound fired but its far-mover check found the lists still
   // complete, so no broad phase ran (scene.guard: rebuild; docs/dem.md "The guard").
@@ -221,6 +225,7 @@ class Engine {
   };
   AwakePartners awake_partners_;
   std::int64_t sleeping_ = 0;
+  std::int64_t woke_total_ = 0, fell_asleep_total_ = 0;
   // Sleeping: what the sleepers add to the guard's tallies (two largest displacements, the far
   // movers' tally and list). A sleeper does not move, so its displacement since the broad phase
   // is the one it fell asleep with (0 for one asleep at the broad phase): noted once, when it
@@ -295,6 +300,9 @@ void read_pair_kernel_environment();
 // "Close pairs: listed N times in S steps, ..." for the end-of-run notes (empty when
 // scene.close_margin is 0).
 std::string close_pairs_summary(const Engine& engine, long long steps);
+// "Sleeping: P % of particle-steps asleep, N asleep at the end; woke W, fell asleep F (w and f
+// per step)" for the end-of-run notes (empty when scene.sleep is off).
+std::string sleeping_summary(const Engine& engine, double asleep_share, long long steps);
 
 namespace detail {
 // Whether the pair loop skips the rows of sleepers that hold no awake partner (the default) or
