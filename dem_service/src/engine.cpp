@@ -830,24 +830,16 @@ std::vector<std::int32_t> pair_block_walk(std::int32_t K, int t, int T) {
 
 }  // namespace detail
 
-namespace {
-
-// The awake particles among [base, base + 64) and [j0, j1), as bits (no branch per particle:
-// in a bed that is falling asleep, awake and asleep alternate at random).
-inline std::uint64_t awake_bits(const std::int32_t* rest, std::int32_t steps, std::size_t base,
-                                std::size_t j0, std::size_t j1) {
-  const std::size_t lo = j0 > base ? j0 - base : 0, hi = std::min<std::size_t>(64, j1 - base);
-  std::uint64_t bits = 0;
-  for (std::size_t q = lo; q < hi; ++q)
-    bits |= static_cast<std::uint64_t>(rest[base + q] < steps) << q;
-  return bits;
+bool Engine::AwakePartners::holds(const State& s, std::int64_t at_step) const {
+  return state == &s && size == s.size() && pairs == s.pair_j.size() && rebuilds == s.rebuilds &&
+         step == at_step && count.size() == s.size() && s.pair_row_offset.size() == s.size() + 1;
 }
 
-}  // namespace
-
-bool Engine::AwakePartners::holds(const State& s) const {
-  return state == &s && size == s.size() && pairs == s.pair_j.size() && rebuilds == s.rebuilds &&
-         step == s.step && count.size() == s.size();
+// The rows that hold particle j (State::pair_row) gain `delta` awake partners.
+void Engine::AwakePartners::add(const State& s, std::int32_t j, std::int32_t delta) {
+  const std::int32_t* const ro = s.pair_row_offset.data();
+  const std::int32_t* const rr = s.pair_row.data();
+  for (std::int32_t q = ro[j]; q < ro[j + 1]; ++q) count[static_cast<std::size_t>(rr[q])] += delta;
 }
 
 // Sleeping: for each row of the half list, the number of its partners that are awake
@@ -857,16 +849,9 @@ void Engine::count_awake_partners(const State& s) {
   AwakePartners& a = awake_partners_;
   const std::size_t n = s.size();
   const std::int32_t S = scene_.sleep.steps;
-  const std::int32_t* const REST = s.rest_steps.data();
-  const std::int32_t* const ro = s.pair_row_offset.data();
-  const std::int32_t* const rr = s.pair_row.data();
   a.count.assign(n, 0);
-  std::int32_t* const C = a.count.data();
-  for (std::size_t base = 0; base < n; base += 64)
-    for (std::uint64_t b = awake_bits(REST, S, base, 0, n); b != 0; b &= b - 1) {
-      const std::size_t j = base + static_cast<std::size_t>(__builtin_ctzll(b));
-      for (std::int32_t q = ro[j]; q < ro[j + 1]; ++q) ++C[rr[q]];
-    }
+  for (std::size_t j = 0; j < n; ++j)
+    if (s.rest_steps[j] < S) a.add(s, static_cast<std::int32_t>(j), 1);
   a.state = &s;
   a.size = n;
   a.pairs = s.pair_j.size();
@@ -879,19 +864,12 @@ void Engine::count_awake_partners(const State& s) {
 // counts were those of the step just made; else they are counted again when next needed.
 void Engine::update_awake_partners(const State& s) {
   AwakePartners& a = awake_partners_;
-  if (!(a.state == &s && a.size == s.size() && a.pairs == s.pair_j.size() &&
-        a.rebuilds == s.rebuilds && a.step + 1 == s.step &&
-        s.pair_row_offset.size() == s.size() + 1)) {
+  if (!a.holds(s, s.step - 1)) {
     a.state = nullptr;
     return;
   }
-  const std::int32_t* const ro = s.pair_row_offset.data();
-  const std::int32_t* const rr = s.pair_row.data();
-  std::int32_t* const C = a.count.data();
-  for (const std::int32_t j : a.woke)
-    for (std::int32_t q = ro[j]; q < ro[j + 1]; ++q) ++C[rr[q]];
-  for (const std::int32_t j : a.fell)
-    for (std::int32_t q = ro[j]; q < ro[j + 1]; ++q) --C[rr[q]];
+  for (const std::int32_t j : a.woke) a.add(s, j, 1);
+  for (const std::int32_t j : a.fell) a.add(s, j, -1);
   a.step = s.step;
 }
 
@@ -909,11 +887,8 @@ void Engine::start_forces(const State& s, std::size_t i0, std::size_t i1) {
     Vec3* __restrict const F = force_.data();
     std::uint8_t* __restrict const WAKE = wake_.data();
     if (i1 > i0) std::memset(WAKE + i0, 0, i1 - i0);
-    for (std::size_t base = i0 - i0 % 64; base < i1; base += 64)
-      for (std::uint64_t b = awake_bits(REST, S, base, i0, i1); b != 0; b &= b - 1) {
-        const std::size_t i = base + static_cast<std::size_t>(__builtin_ctzll(b));
-        F[i] = M[i] * g;
-      }
+    for (std::size_t i = i0; i < i1; ++i)
+      if (REST[i] < S) F[i] = M[i] * g;
   } else {
     for (std::size_t i = i0; i < i1; ++i) force_[i] = s.mass[i] * g;
   }
@@ -968,7 +943,7 @@ void Engine::pair_forces_impl(State& s) {
       build_pair_rows(s);
       awake_partners_.state = nullptr;
     }
-    if (!awake_partners_.holds(s)) count_awake_partners(s);
+    if (!awake_partners_.holds(s, s.step)) count_awake_partners(s);
   }
   // What every thread's rows read and write (raw pointers, see dem/pair_kernel.hpp).
   detail::PairRows rows;
@@ -1406,8 +1381,8 @@ void Engine::integrate_impl(State& s) {
     // The sleepers this thread adds to sleepers_ (fell asleep this step, or all with renote).
     double sl_d1 = 0, sl_d2 = 0;
     FarTally sl_tally;
-    std::vector<std::int32_t> sl_far, sl_fell;
-    std::vector<std::int32_t> my_woke, my_fell;  // for awake_partners_
+    std::vector<std::int32_t> sl_far;
+    std::vector<std::int32_t> my_woke, my_fell;  // awake_partners_ (and sleepers_' boxes)
     auto note_sleeper = [&](std::size_t i, double d2) {
       keep_two_largest(sl_d1, sl_d2, d2);
       note_far_mover(sl_far, sl_tally, i, d2, norm2(U[i]), limits);
@@ -1498,10 +1473,7 @@ void Engine::integrate_impl(State& s) {
             V[i] = U[i] = Vec3{};
             ++my_sleeping;
             my_fell.push_back(static_cast<std::int32_t>(i));
-            if (keep_sleepers) {
-              note_sleeper(i, d2);
-              sl_fell.push_back(static_cast<std::int32_t>(i));
-            }
+            if (keep_sleepers) note_sleeper(i, d2);
           }
         } else {
           r = 0;
@@ -1529,7 +1501,7 @@ void Engine::integrate_impl(State& s) {
         keep_two_largest(sleepers_.d1, sleepers_.d2, sl_d2);
         sleepers_.tally.merge(sl_tally);
         sleepers_.far.insert(sleepers_.far.end(), sl_far.begin(), sl_far.end());
-        sleepers_.fell_asleep.insert(sleepers_.fell_asleep.end(), sl_fell.begin(), sl_fell.end());
+        sleepers_.fell_asleep.insert(sleepers_.fell_asleep.end(), my_fell.begin(), my_fell.end());
       }
       if (my_bad >= 0 && (bad < 0 || my_bad < bad)) bad = my_bad;
     }

@@ -221,7 +221,8 @@ class Engine {
     const State* state = nullptr;
     std::size_t size = 0, pairs = 0;
     std::int64_t rebuilds = -1, step = -1;
-    bool holds(const State& s) const;
+    bool holds(const State& s, std::int64_t at_step) const;  // kept for s at this step
+    void add(const State& s, std::int32_t j, std::int32_t delta);
   };
   AwakePartners awake_partners_;
   std::int64_t sleeping_ = 0;
