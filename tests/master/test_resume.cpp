@@ -193,14 +193,16 @@ TEST(Resume, OscillatorAfterAKilledParticipantEqualsAnUninterruptedRun) {
   const std::string log = harness::read_text(h5 + ".log");
   EXPECT_NE(log.find("participant 'mass2' stopped answering"), std::string::npos) << log;
   EXPECT_NE(log.find("then cosim_master --resume " + h5), std::string::npos) << log;
-  // The message names the last step mass2 answered (past its checkpoint at 1000), not only a
-  // heartbeat that may be older.
+  // The message names the last step mass2 answered, not only a heartbeat that may be older.
+  // mass2 writes its checkpoint after step index 999 before it replies to that step, so the
+  // kill can fall between the two (seen in CI under load): the last reply is then to step 998,
+  // which the master had to receive before it asked for step 999.
   {
     const auto at_reply = log.find("last reply ");
     ASSERT_NE(at_reply, std::string::npos) << log;
     const auto step = log.find("(step ", at_reply);
     ASSERT_NE(step, std::string::npos) << log;
-    EXPECT_GE(std::stol(log.substr(step + 6)), 999) << log;
+    EXPECT_GE(std::stol(log.substr(step + 6)), 998) << log;
   }
   const double at = harness::read_dataset(h5, "checkpoint/steps_done").at(0);
   const std::size_t rows = harness::read_dataset(h5, "time").size();
