@@ -93,9 +93,9 @@ def main():
     ax.plot([0] + [f for _, _, f in rows], [1] + [s for _, s, _ in rows], "o")
     ax.annotate("all active (reference)", (0, 1), textcoords="offset points", xytext=(5, 5))
     for label, s, f in rows:
-        ax.annotate(label, (f, s), textcoords="offset points", xytext=(-10, -14), ha="right",
+        ax.annotate(label, (f, s), textcoords="offset points", xytext=(6, -3), ha="left",
                     fontsize=8)
-    ax.set_xlim(left=0, right=1.1 * max([f for _, _, f in rows] + [100 * m[1] for m in members] + [1e-9]))
+    ax.set_xlim(left=0, right=1.3 * max([f for _, _, f in rows] + [100 * m[1] for m in members] + [1e-9]))
     if scatter:
         ax.axvline(100 * scatter[1], color="grey", linestyle="--",
                    label=f"scatter (mean of {len(members)} run{'s' if len(members) > 1 else ''})")
