@@ -12,6 +12,11 @@ docs/performance.md).
    (ours: 20 warm-up steps, then the clock; LAMMPS: `run 20`, then the `Loop time` of the next
    `run`). Prints the medians, the ratio ours/LAMMPS (median of the per-repeat ratios) and the
    cost per particle-step in core nanoseconds.
+4. With --cost-ratio: ours only, 1 thread, the smallest and the largest of --sizes timed in
+   turn (small, large, small, large, ...) for --repeats rounds and each rebuild policy; prints
+   the cost per particle-step of both and their ratio per round, and the median ratio. Runs
+   minutes apart on a shared VM differ by more than the goal's margin (1.3x), so the two sizes
+   are compared only within a round.
 """
 import argparse
 import datetime
@@ -260,6 +265,38 @@ def timing(args, scenes):
     return rows
 
 
+def cost_ratio(args, sizes):
+    small, large = min(sizes), max(sizes)
+    for n in (small, large):
+        prepare(args, "bed", n)
+    print(f"\n== cost per particle-step, 1 thread: {label(large)} against {label(small)}, "
+          f"{args.repeats} rounds, the two sizes in turn ==", flush=True)
+    rows = []
+    for policy in (0, 5):
+        ns_small, ns_large, ratios = [], [], []
+        for k in range(args.repeats):
+            a, _, _ = time_ours(args, "bed", small, 1, policy, steps_for(args, small))
+            b, _, _ = time_ours(args, "bed", large, 1, policy, steps_for(args, large))
+            ns_small.append(1e9 / a)
+            ns_large.append(1e9 / b)
+            ratios.append(ns_large[-1] / ns_small[-1])
+            print(f"  {'when needed' if policy == 0 else 'every 5':>11}  round {k + 1}: "
+                  f"{label(small)} {ns_small[-1]:.0f}, {label(large)} {ns_large[-1]:.0f} "
+                  f"core-ns per particle-step, ratio {ratios[-1]:.2f}", flush=True)
+        rows.append({"policy": "when needed" if policy == 0 else "every 5",
+                     "small": small, "large": large, "ns_small": ns_small,
+                     "ns_large": ns_large, "ratios": ratios,
+                     "ratio": statistics.median(ratios)})
+    out = [f"| rebuild | {label(small)} [core-ns per particle-step] | {label(large)} [core-ns] "
+           f"| {label(large)} / {label(small)} per round | median |",
+           "| --- | --- | --- | --- | ---: |"]
+    for r in rows:
+        out.append(f"| {r['policy']} | {', '.join(f'{x:.0f}' for x in r['ns_small'])} | "
+                   f"{', '.join(f'{x:.0f}' for x in r['ns_large'])} | "
+                   f"{', '.join(f'{x:.2f}' for x in r['ratios'])} | **{r['ratio']:.2f}** |")
+    return rows, "\n".join(out)
+
+
 def table(rows):
     out = ["| scene | rebuild | threads vs ranks | ours [particle-steps/s] | LAMMPS "
            "[particle-steps/s] | ours/LAMMPS | ours [core-ns per particle-step] | LAMMPS "
@@ -280,7 +317,10 @@ def main():
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--threads", default="1,2", help="thread counts = MPI rank counts")
     p.add_argument("--steps", type=int, default=0, help="timed steps (default: --work / n)")
-    p.add_argument("--work", type=float, default=1e7,
+    p.add_argument("--cost-ratio", action="store_true",
+                   help="ours only: the cost per particle-step at the largest of --sizes "
+                        "against the smallest, 1 thread, the two in turn (no LAMMPS)")
+    p.add_argument("--work", type=float, default=4e7,
                    help="particle-steps per timed run when --steps is not given")
     p.add_argument("--gas-timing", action="store_true", help="time the 10k gas too")
     p.add_argument("--skip-check", action="store_true", help="skip the physics check")
@@ -291,6 +331,10 @@ def main():
                    help="scene.close_margin of our runs (fraction of r; 0: every candidate)")
     p.add_argument("--dem", required=True, help="path of dem_side_by_side")
     args = p.parse_args()
+    if args.repeats < 1:
+        sys.exit(f"side_by_side: --repeats {args.repeats}: give at least 1")
+    if args.work <= 0 or args.steps < 0:
+        sys.exit("side_by_side: --work must be positive and --steps 0 (from --work) or more")
     args.threads = [int(t) for t in args.threads.split(",")]
     sizes = [parse_size(s) for s in args.sizes.split(",") if s.strip()]
     os.makedirs(args.dir, exist_ok=True)
@@ -303,6 +347,23 @@ def main():
     print(f"side-by-side with LAMMPS {lmp_version} on {os.cpu_count()} x {cpu}, "
           f"started {started:%Y-%m-%d %H:%M} UTC, load average {os.getloadavg()[0]:.1f}",
           flush=True)
+    if args.cost_ratio:
+        if len(set(sizes)) < 2:
+            sys.exit("side_by_side: --cost-ratio needs two sizes, e.g. --sizes 10k,1.2M")
+        rows, text = cost_ratio(args, sizes)
+        ended = datetime.datetime.now(datetime.timezone.utc)
+        print("\n" + text)
+        stamp = f"{started:%Y%m%d_%H%M}"
+        with open(os.path.join(args.dir, f"cost_ratio_{stamp}.json"), "w") as f:
+            json.dump({"started": started.isoformat(), "ended": ended.isoformat(), "cpu": cpu,
+                       "load_average_end": os.getloadavg(), "rows": rows}, f, indent=1)
+        with open(os.path.join(args.dir, f"cost_ratio_{stamp}.md"), "w") as f:
+            f.write(f"Cost per particle-step, 1 thread, {os.cpu_count()} x {cpu}, "
+                    f"{started:%Y-%m-%d %H:%M}-{ended:%H:%M} UTC, {args.repeats} rounds\n\n"
+                    + text + "\n")
+        print(f"\nwritten to {args.dir}/cost_ratio_{stamp}.md and .json "
+              f"({(ended - started).total_seconds() / 60:.1f} min)")
+        return
     check = None if args.skip_check else physics_check(args)
 
     scenes = ([("gas", 10000)] if args.gas_timing else []) + [("bed", n) for n in sizes]

@@ -4,10 +4,13 @@
 #   bash bench/lammps/side_by_side.sh [--sizes 10k,150k] [--repeats 3] [--threads 1,2]
 #                                     [--gas-timing] [--skip-check] [--steps S | --work W]
 #                                     [--dir results/bench_lammps]
+#   bash bench/lammps/side_by_side.sh --cost-ratio --sizes 10k,1.2M [--repeats 5]
 #
 # Installs Debian's lammps and openmpi-bin if `lmp` or `mpirun` is missing (root), builds
 # dem_side_by_side, checks that both codes agree on a 10k gas (fails loudly if not), then times
 # settled beds (600k and 1.2M with --sizes 10k,150k,600k,1.2M). Scenes are cached in --dir.
+# --cost-ratio times only ours, 1 thread, the smallest and largest size in turn, and prints the
+# cost per particle-step of the large bed against the small one per round (issue 10: <= 1.3x).
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
 cd "$root"
