@@ -72,15 +72,23 @@ def main():
             print(f"scatter, mean of {len(members)}: raw {100 * scatter[0]:.2f} %, filtered "
                   f"{100 * scatter[1]:.2f} % (filtered {100 * min(m[1] for m in members):.2f}"
                   f"-{100 * max(m[1] for m in members):.2f} %)")
-    print("| run | real-time factor | speed-up | force change raw | filtered | x scatter (filtered) |")
-    print("| --- | ---: | ---: | ---: | ---: | ---: |")
+        if len(members) > 2:
+            mean = scatter[1]
+            sd = (sum((m[1] - mean) ** 2 for m in members) / (len(members) - 1)) ** 0.5
+            print(f"scatter, filtered: standard deviation {100 * sd:.2f} % over the "
+                  f"{len(members)} members")
+    widest = max((m[1] for m in members), default=0.0)
+    print("| run | real-time factor | speed-up | force change raw | filtered | x scatter (filtered) "
+          "| x largest member |")
+    print("| --- | ---: | ---: | ---: | ---: | ---: | ---: |")
     rows = []
     for label, folder in runs:
         rtf = real_time_factor(folder, a.policy)
         raw, filt = change(a.reference, folder, a.policy, a.filter)
         ratio = f"{filt / scatter[1]:.1f}" if scatter and scatter[1] > 0 else "-"
+        beyond = f"{filt / widest:.1f}" if widest > 0 else "-"
         print(f"| {label} | {rtf:.0f} | {ref_rtf / rtf:.2f} | {100 * raw:.2f} % | "
-              f"{100 * filt:.2f} % | {ratio} |")
+              f"{100 * filt:.2f} % | {ratio} | {beyond} |")
         rows.append((label, ref_rtf / rtf, 100 * filt))  # speed-up, filtered change in %
     try:
         import matplotlib
