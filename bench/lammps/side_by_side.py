@@ -311,6 +311,21 @@ def table(rows):
     return "\n".join(out)
 
 
+def write_results(args, name, started, cpu, text, fields, title):
+    """Prints the table and writes it (NAME_STAMP.md) with its data (NAME_STAMP.json)."""
+    ended = datetime.datetime.now(datetime.timezone.utc)
+    print("\n" + text)
+    stem = os.path.join(args.dir, f"{name}_{started:%Y%m%d_%H%M}")
+    with open(stem + ".json", "w") as f:
+        json.dump({"started": started.isoformat(), "ended": ended.isoformat(), "cpu": cpu,
+                   "cores": os.cpu_count(), "load_average_end": os.getloadavg(), **fields},
+                  f, indent=1)
+    with open(stem + ".md", "w") as f:
+        f.write(f"{title}, {os.cpu_count()} x {cpu}, {started:%Y-%m-%d %H:%M}-{ended:%H:%M} "
+                f"UTC, load average at the end {os.getloadavg()[0]:.1f}\n\n{text}\n")
+    print(f"\nwritten to {stem}.md and .json ({(ended - started).total_seconds() / 60:.1f} min)")
+
+
 def main():
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--sizes", default="10k,150k", help="settled beds, e.g. 10k,150k,600k,1.2M")
@@ -319,7 +334,8 @@ def main():
     p.add_argument("--steps", type=int, default=0, help="timed steps (default: --work / n)")
     p.add_argument("--cost-ratio", action="store_true",
                    help="ours only: the cost per particle-step at the largest of --sizes "
-                        "against the smallest, 1 thread, the two in turn (no LAMMPS)")
+                        "against the smallest, 1 thread, the two in turn (no LAMMPS; "
+                        "--threads and --gas-timing do not apply)")
     p.add_argument("--work", type=float, default=4e7,
                    help="particle-steps per timed run when --steps is not given")
     p.add_argument("--gas-timing", action="store_true", help="time the 10k gas too")
@@ -351,18 +367,8 @@ def main():
         if len(set(sizes)) < 2:
             sys.exit("side_by_side: --cost-ratio needs two sizes, e.g. --sizes 10k,1.2M")
         rows, text = cost_ratio(args, sizes)
-        ended = datetime.datetime.now(datetime.timezone.utc)
-        print("\n" + text)
-        stamp = f"{started:%Y%m%d_%H%M}"
-        with open(os.path.join(args.dir, f"cost_ratio_{stamp}.json"), "w") as f:
-            json.dump({"started": started.isoformat(), "ended": ended.isoformat(), "cpu": cpu,
-                       "load_average_end": os.getloadavg(), "rows": rows}, f, indent=1)
-        with open(os.path.join(args.dir, f"cost_ratio_{stamp}.md"), "w") as f:
-            f.write(f"Cost per particle-step, 1 thread, {os.cpu_count()} x {cpu}, "
-                    f"{started:%Y-%m-%d %H:%M}-{ended:%H:%M} UTC, {args.repeats} rounds\n\n"
-                    + text + "\n")
-        print(f"\nwritten to {args.dir}/cost_ratio_{stamp}.md and .json "
-              f"({(ended - started).total_seconds() / 60:.1f} min)")
+        write_results(args, "cost_ratio", started, cpu, text, {"rows": rows},
+                      f"Cost per particle-step, 1 thread, {args.repeats} rounds")
         return
     check = None if args.skip_check else physics_check(args)
 
@@ -371,23 +377,11 @@ def main():
         prepare(args, kind, n)
     print(f"\n== timing: median of {args.repeats}, stepping only ==", flush=True)
     rows = timing(args, scenes)
-    ended = datetime.datetime.now(datetime.timezone.utc)
-    text = table(rows)
-    print("\n" + text)
-    stamp = f"{started:%Y%m%d_%H%M}"
-    with open(os.path.join(args.dir, f"side_by_side_{stamp}.json"), "w") as f:
-        json.dump({"started": started.isoformat(), "ended": ended.isoformat(), "cpu": cpu,
-                   "load_average_end": os.getloadavg(),
-                   "cores": os.cpu_count(), "lammps": lmp_version, "check": check,
-                   "repeats": args.repeats, "close_margin": args.close_margin, "rows": rows}, f, indent=1)
-    with open(os.path.join(args.dir, f"side_by_side_{stamp}.md"), "w") as f:
-        f.write(f"Side by side with LAMMPS {lmp_version}, {os.cpu_count()} x {cpu}, "
-                f"{started:%Y-%m-%d %H:%M}-{ended:%H:%M} UTC, median of {args.repeats}, "
-                f"load average at the end {os.getloadavg()[0]:.1f}; ours with "
-                f"scene.close_margin {args.close_margin:g}\n\n"
-                + text + "\n")
-    print(f"\nwritten to {args.dir}/side_by_side_{stamp}.md and .json "
-          f"({(ended - started).total_seconds() / 60:.1f} min)")
+    write_results(args, "side_by_side", started, cpu, table(rows),
+                  {"lammps": lmp_version, "check": check, "repeats": args.repeats,
+                   "close_margin": args.close_margin, "rows": rows},
+                  f"Side by side with LAMMPS {lmp_version}, median of {args.repeats}, ours "
+                  f"with scene.close_margin {args.close_margin:g}")
 
 
 if __name__ == "__main__":

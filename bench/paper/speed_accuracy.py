@@ -12,6 +12,7 @@ usage: speed_accuracy.py --reference DIR [--scatter DIR ...] LABEL=DIR ... [--ou
 import argparse
 import os
 import re
+import statistics
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
@@ -73,8 +74,7 @@ def main():
                   f"{100 * scatter[1]:.2f} % (filtered {100 * min(m[1] for m in members):.2f}"
                   f"-{100 * max(m[1] for m in members):.2f} %)")
         if len(members) > 2:
-            mean = scatter[1]
-            sd = (sum((m[1] - mean) ** 2 for m in members) / (len(members) - 1)) ** 0.5
+            sd = statistics.stdev(m[1] for m in members)
             print(f"scatter, filtered: standard deviation {100 * sd:.2f} % over the "
                   f"{len(members)} members")
     widest = max((m[1] for m in members), default=0.0)
