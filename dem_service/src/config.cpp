@@ -112,10 +112,10 @@ ThreadWait parse_thread_wait(const YAML::Node& s, ThreadWait fallback) {
 void parse_sleep(const YAML::Node& sl, const Scene& sc, SleepOptions& o) {
   const std::string p = "scene.sleep";
   if (!sl.IsMap())
-    throw ConfigError(p + ": expected a map {enabled, speed, steps, tool_distance, neighbourhood, "
-                          "close_pairs}");
-  cfg::check_keys(sl, p, {"enabled", "speed", "steps", "tool_distance", "neighbourhood",
-                          "close_pairs"});
+    throw ConfigError(p + ": expected a map {enabled, speed, wake_speed, steps, tool_distance, "
+                          "neighbourhood, close_pairs}");
+  cfg::check_keys(sl, p, {"enabled", "speed", "wake_speed", "steps", "tool_distance",
+                          "neighbourhood", "close_pairs"});
   o.close_pairs = cfg::get_bool_or(sl, p, "close_pairs", o.close_pairs);
   o.neighbourhood =
       cfg::get_choice(sl, p, "neighbourhood", {"sphere", "box"},
@@ -127,6 +127,15 @@ void parse_sleep(const YAML::Node& sl, const Scene& sc, SleepOptions& o) {
   if (!(o.speed > 0) || !std::isfinite(o.speed))
     throw ConfigError("scene.sleep.speed: must be a speed > 0 in m/s (e.g. 0.01), got " +
                       std::to_string(o.speed));
+  if (sl["wake_speed"]) o.wake_speed = cfg::get_double(sl, p, "wake_speed");
+  if (sl["wake_speed"] || o.wake_speed != 0)
+    if (!(o.wake_speed > 0) || !std::isfinite(o.wake_speed) || o.wake_speed > o.speed) {
+      std::ostringstream msg;
+      msg << "scene.sleep.wake_speed: must be a speed in (0, scene.sleep.speed = " << o.speed
+          << "] m/s (an awake partner faster than it wakes a sleeper; e.g. speed / 5), got "
+          << o.wake_speed << "; leave it out to wake at scene.sleep.speed";
+      throw ConfigError(msg.str());
+    }
   const long long steps = cfg::get_int_or(sl, p, "steps", o.steps);
   if (steps < 1 || steps > 100000000)
     throw ConfigError("scene.sleep.steps: must be between 1 and 1e8 steps (e.g. 200), got " +

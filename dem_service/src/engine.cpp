@@ -910,7 +910,7 @@ void Engine::pair_forces_impl(State& s) {
   const std::size_t n = s.size();
   if (Sleep) wake_.resize(n);
   const std::int32_t S = scene_.sleep.steps;
-  const double wake_speed2 = scene_.sleep.speed * scene_.sleep.speed;
+  const double wake_speed2 = scene_.sleep.wake() * scene_.sleep.wake();
   const std::int32_t* const REST = s.rest_steps.data();
   std::uint8_t* const WAKE = wake_.data();
   force_.resize(n);

@@ -113,7 +113,7 @@ void pair_rows_scalar(const PairRows& p, const PairSleep& sl, std::size_t a0, st
       max_overlap = std::max(max_overlap, rsum - dist);
       max_overlap_ratio = std::max(max_overlap_ratio, (rsum - dist) / std::min(ri, rj));
       // Awake against asleep: the force acts on the awake particle only; a partner moving
-      // faster than scene.sleep.speed relative to the sleeper wakes it.
+      // faster than scene.sleep.wake_speed (by default speed) relative to the sleeper wakes it.
       if (Sleep && (si || sj) && norm2(urel) > sl.wake_speed2)
         wake(sl, si ? i : static_cast<std::size_t>(j), direct);
       if (!Sleep || !si) fi += f;
@@ -594,7 +594,7 @@ DEM_AVX512 void ChunkKernel::rows(const PairSleep& sl, std::size_t a0, std::size
           for (unsigned m = out.clear & sleepy; m != 0; m &= m - 1)
               wake(sl, si ? i : static_cast<std::size_t>(jl[__builtin_ctz(m)]), direct);
           if (out.act == 0) continue;
-          {  // a partner faster than scene.sleep.speed relative to a sleeper wakes it
+          {  // a partner faster than scene.sleep.wake_speed relative to a sleeper wakes it
             const __mmask8 fast =
                 _mm512_mask_cmp_pd_mask(out.act & sleepy, out.urel2, wake_speed2, _CMP_GT_OQ);
             for (unsigned m = fast; m != 0; m &= m - 1)

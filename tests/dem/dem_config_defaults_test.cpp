@@ -85,7 +85,8 @@ std::string describe(const dem::RunConfig& rc) {
   o << "stability " << s.stability.min_steps_per_contact << ' '
     << static_cast<int>(s.stability.on_violation) << ' ' << s.stability.max_speed << ' '
     << s.stability.overlap_tolerance << '\n';
-  o << "sleep " << s.sleep.enabled << ' ' << s.sleep.speed << ' ' << s.sleep.steps << ' '
+  o << "sleep " << s.sleep.enabled << ' ' << s.sleep.speed << ' ' << s.sleep.wake() << ' '
+    << s.sleep.steps << ' '
     << s.sleep.tool_distance << ' ' << s.sleep.close_pairs << '\n';
   o << "region " << s.region.enabled << ' ';
   v(s.region.min);
@@ -203,7 +204,7 @@ TEST(dem_ConfigDefaults, AWrongDefaultIsNoticed) {
   for (const char* set : {"scene.skin=0.4", "contact.particle_wall.friction=0.4",
                           "tools.0.scale=2", "particles.keep_time=true", "settle.max_time=4",
                           "particles.fill.0.seed=2", "walls.0.open_top=false",
-                          "scene.sleep.speed=0.02", "scene.sleep.steps=400",
+                          "scene.sleep.speed=0.02", "scene.sleep.wake_speed=0.005", "scene.sleep.steps=400",
                           "scene.sleep.tool_distance=0.4", "scene.sleep.close_pairs=true"}) {
     YAML::Node root = minimal_config();
     cosim::config::apply_override(root, set);

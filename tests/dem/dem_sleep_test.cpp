@@ -116,6 +116,55 @@ TEST(dem_Sleep, SettledColumnSleepsInPlaceAndWakesWhenHit) {
   EXPECT_LT(worst_height_error(c.st, 6), 0.01 * overlap6);
 }
 
+// Sphere B slides at 5 mm/s into sphere A, asleep (elastic, no gravity, no friction); both are
+// slower than `speed` (10 mm/s). With the default wake speed (= speed) A stays asleep, a fixed
+// body: B rebounds at -v (elastic against a fixed body), A does not move a bit. With
+// wake_speed 2 mm/s A wakes on contact: equal masses, elastic and head-on, the velocities are
+// exchanged (A leaves at v, B stops).
+TEST(dem_Sleep, WakeSpeedBelowSpeedLetsASlowPushWakeASleeper) {
+  const double v = 0.005;
+  struct Out {
+    Vec3 va, vb, xa;
+    bool a_woke;
+    double dt;
+  };
+  auto collide = [&](double wake_speed) {
+    Column c = make_column(1, 0.01);
+    c.scene.gravity = {0, 0, 0};
+    c.scene.walls.clear();
+    c.scene.particle_particle = law_n_per_m(kK, 1.0, true);
+    c.scene.sleep.steps = 1000;
+    c.scene.sleep.wake_speed = wake_speed;
+    dem::Engine e(c.scene);
+    for (int k = 0; k < 1100; ++k) e.step(c.st);
+    EXPECT_EQ(e.sleeping(), 1);
+    const Vec3 xa = c.st.x[0];
+    // B starts 10 steps of travel short of contact, on A's axis; the contact lasts about
+    // 40 steps against a fixed body, 28 between two free ones. 300 steps: long over.
+    add(c.st, {xa.x - 2 * kR - 10 * v * c.scene.dt, xa.y, xa.z}, {v, 0, 0}, kR);
+    bool woke = false;
+    for (int k = 0; k < 300; ++k) {
+      e.step(c.st);
+      woke = woke || !is_asleep(c.scene, c.st, 0);
+    }
+    return Out{c.st.v[index_of(c.st, 0)], c.st.v[index_of(c.st, 1)], c.st.x[index_of(c.st, 0)] - xa,
+               woke, c.scene.dt};
+  };
+  const Out fixed = collide(0);  // 0: wake at speed
+  EXPECT_FALSE(fixed.a_woke);
+  EXPECT_EQ(fixed.xa.x, 0.0);
+  EXPECT_EQ(fixed.va.x, 0.0);
+  EXPECT_NEAR(fixed.vb.x, -v, 0.01 * v) << "elastic rebound from a fixed sleeper";
+  const Out pushed = collide(0.002);
+  EXPECT_TRUE(pushed.a_woke);
+  EXPECT_NEAR(pushed.va.x, v, 0.02 * v) << "A takes B's velocity";
+  EXPECT_NEAR(pushed.vb.x, 0.0, 0.02 * v) << "B stops";
+  // A leaves about 40 steps after B was added and moves at v for the remaining 260
+  EXPECT_NEAR(pushed.xa.x, 260 * v * pushed.dt, 20 * v * pushed.dt) << "A moved on at v";
+  std::printf("fixed sleeper: B %.6f m/s; woken: A %.6f, B %.6f m/s (v = %.3f)\n", fixed.vb.x,
+              pushed.va.x, pushed.vb.x, v);
+}
+
 // A free particle slower than `speed` near its apex must not fall asleep in the air (the
 // config refuses steps shorter than the apex time; here they are just longer).
 TEST(dem_Sleep, BallThrownUpDoesNotSleepAtTheApex) {
@@ -569,10 +618,15 @@ particles:
 TEST(dem_Sleep, BadValuesRefusedNamingTheKey) {
   EXPECT_EQ(load_error({"scene.sleep={enabled: true, speed: 0.001, steps: 100, tool_distance: 0.1}"}),
             "");
+  EXPECT_EQ(load_error({"scene.sleep={enabled: true, speed: 0.01, wake_speed: 0.002, steps: 300}"}), "");
   EXPECT_EQ(load_error({"scene.region={min: [-1, -1, -1], max: [1, 1, 1]}"}), "");
   const std::vector<std::pair<std::string, std::string>> cases = {
       {"scene.sleep.speed=0", "scene.sleep.speed"},
       {"scene.sleep.speed=-1", "scene.sleep.speed"},
+      {"scene.sleep.wake_speed=0", "scene.sleep.wake_speed"},
+      {"scene.sleep.wake_speed=-0.001", "scene.sleep.wake_speed"},
+      {"scene.sleep.wake_speed=0.02", "scene.sleep.wake_speed"},  // above speed (0.01)
+      {"scene.sleep.wake_speed=fast", "scene.sleep.wake_speed"},
       {"scene.sleep.steps=0", "scene.sleep.steps"},
       {"scene.sleep.steps=2.5", "scene.sleep.steps"},
       {"scene.sleep.tool_distance=-0.1", "scene.sleep.tool_distance"},

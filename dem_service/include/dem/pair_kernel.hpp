@@ -68,7 +68,7 @@ void pair_rows(const PairRows& p, std::size_t a0, std::size_t a1, std::vector<Pa
 struct PairSleep {
   const std::int32_t* rest = nullptr;  // State::rest_steps: asleep when >= steps
   std::int32_t steps = 0;
-  double wake_speed2 = 0;              // (scene.sleep.speed)^2
+  double wake_speed2 = 0;              // (scene.sleep.wake_speed, by default speed)^2
   // Rows of sleepers are read only if awake_partners[i] > 0 (the number of awake partners in
   // row i); nullptr: every row is read.
   const std::int32_t* awake_partners = nullptr;

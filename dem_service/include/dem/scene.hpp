@@ -65,9 +65,9 @@ struct StabilityOptions {
 // `speed` for `steps` consecutive steps while more than `tool_distance` from every tool's
 // bounding sphere falls asleep (v = u = 0, x fixed, not integrated, no gravity, no wall or mesh
 // forces, no forces between two sleepers). Its contacts with awake particles act on the awake
-// one. It wakes when an awake contact partner moves faster than `speed` relative to it, when
-// a contact with an awake particle ends, or when a tool's bounding sphere comes within
-// `tool_distance`.
+// one. It wakes when an awake contact partner moves faster than `wake_speed` (by default
+// `speed`) relative to it, when a contact with an awake particle ends, or when a tool's
+// bounding sphere comes within `tool_distance`.
 // What counts as "near a tool" for sleeping: within tool_distance of the tool's bounding sphere
 // (centred on its reference point, radius = the farthest vertex), or of the mesh's own
 // axis-aligned box in the tool frame (tighter: a bucket's box is about 1.5 x 3.0 x 1.6 m where its
@@ -77,6 +77,11 @@ enum class SleepNeighbourhood { sphere, box };
 struct SleepOptions {
   bool enabled = false;
   double speed = 0.01;        // m/s
+  // m/s: an awake partner faster than this (relative to the sleeper) wakes it; 0 (the default)
+  // means `speed`. Lower than `speed`, a slow push through the bed wakes what it reaches
+  // (docs/dem.md, "Choosing the thresholds").
+  double wake_speed = 0;
+  double wake() const { return wake_speed > 0 ? wake_speed : speed; }
   int steps = 500;            // consecutive steps at rest before sleeping
   double tool_distance = 0.5; // m, gap to the tool's neighbourhood shape (below)
   SleepNeighbourhood neighbourhood = SleepNeighbourhood::sphere;
