@@ -8,8 +8,9 @@
 #   bash bench/paper/sleep_sweep.sh [--thresholds 0.01/25,0.02/100,0.03/70,0.1/250]
 #                                   [--members 2] [--window 0.3] [--out results/sleep_sweep]
 #
-# A threshold is SPEED/STEPS (m/s / steps); the steps must exceed 2 SPEED / (|g| dt), which
-# dem_run checks. Needs the prepared pile (bench/paper/prepare_pile.sh). With the defaults it
+# A threshold is SPEED/STEPS or SPEED/STEPS/WAKE (m/s / steps / m/s: scene.sleep.speed, steps
+# and wake_speed, which defaults to SPEED and may not exceed it); the steps must exceed
+# 2 SPEED / (|g| dt). dem_run checks both. Needs the prepared pile (bench/paper/prepare_pile.sh). With the defaults it
 # runs 7 maneuvers: about 6 minutes on an idle 2-core machine.
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
@@ -18,10 +19,10 @@ thresholds="0.01/25,0.02/100,0.03/70,0.1/250"
 members=2
 window=0.3
 out=results/sleep_sweep
-usage() { sed -n '2,13p' "$0" | sed 's/^# \{0,1\}//' >&2; exit 2; }
+usage() { sed -n '2,14p' "$0" | sed 's/^# \{0,1\}//' >&2; exit 2; }
 while [ $# -gt 0 ]; do
   case "$1" in
-    --thresholds) thresholds="${2:?--thresholds needs a list like 0.02/100,0.1/250}"; shift 2 ;;
+    --thresholds) thresholds="${2:?--thresholds needs a list like 0.02/100,0.1/250/0.02}"; shift 2 ;;
     --members) members="${2:?--members needs a count}"; shift 2 ;;
     --window) window="${2:?--window needs seconds}"; shift 2 ;;
     --out) out="${2:?--out needs a folder}"; shift 2 ;;
@@ -34,8 +35,9 @@ if ! [[ "$members" =~ ^[0-9]+$ ]] || [ "$members" -lt 1 ] || [ "$members" -gt 20
 fi
 IFS=',' read -r -a list <<< "$thresholds"
 for t in "${list[@]}"; do
-  if ! [[ "$t" =~ ^[0-9]*\.?[0-9]+/[0-9]+$ ]]; then
-    echo "sleep_sweep: threshold '$t' is not SPEED/STEPS (e.g. 0.02/100)" >&2; exit 2
+  if ! [[ "$t" =~ ^[0-9]*\.?[0-9]+/[0-9]+(/[0-9]*\.?[0-9]+)?$ ]]; then
+    echo "sleep_sweep: threshold '$t' is not SPEED/STEPS or SPEED/STEPS/WAKE (e.g. 0.02/100 or 0.1/250/0.02)" >&2
+    exit 2
   fi
 done
 mkdir -p "$out"
@@ -58,10 +60,12 @@ for ((m = 1; m <= members; m++)); do
 done
 runs=()
 for t in "${list[@]}"; do
-  speed="${t%/*}"; steps="${t#*/}"
+  IFS='/' read -r speed steps wake <<< "$t"
   dir="$out/sleep_${speed}_${steps}"
+  wake_set=()
+  if [ -n "$wake" ]; then dir="${dir}_wake_$wake"; wake_set=(--set scene.sleep.wake_speed="$wake"); fi
   scene "$dir" --set scene.sleep.enabled=true --set scene.sleep.neighbourhood=box \
-    --set scene.sleep.speed="$speed" --set scene.sleep.steps="$steps"
+    --set scene.sleep.speed="$speed" --set scene.sleep.steps="$steps" "${wake_set[@]+"${wake_set[@]}"}"
   runs+=("$t=$dir")
 done
 /usr/bin/python3 bench/paper/speed_accuracy.py --reference "$out/reference" "${scatter[@]}" \
