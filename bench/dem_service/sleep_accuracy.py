@@ -2,20 +2,24 @@
 "Sleeping particles").
 
 Runs the main job (configs/wheel_loader.yaml: Simbody wheel loader + dem_service on the 10k
-pile) once all-active (the reference), once all-active with the DEM on 1 thread (only the
-summation order differs: the scene's run-to-run scatter), and once per sleep threshold. Prints
-per run: the DEM's compute time (sum of the soil participant's per-step compute), its speed-up
-against the reference, the mean share of particles asleep, and the change of the bearing
-forces against the reference (charts.py's measure: RMS difference of the four section forces,
-raw and 0.25 s filtered, relative to the reference's RMS; plus the A-bearing longitudinal
-force's mean over the filling phase 2 s .. end). Draws speed-up against filtered error.
+pile) once all-active (the reference), once all-active with the pile moved by 10 nm (seeded,
+particles.perturb: the scene's run-to-run scatter, as the ensembles of
+docs/wheel_loader_studies.md draw it; a thread count no longer changes a bit), and once per
+sleep threshold. Prints per run: the DEM's compute time (sum of the soil participant's per-step
+compute), its speed-up against the reference, the mean share of particles asleep, and the change
+of the bearing forces against the reference (charts.py's measure: RMS difference of the four
+section forces, raw and 0.25 s filtered, relative to the reference's RMS; plus the A-bearing
+longitudinal force's mean over the filling phase 2 s .. end). Draws speed-up against filtered
+error.
 
   /usr/bin/python3 bench/dem_service/sleep_accuracy.py [--end 3] [--out results/sleep_study]
-      [--only NAME,...] [--table-only]
+      [--thresholds SPEED/STEPS/TOOL[/WAKE],...] [--only NAME,...] [--table-only]
 
-All runs start at once, each under nice -n 19 on its own private LCM URL, the DEM on 1 thread
-(the scatter run on 2). The speed-up is of the soil process's CPU seconds (/usr/bin/time),
-which a shared machine inflates less than wall time; the table gives the DEM's wall time too.
+A threshold is scene.sleep.speed (m/s) / steps / tool_distance (m) [/ wake_speed (m/s)]; the
+default list is 0.005/500/1.0,0.02/500/0.5,0.05/200/0.25. All runs start at once, each under
+nice -n 19 on its own private LCM URL, the DEM on 1 thread. The speed-up is of the soil
+process's CPU seconds (/usr/bin/time), which a shared machine inflates less than wall time; the
+table gives the DEM's wall time too.
 """
 import argparse
 import json
@@ -36,18 +40,46 @@ SIGNALS = [{"path": f"participants/loader/outputs/{s}"} for s in ("a_long", "j_l
 SOIL = "participants.soil.parameters"
 
 
-def sleep_set(speed, steps, tool_distance):
-    return {f"{SOIL}.scene.sleep.enabled": "true", f"{SOIL}.scene.sleep.speed": str(speed),
+def sleep_set(speed, steps, tool_distance, wake=None):
+    sets = {f"{SOIL}.scene.sleep.enabled": "true", f"{SOIL}.scene.sleep.speed": str(speed),
             f"{SOIL}.scene.sleep.steps": str(steps), f"{SOIL}.scene.sleep.tool_distance": str(tool_distance)}
+    if wake is not None:
+        sets[f"{SOIL}.scene.sleep.wake_speed"] = str(wake)
+    return sets
 
 
-RUNS = [
-    ("active", "all active, 1 thread (reference)", {}),
-    ("active_2threads", "all active, DEM on 2 threads (scatter)", {f"{SOIL}.scene.threads": "2"}),
-    ("sleep_tight", "sleep: speed 0.005 m/s, 500 steps, tool 1.0 m", sleep_set(0.005, 500, 1.0)),
-    ("sleep_mid", "sleep: speed 0.02 m/s, 500 steps, tool 0.5 m", sleep_set(0.02, 500, 0.5)),
-    ("sleep_loose", "sleep: speed 0.05 m/s, 200 steps, tool 0.25 m", sleep_set(0.05, 200, 0.25)),
+DEFAULT_THRESHOLDS = "0.005/500/1.0,0.02/500/0.5,0.05/200/0.25"
+BASE_RUNS = [
+    ("active", "all active (reference)", {}),
+    ("active_moved", "all active, pile moved by 10 nm (scatter)",
+     {f"{SOIL}.particles.perturb.amplitude": "1.0e-8", f"{SOIL}.particles.perturb.seed": "1"}),
 ]
+
+
+def threshold_runs(text):
+    """The sleep runs of --thresholds: SPEED/STEPS/TOOL[/WAKE], comma-separated."""
+    runs = []
+    for item in filter(None, text.split(",")):
+        parts = item.split("/")
+        try:
+            if len(parts) not in (3, 4):
+                raise ValueError
+            speed, tool = float(parts[0]), float(parts[2])
+            steps = int(parts[1])
+            wake = float(parts[3]) if len(parts) == 4 else None
+        except ValueError:
+            sys.exit(f"sleep_accuracy: threshold '{item}' is not SPEED/STEPS/TOOL[/WAKE] "
+                     f"(e.g. 0.02/500/0.5 or 0.05/200/0.25/0.01)")
+        if not (speed > 0 and steps > 0 and tool >= 0 and (wake is None or 0 < wake <= speed)):
+            sys.exit(f"sleep_accuracy: threshold '{item}': need speed > 0, steps > 0, tool "
+                     f"distance >= 0 and 0 < wake <= speed")
+        label = f"sleep: speed {parts[0]} m/s, {steps} steps, tool {parts[2]} m"
+        if wake is not None:
+            label += f", wake {parts[3]} m/s"
+        runs.append(("sleep_" + item.replace("/", "_"), label, sleep_set(speed, steps, tool, wake)))
+    if not runs:
+        sys.exit("sleep_accuracy: --thresholds is empty")
+    return runs
 
 
 def start(k, name, sets, args):
@@ -106,7 +138,12 @@ def main():
     ap.add_argument("--only", default="", help="comma-separated run names to (re)run")
     ap.add_argument("--table-only", action="store_true", help="only read existing runs")
     ap.add_argument("--particles", type=float, default=10000)
+    ap.add_argument("--thresholds", default=DEFAULT_THRESHOLDS,
+                    help="SPEED/STEPS/TOOL[/WAKE],... (m/s, steps, m, m/s)")
     args = ap.parse_args()
+    if not args.end > 0:
+        sys.exit(f"sleep_accuracy: --end must be > 0 s, got {args.end}")
+    RUNS = BASE_RUNS + threshold_runs(args.thresholds)
     args.out = os.path.join(ROOT, args.out) if not os.path.isabs(args.out) else args.out
     os.makedirs(args.out, exist_ok=True)
     only = set(filter(None, args.only.split(",")))
@@ -115,6 +152,9 @@ def main():
         t0 = time.monotonic()
         procs = [start(k, name, sets, args) for k, (name, _, sets) in enumerate(RUNS)
                  if not only or name in only]
+        if not procs:
+            sys.exit(f"sleep_accuracy: --only {args.only} names no run; the runs are "
+                     + ", ".join(name for name, _, _ in RUNS))
         for name, log, p in procs:  # concurrently: all at nice 19, each a private bus URL
             code = p.wait()
             print(f"  {name}: exit {code} after {time.monotonic() - t0:.0f} s", flush=True)
@@ -124,6 +164,9 @@ def main():
     for name, label, _ in RUNS:
         if os.path.exists(os.path.join(args.out, name + ".h5")):
             res[name] = load(name, args)
+    if "active" not in res:
+        sys.exit(f"sleep_accuracy: no reference run in {args.out} (active.h5); run without "
+                 f"--table-only first")
     # Runs stopped early: compare over the time all of them reached.
     t_end = min(r["t"][-1] for r in res.values())
     n_min = min(len(r["t"]) for r in res.values())
@@ -167,9 +210,9 @@ def main():
                     color="C0" if name.startswith("sleep") else "C3")
             ax.annotate(label.replace("sleep: ", ""), (100 * filt, speed), fontsize=7,
                         xytext=(4, 4), textcoords="offset points")
-        scatter = [100 * f for n, _, _, f in points if n == "active_2threads"]
+        scatter = [100 * f for n, _, _, f in points if n == "active_moved"]
         if scatter:
-            ax.axvline(scatter[0], color="C3", ls="--", lw=0.8, label="run-to-run scatter (1 vs 2 threads)")
+            ax.axvline(scatter[0], color="C3", ls="--", lw=0.8, label="run-to-run scatter (pile moved by 10 nm)")
             ax.legend(fontsize=7, loc="lower right")
         ax.set_xlabel("bearing-force change vs all-active run, filtered [%]")
         ax.set_ylabel("DEM speed-up (CPU seconds) vs all-active run")
