@@ -286,14 +286,26 @@ struct ChunkKernel {
   // The two kernels (below): row by row with the sleeping rules, or the stream of pairs.
   template <bool Indexed>
   DEM_AVX512 void rows(const PairSleep& sl, std::size_t a0, std::size_t a1, std::size_t direct,
-                       std::vector<PairRemote>& remote, PairRowStats& stats);
+                       std::vector<PairRemote>& remote, PairRowStats& stats, bool full_chunks);
   // Full: the spring's turn and the friction cap computed in every chunk without a branch.
+  // finish_stats: add the kernel's statistics to `stats` at the end (rows() streams runs of
+  // rows and adds them once, at its own end).
   template <bool Indexed, bool Full>
   DEM_AVX512 void stream(std::size_t a0, std::size_t a1, std::size_t direct,
-                         std::vector<PairRemote>& remote, PairRowStats& stats);
+                         std::vector<PairRemote>& remote, PairRowStats& stats,
+                         bool finish_stats = true);
   DEM_AVX512 void finish(PairRowStats& stats) const {
-    add_stats(stats, contacts, _mm512_reduce_max_pd(max_overlap),
-              _mm512_reduce_max_pd(max_ratio));
+    // The lanes' maxima through memory: GCC 12 warns about _mm512_reduce_max_pd's undefined
+    // upper half where rows() inlines this (a false alarm; the maximum is the same).
+    alignas(64) double o[8], r[8];
+    _mm512_store_pd(o, max_overlap);
+    _mm512_store_pd(r, max_ratio);
+    double mo = o[0], mr = r[0];
+    for (int l = 1; l < 8; ++l) {
+      mo = std::max(mo, o[l]);
+      mr = std::max(mr, r[l]);
+    }
+    add_stats(stats, contacts, mo, mr);
   }
 };
 
@@ -536,6 +548,27 @@ DEM_AVX512 inline std::uint64_t rows_to_read(const PairSleep& sl, std::size_t ba
   return bits;
 }
 
+// Of the rows to read in [base, base + 64) (`read`), those of awake particles whose partners are
+// all awake: rest < steps and awake_partners equal to the row's length.
+DEM_AVX512 inline std::uint64_t clean_rows(const PairSleep& sl, const std::int32_t* off,
+                                           std::size_t base, std::uint64_t read) {
+  const __m512i steps = _mm512_set1_epi32(sl.steps);
+  std::uint64_t bits = 0;
+  for (int q = 0; q < 4; ++q) {
+    const __mmask16 m = static_cast<__mmask16>(read >> (16 * q));
+    if (m == 0) continue;
+    const std::size_t r = base + 16 * static_cast<std::size_t>(q);
+    const __m512i rest = _mm512_maskz_loadu_epi32(m, sl.rest + r);
+    const __m512i count = _mm512_maskz_loadu_epi32(m, sl.awake_partners + r);
+    const __m512i len = _mm512_sub_epi32(_mm512_maskz_loadu_epi32(m, off + r + 1),
+                                         _mm512_maskz_loadu_epi32(m, off + r));
+    const __mmask16 c = _mm512_mask_cmplt_epi32_mask(m, rest, steps) &
+                        _mm512_mask_cmpeq_epi32_mask(m, count, len);
+    bits |= static_cast<std::uint64_t>(c) << (16 * q);
+  }
+  return bits;
+}
+
 // With sleepers: row by row, 8 candidates of a row at a time (the sleeping rules are per row).
 // Indexed: the rows are the close pairs' (PairRows::spring_index), as in stream<true>. The rows
 // are taken 64 at a time as bits (rows_to_read), so a sleeper's row that has no awake partner
@@ -543,76 +576,109 @@ DEM_AVX512 inline std::uint64_t rows_to_read(const PairSleep& sl, std::size_t ba
 template <bool Indexed>
 DEM_AVX512 void ChunkKernel::rows(const PairSleep& sl, std::size_t a0, std::size_t a1,
                                   std::size_t direct, std::vector<PairRemote>& remote,
-                                  PairRowStats& stats) {
+                                  PairRowStats& stats, bool full_chunks) {
   alignas(32) std::int32_t jl[8];
   const std::int32_t kend = off[a1];
   const __m256i sleep_steps = _mm256_set1_epi32(sl.steps);
   const __m512d wake_speed2 = _mm512_set1_pd(sl.wake_speed2);
-  for (std::size_t base = a0 - a0 % 64; base < a1; base += 64) {
-    for (std::uint64_t read = rows_to_read(sl, base, a0, a1); read != 0; read &= read - 1) {
-      const std::size_t i = base + static_cast<std::size_t>(__builtin_ctzll(read));
-      const std::int32_t k1 = off[i + 1];
-      const bool si = sl.rest[i] >= sl.steps;
-      Vec3 fi{};
-      if (off[i] < k1) {
-        ChunkIn in;
-        in.xix = _mm512_set1_pd(X[3 * i]);
-        in.xiy = _mm512_set1_pd(X[3 * i + 1]);
-        in.xiz = _mm512_set1_pd(X[3 * i + 2]);
-        in.uix = _mm512_set1_pd(U[3 * i]);
-        in.uiy = _mm512_set1_pd(U[3 * i + 1]);
-        in.uiz = _mm512_set1_pd(U[3 * i + 2]);
-        in.ri = _mm512_set1_pd(R[i]);
-        in.mi = _mm512_set1_pd(M[i]);
-        in.jl = jl;
-        for (std::int32_t k = off[i]; k < k1; k += 8) {
-          in.left = k1 - k;
-          const __mmask8 row =
-              in.left >= 8 ? 0xFF : static_cast<__mmask8>((1u << in.left) - 1);
-          in.j = _mm256_maskz_loadu_epi32(row, J + k);
-          _mm256_store_si256(reinterpret_cast<__m256i*>(jl), in.j);
-          // Sleeping: sj = partners asleep; for a sleeper's row those pairs are skipped (their
-          // springs stay as they were), and every remaining pair is awake against asleep.
-          __mmask8 sj = 0, sleepy = 0;
-          in.live = row;
-          {
-            const __m256i rest = _mm256_mmask_i32gather_epi32(_mm256_setzero_si256(), row, in.j,
-                                                              sl.rest, 4);
-            sj = _mm256_mask_cmp_epi32_mask(row, rest, sleep_steps, _MM_CMPINT_NLT);
-            if (si) in.live = row & static_cast<__mmask8>(~sj);
-            sleepy = si ? in.live : sj;
-            if (in.live == 0) continue;
-          }
-          if constexpr (Indexed) {
-            in.kl = spring_index + k;
-            prefetch_indexed(spring, spring_home, spring_index, J, k, kend);
-          } else {
-            prefetch_ahead(spring, J, k, kend);
-          }
-          const ChunkOut out = compute<false, Indexed>(in, k);
-          // A sleeper whose contact with an awake particle ends may have lost its support.
-          for (unsigned m = out.clear & sleepy; m != 0; m &= m - 1)
-              wake(sl, si ? i : static_cast<std::size_t>(jl[__builtin_ctz(m)]), direct);
-          if (out.act == 0) continue;
-          {  // a partner faster than scene.sleep.wake_speed relative to a sleeper wakes it
-            const __mmask8 fast =
-                _mm512_mask_cmp_pd_mask(out.act & sleepy, out.urel2, wake_speed2, _CMP_GT_OQ);
-            for (unsigned m = fast; m != 0; m &= m - 1)
-              wake(sl, si ? i : static_cast<std::size_t>(jl[__builtin_ctz(m)]), direct);
-          }
-          // The forces in pair order, as the scalar loop applies them (awake against asleep: on
-          // the awake particle only).
-          for (unsigned m = out.act; m != 0; m &= m - 1) {
-            const int l = __builtin_ctz(m);
-            const Vec3 f{fx[l], fy[l], fz[l]};
-            if (!si) fi += f;
-            if (!((sj >> l) & 1)) on_partner(F, remote, jl[l], f, direct);
-          }
+  // Clean rows: an awake particle whose partners are all awake (its count of awake partners is
+  // its row's length). No sleeping rule applies to them, so a run of at least kStreamRun
+  // consecutive clean rows goes to the stream kernel, which fills every lane (the same pairs in
+  // the same order: the same bits). Only with the counts of the half list (not close pairs).
+  constexpr std::size_t kStreamRun = 8;
+  const bool streams = !Indexed && sl.awake_partners != nullptr;
+  std::size_t run0 = 0, run1 = 0;  // the pending run of clean rows [run0, run1)
+  const auto one_row = [&](std::size_t i) DEM_AVX512 {
+    const std::int32_t k1 = off[i + 1];
+    const bool si = sl.rest[i] >= sl.steps;
+    Vec3 fi{};
+    if (off[i] < k1) {
+      ChunkIn in;
+      in.xix = _mm512_set1_pd(X[3 * i]);
+      in.xiy = _mm512_set1_pd(X[3 * i + 1]);
+      in.xiz = _mm512_set1_pd(X[3 * i + 2]);
+      in.uix = _mm512_set1_pd(U[3 * i]);
+      in.uiy = _mm512_set1_pd(U[3 * i + 1]);
+      in.uiz = _mm512_set1_pd(U[3 * i + 2]);
+      in.ri = _mm512_set1_pd(R[i]);
+      in.mi = _mm512_set1_pd(M[i]);
+      in.jl = jl;
+      for (std::int32_t k = off[i]; k < k1; k += 8) {
+        in.left = k1 - k;
+        const __mmask8 row =
+            in.left >= 8 ? 0xFF : static_cast<__mmask8>((1u << in.left) - 1);
+        in.j = _mm256_maskz_loadu_epi32(row, J + k);
+        _mm256_store_si256(reinterpret_cast<__m256i*>(jl), in.j);
+        // Sleeping: sj = partners asleep; for a sleeper's row those pairs are skipped (their
+        // springs stay as they were), and every remaining pair is awake against asleep.
+        __mmask8 sj = 0, sleepy = 0;
+        in.live = row;
+        {
+          const __m256i rest = _mm256_mmask_i32gather_epi32(_mm256_setzero_si256(), row, in.j,
+                                                            sl.rest, 4);
+          sj = _mm256_mask_cmp_epi32_mask(row, rest, sleep_steps, _MM_CMPINT_NLT);
+          if (si) in.live = row & static_cast<__mmask8>(~sj);
+          sleepy = si ? in.live : sj;
+          if (in.live == 0) continue;
+        }
+        if constexpr (Indexed) {
+          in.kl = spring_index + k;
+          prefetch_indexed(spring, spring_home, spring_index, J, k, kend);
+        } else {
+          prefetch_ahead(spring, J, k, kend);
+        }
+        const ChunkOut out = compute<false, Indexed>(in, k);
+        // A sleeper whose contact with an awake particle ends may have lost its support.
+        for (unsigned m = out.clear & sleepy; m != 0; m &= m - 1)
+            wake(sl, si ? i : static_cast<std::size_t>(jl[__builtin_ctz(m)]), direct);
+        if (out.act == 0) continue;
+        {  // a partner faster than scene.sleep.wake_speed relative to a sleeper wakes it
+          const __mmask8 fast =
+              _mm512_mask_cmp_pd_mask(out.act & sleepy, out.urel2, wake_speed2, _CMP_GT_OQ);
+          for (unsigned m = fast; m != 0; m &= m - 1)
+            wake(sl, si ? i : static_cast<std::size_t>(jl[__builtin_ctz(m)]), direct);
+        }
+        // The forces in pair order, as the scalar loop applies them (awake against asleep: on
+        // the awake particle only).
+        for (unsigned m = out.act; m != 0; m &= m - 1) {
+          const int l = __builtin_ctz(m);
+          const Vec3 f{fx[l], fy[l], fz[l]};
+          if (!si) fi += f;
+          if (!((sj >> l) & 1)) on_partner(F, remote, jl[l], f, direct);
         }
       }
-      F[i] += fi;
+    }
+    F[i] += fi;
+  };
+  const auto flush = [&]() DEM_AVX512 {
+    if (run1 - run0 >= kStreamRun) {
+      if (full_chunks)
+        stream<false, true>(run0, run1, direct, remote, stats, false);
+      else
+        stream<false, false>(run0, run1, direct, remote, stats, false);
+    } else {
+      for (std::size_t r = run0; r < run1; ++r) one_row(r);
+    }
+    run0 = run1 = 0;
+  };
+  for (std::size_t base = a0 - a0 % 64; base < a1; base += 64) {
+    const std::uint64_t read = rows_to_read(sl, base, a0, a1);
+    const std::uint64_t clean = streams ? clean_rows(sl, off, base, read) : 0;
+    for (std::uint64_t m = read; m != 0; m &= m - 1) {
+      const std::size_t i = base + static_cast<std::size_t>(__builtin_ctzll(m));
+      if ((clean >> (i - base)) & 1) {
+        if (run1 != i) {
+          if (run1 > run0) flush();
+          run0 = i;
+        }
+        run1 = i + 1;
+        continue;
+      }
+      if (run1 > run0) flush();
+      one_row(i);
     }
   }
+  if (run1 > run0) flush();
   finish(stats);
 }
 
@@ -623,7 +689,8 @@ DEM_AVX512 void ChunkKernel::rows(const PairSleep& sl, std::size_t a0, std::size
 // it, after its pairs' partners, as the row loop does.
 template <bool Indexed, bool Full>
 DEM_AVX512 void ChunkKernel::stream(std::size_t a0, std::size_t a1, std::size_t direct,
-                                    std::vector<PairRemote>& remote, PairRowStats& stats) {
+                                    std::vector<PairRemote>& remote, PairRowStats& stats,
+                                    bool finish_stats) {
   alignas(32) std::int32_t jl[8], il[8], kl[8];
   const std::int32_t kend = off[a1];
   std::size_t scan = a0;  // the row of the pair being assigned to a lane
@@ -725,7 +792,7 @@ DEM_AVX512 void ChunkKernel::stream(std::size_t a0, std::size_t a1, std::size_t 
     F[done] += fi;
     fi = Vec3{};
   }
-  finish(stats);
+  if (finish_stats) finish(stats);
 }
 #undef DEM_AVX512
 #endif
@@ -770,11 +837,12 @@ static void dispatch(const PairRows& p, const PairSleep& sleep, std::size_t a0, 
   static const bool available = pair_rows_vector_available();
   if (vector && available) {
     ChunkKernel kernel(p);
+    const bool full = branch_free_chunks.load(std::memory_order_relaxed);
     if (Sleep && p.spring_index)
-      kernel.rows<true>(sleep, a0, a1, direct, remote, stats);
+      kernel.rows<true>(sleep, a0, a1, direct, remote, stats, full);
     else if (Sleep)
-      kernel.rows<false>(sleep, a0, a1, direct, remote, stats);
-    else if (branch_free_chunks.load(std::memory_order_relaxed))
+      kernel.rows<false>(sleep, a0, a1, direct, remote, stats, full);
+    else if (full)
       p.spring_index ? kernel.stream<true, true>(a0, a1, direct, remote, stats)
                      : kernel.stream<false, true>(a0, a1, direct, remote, stats);
     else

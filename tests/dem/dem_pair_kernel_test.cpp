@@ -263,7 +263,8 @@ TEST(dem_PairKernel, VectorAndScalarGiveTheSameBits) {
 }
 
 // The same with sleepers: a third of the particles asleep, the rows of some sleepers counted as
-// holding an awake partner (read), over a range that starts and ends inside a 64-row word;
+// holding an awake partner (read), or the true counts with sleepers in blocks (runs of awake
+// rows with only awake partners streamed), over a range that starts and ends inside a 64-row word;
 // forces, springs, the forces handed on, the statistics and the set of sleepers to wake
 // agree bit for bit.
 TEST(dem_PairKernel, WithSleepersVectorAndScalarGiveTheSameBits) {
@@ -272,17 +273,34 @@ TEST(dem_PairKernel, WithSleepersVectorAndScalarGiveTheSameBits) {
   const double dt = 1e-4;
   std::mt19937_64 rng(21);
   std::uniform_real_distribution<double> U01(0, 1);
-  std::int64_t wakes = 0, contacts = 0;
+  std::int64_t wakes = 0, contacts = 0, streamed_runs = 0;
   for (const int sizes : {0, 1, 2}) {
     for (const dem::ContactLaw& law : laws()) {
-      for (const bool counts : {false, true}) {
+      // counts: 0 none (every row read), 1 made up (some sleepers' rows read), 2 the true
+      // counts with the sleepers in blocks, so that runs of awake rows with only awake partners
+      // go to the stream kernel (with both ways of its chunks).
+      for (const int counts : {0, 1, 2}) {
         const Rows rows = make_rows(rng, 600, sizes, dt);
         const std::size_t n = rows.x.size(), a0 = 40, a1 = 420;
         std::vector<std::int32_t> rest(n), awake_partners(n);
         for (std::size_t i = 0; i < n; ++i) {
-          rest[i] = U01(rng) < 0.35 ? 200 : static_cast<std::int32_t>(U01(rng) * 150);
+          const bool asleep = counts == 2 ? (i / 50) % 3 == 1 : U01(rng) < 0.35;
+          rest[i] = asleep ? 200 : static_cast<std::int32_t>(U01(rng) * 150);
           awake_partners[i] = U01(rng) < 0.5 ? 1 + static_cast<std::int32_t>(U01(rng) * 3) : 0;
         }
+        if (counts == 2) {
+          std::size_t run = 0;
+          for (std::size_t i = 0; i < n; ++i) {
+            awake_partners[i] = 0;
+            for (std::int32_t k = rows.off[i]; k < rows.off[i + 1]; ++k)
+              awake_partners[i] += rest[static_cast<std::size_t>(rows.j[k])] < 200;
+            const bool clean = rest[i] < 200 && awake_partners[i] == rows.off[i + 1] - rows.off[i];
+            run = clean ? run + 1 : 0;
+            if (run == 16 && i >= a0 + 15 && i < a1) ++streamed_runs;
+          }
+        }
+        const bool default_chunks = dem::detail::branch_free_chunks_in_use();
+        dem::detail::use_branch_free_chunks(sizes % 2 == 0);
         Result res[2];
         std::vector<std::uint8_t> woken[2];
         for (const bool vector : {false, true}) {
@@ -300,6 +318,7 @@ TEST(dem_PairKernel, WithSleepersVectorAndScalarGiveTheSameBits) {
           dem::detail::pair_rows_sleep(p, sl, a0, a1, out.remote, out.stats, vector);
           for (const std::int32_t q : remote_wake) woken[vector][q] = 1;
         }
+        dem::detail::use_branch_free_chunks(default_chunks);
         for (std::size_t i = 0; i < n; ++i) {
           ASSERT_TRUE(same_bits(res[0].force[i], res[1].force[i])) << "force of particle " << i;
           ASSERT_EQ(woken[0][i], woken[1][i]) << "wake of particle " << i;
@@ -321,6 +340,8 @@ TEST(dem_PairKernel, WithSleepersVectorAndScalarGiveTheSameBits) {
   }
   EXPECT_GT(wakes, 100);
   EXPECT_GT(contacts, 5000);
+  EXPECT_GT(streamed_runs, 12) << "too few runs of 16 clean rows: the stream is not exercised";
+  std::printf("runs of 16 or more clean rows (streamed): %lld\n", static_cast<long long>(streamed_runs));
 }
 
 // A bed settling under gravity with walls, polydisperse, through the engine on 1 and 2 threads:
