@@ -148,6 +148,14 @@ def main():
     os.makedirs(args.out, exist_ok=True)
     only = set(filter(None, args.only.split(",")))
     if not args.table_only:
+        pile = os.path.join(ROOT, "results/pile_small.h5")
+        if not os.path.exists(pile):  # as scripts/run.sh: the main job's pile, prepared once
+            print("sleep_accuracy: preparing the soil pile (once): dem_run configs/soil/pile_prepare.yaml",
+                  flush=True)
+            if subprocess.call([os.path.join(ROOT, "build/bin/dem_run"), "configs/soil/pile_prepare.yaml"],
+                               cwd=ROOT) != 0:
+                sys.exit("sleep_accuracy: preparing results/pile_small.h5 failed (see above); "
+                         "build first with bash scripts/build.sh")
         subprocess.call(["bash", os.path.join(ROOT, "scripts/multicast.sh")])
         t0 = time.monotonic()
         procs = [start(k, name, sets, args) for k, (name, _, sets) in enumerate(RUNS)
