@@ -5,7 +5,7 @@
 # bench/paper/speed_accuracy.py. A benchmark, not a test (docs/performance.md, "Sleeping
 # thresholds charted").
 #
-#   bash bench/paper/sleep_sweep.sh [--thresholds 0.01/25,0.02/100,0.03/70,0.1/250]
+#   bash bench/paper/sleep_sweep.sh [--thresholds 0.01/25,0.02/100,0.03/70/0.015,0.1/250]
 #                                   [--members 2] [--window 0.3] [--out results/sleep_sweep]
 #
 # A threshold is SPEED/STEPS or SPEED/STEPS/WAKE (m/s / steps / m/s: scene.sleep.speed, steps
@@ -15,7 +15,7 @@
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
 cd "$root"
-thresholds="0.01/25,0.02/100,0.03/70,0.1/250"
+thresholds="0.01/25,0.02/100,0.03/70/0.015,0.1/250"
 members=2
 window=0.3
 out=results/sleep_sweep
