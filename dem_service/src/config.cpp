@@ -128,14 +128,15 @@ void parse_sleep(const YAML::Node& sl, const Scene& sc, SleepOptions& o) {
     throw ConfigError("scene.sleep.speed: must be a speed > 0 in m/s (e.g. 0.01), got " +
                       std::to_string(o.speed));
   if (sl["wake_speed"]) o.wake_speed = cfg::get_double(sl, p, "wake_speed");
-  if (sl["wake_speed"] || o.wake_speed != 0)
-    if (!(o.wake_speed > 0) || !std::isfinite(o.wake_speed) || o.wake_speed > o.speed) {
-      std::ostringstream msg;
-      msg << "scene.sleep.wake_speed: must be a speed in (0, scene.sleep.speed = " << o.speed
-          << "] m/s (an awake partner faster than it wakes a sleeper; e.g. speed / 5), got "
-          << o.wake_speed << "; leave it out to wake at scene.sleep.speed";
-      throw ConfigError(msg.str());
-    }
+  // 0 is the default (wake at `speed`); given, it must be a speed up to `speed`.
+  const bool wake_given = sl["wake_speed"] || o.wake_speed != 0;
+  if (wake_given && (!(o.wake_speed > 0) || !std::isfinite(o.wake_speed) || o.wake_speed > o.speed)) {
+    std::ostringstream msg;
+    msg << "scene.sleep.wake_speed: must be a speed in (0, scene.sleep.speed = " << o.speed
+        << "] m/s (an awake partner faster than it wakes a sleeper; e.g. speed / 5), got "
+        << o.wake_speed << "; leave it out to wake at scene.sleep.speed";
+    throw ConfigError(msg.str());
+  }
   const long long steps = cfg::get_int_or(sl, p, "steps", o.steps);
   if (steps < 1 || steps > 100000000)
     throw ConfigError("scene.sleep.steps: must be between 1 and 1e8 steps (e.g. 200), got " +

@@ -527,44 +527,34 @@ DEM_AVX512 inline void prefetch_indexed(const Vec3* spring, const Vec3* home,
 }
 
 // The rows of [base, base + 64) within [a0, a1) that the sleeping row loop reads, as bits: the
-// awake ones and the sleepers with an awake partner (with no counts, every row).
+// awake ones and the sleepers with an awake partner (with no counts, every row). `off` given,
+// also the clean ones among them (*clean): awake, with every partner awake (the count of awake
+// partners equals the row's length); else *clean = 0.
 DEM_AVX512 inline std::uint64_t rows_to_read(const PairSleep& sl, std::size_t base,
-                                             std::size_t a0, std::size_t a1) {
+                                             std::size_t a0, std::size_t a1,
+                                             const std::int32_t* off, std::uint64_t* clean) {
   const std::size_t lo = a0 > base ? a0 - base : 0;
   const std::size_t hi = std::min<std::size_t>(64, a1 - base);
   const std::uint64_t range = (hi == 64 ? ~0ull : (1ull << hi) - 1) & (~0ull << lo);
+  *clean = 0;
   if (!sl.awake_partners) return range;
   const __m512i steps = _mm512_set1_epi32(sl.steps), none = _mm512_setzero_si512();
   std::uint64_t bits = 0;
   for (int q = 0; q < 4; ++q) {
     const __mmask16 m = static_cast<__mmask16>(range >> (16 * q));
     if (m == 0) continue;
-    const __m512i rest = _mm512_maskz_loadu_epi32(m, sl.rest + base + 16 * q);
-    const __m512i count = _mm512_maskz_loadu_epi32(m, sl.awake_partners + base + 16 * q);
-    const __mmask16 read = _mm512_mask_cmplt_epi32_mask(m, rest, steps) |
-                           _mm512_mask_cmpneq_epi32_mask(m, count, none);
-    bits |= static_cast<std::uint64_t>(read) << (16 * q);
-  }
-  return bits;
-}
-
-// Of the rows to read in [base, base + 64) (`read`), those of awake particles whose partners are
-// all awake: rest < steps and awake_partners equal to the row's length.
-DEM_AVX512 inline std::uint64_t clean_rows(const PairSleep& sl, const std::int32_t* off,
-                                           std::size_t base, std::uint64_t read) {
-  const __m512i steps = _mm512_set1_epi32(sl.steps);
-  std::uint64_t bits = 0;
-  for (int q = 0; q < 4; ++q) {
-    const __mmask16 m = static_cast<__mmask16>(read >> (16 * q));
-    if (m == 0) continue;
     const std::size_t r = base + 16 * static_cast<std::size_t>(q);
     const __m512i rest = _mm512_maskz_loadu_epi32(m, sl.rest + r);
     const __m512i count = _mm512_maskz_loadu_epi32(m, sl.awake_partners + r);
-    const __m512i len = _mm512_sub_epi32(_mm512_maskz_loadu_epi32(m, off + r + 1),
-                                         _mm512_maskz_loadu_epi32(m, off + r));
-    const __mmask16 c = _mm512_mask_cmplt_epi32_mask(m, rest, steps) &
-                        _mm512_mask_cmpeq_epi32_mask(m, count, len);
-    bits |= static_cast<std::uint64_t>(c) << (16 * q);
+    const __mmask16 awake = _mm512_mask_cmplt_epi32_mask(m, rest, steps);
+    const __mmask16 read = awake | _mm512_mask_cmpneq_epi32_mask(m, count, none);
+    bits |= static_cast<std::uint64_t>(read) << (16 * q);
+    if (off) {
+      const __m512i len = _mm512_sub_epi32(_mm512_maskz_loadu_epi32(m, off + r + 1),
+                                           _mm512_maskz_loadu_epi32(m, off + r));
+      const __mmask16 c = _mm512_mask_cmpeq_epi32_mask(awake, count, len);
+      *clean |= static_cast<std::uint64_t>(c) << (16 * q);
+    }
   }
   return bits;
 }
@@ -662,8 +652,8 @@ DEM_AVX512 void ChunkKernel::rows(const PairSleep& sl, std::size_t a0, std::size
     run0 = run1 = 0;
   };
   for (std::size_t base = a0 - a0 % 64; base < a1; base += 64) {
-    const std::uint64_t read = rows_to_read(sl, base, a0, a1);
-    const std::uint64_t clean = streams ? clean_rows(sl, off, base, read) : 0;
+    std::uint64_t clean;
+    const std::uint64_t read = rows_to_read(sl, base, a0, a1, streams ? off : nullptr, &clean);
     for (std::uint64_t m = read; m != 0; m &= m - 1) {
       const std::size_t i = base + static_cast<std::size_t>(__builtin_ctzll(m));
       if ((clean >> (i - base)) & 1) {
