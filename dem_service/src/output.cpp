@@ -195,6 +195,7 @@ void RunOutput::abandon() {
 
 template <class F>
 void RunOutput::checked(F&& f) {
+  if (!failure_.empty()) throw std::runtime_error(failure_);  // it failed before: say so again
   if (file_ < 0) throw std::logic_error("RunOutput: '" + path_ + "' is closed");
   try {
     f();
@@ -204,7 +205,9 @@ void RunOutput::checked(F&& f) {
     const std::string what = message.rfind("cannot write '", 0) == 0
                                  ? message
                                  : cosim::write_failure(path_, message);
-    throw std::runtime_error(what + "; " + staged_->restore());
+    const std::string restored = staged_->restore();
+    failure_ = restored.empty() ? what : what + "; " + restored;
+    throw std::runtime_error(failure_);
   }
 }
 
@@ -306,7 +309,7 @@ void RunOutput::discard_rows_after(std::size_t keep) {
 }
 
 void RunOutput::flush() {
-  if (file_ < 0) return;  // closed (write_summary)
+  if (file_ < 0 && failure_.empty()) return;  // closed (write_summary)
   checked([&] {
     for (auto& rows : tool_rows_) rows->flush();
     if (wall_rows_) wall_rows_->flush();

@@ -24,6 +24,7 @@
 #include <cstring>
 #include <filesystem>
 #include <iostream>
+#include <new>
 
 #include <cosim/auth.hpp>
 #include <cosim/bus.hpp>

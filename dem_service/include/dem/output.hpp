@@ -60,6 +60,7 @@ class RunOutput {
   void write_xdmf() const;
   void write_wall_geometry();
   std::string path_, xdmf_;
+  std::string failure_;  // the message of a failed write; every later write raises it again
   const Scene& scene_;
   std::unique_ptr<cosim::StagedFile> staged_;
   long long file_ = -1;
