@@ -17,6 +17,7 @@
 #include <csignal>
 #include <filesystem>
 #include <fstream>
+#include <regex>
 
 #include "harness.hpp"
 
@@ -134,6 +135,58 @@ TEST(Records, AFullDiskForTheHdf5RecordStopsTheRunAndKeepsTheEarlierRecord) {
   EXPECT_EQ(harness::wait_for(fresh, 120), 1) << harness::read_text(log);
   EXPECT_FALSE(fs::exists(h5)) << harness::read_text(log);
   EXPECT_FALSE(fs::exists(csv));
+  EXPECT_TRUE(leftovers(dir).empty()) << leftovers(dir).front();
+}
+
+// A resumed run writes into the record itself: past the limit it puts the record back as it
+// was, and the record can be resumed again once there is room.
+TEST(Records, AFullDiskDuringAResumePutsTheRecordBackAndItResumesLater) {
+  const std::string dir = folder(), h5 = dir + "/o.h5", url = harness::bus_url();
+  const std::vector<std::string> sets{
+      "bus.url=" + url, "time.end=5", "checkpoints.every=0.05", "output.progress=off", "output.csv=",
+      "participants.mass1.launch=[oscillator_participant, --side, mass1, --idle-timeout, 2]",
+      "participants.mass2.launch=[oscillator_participant, --side, mass2, --idle-timeout, 2]"};
+  std::vector<std::string> args{harness::bin("cosim_master"), harness::source("configs/oscillator.yaml"),
+                                "--output", h5};
+  for (const auto& s : sets) args.insert(args.end(), {"--set", s});
+  auto master = harness::spawn(args, dir + "/first.log");
+  // Stopped by SIGINT once mass1 saved a checkpoint after 500 steps or later.
+  const cosim::Stopwatch waited;
+  auto latest = [&] {  // steps of mass1's newest checkpoint, <folder>/mass1_<run>_<steps>.ckpt
+    long n = -1;
+    std::error_code ec;
+    for (const auto& e : fs::directory_iterator(h5 + ".checkpoints", ec)) {
+      std::smatch m;
+      const std::string f = e.path().filename().string();
+      if (std::regex_match(f, m, std::regex("mass1_[0-9a-f]{16}_([0-9]+)\\.ckpt"))) n = std::max(n, std::stol(m[1]));
+    }
+    return n;
+  };
+  while (latest() < 500 && waited.seconds() < 60) std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  kill(master.pid, SIGINT);
+  ASSERT_EQ(harness::wait_for(master, 30), 130) << harness::read_text(dir + "/first.log");
+  const double at = harness::read_dataset(h5, "checkpoint/steps_done").at(0);
+  ASSERT_GT(at, 0) << harness::read_text(dir + "/first.log");
+  EXPECT_EQ(complete_flag(h5), 0) << "a stopped run's record says it is not complete";
+  const std::string before = bytes(h5);
+
+  const std::string log = dir + "/resume_full.log";
+  auto full = spawn_limited({harness::bin("cosim_master"), "--resume", h5}, log, before.size() + 100 * 1024);
+  const int code = harness::wait_for(full, 120);
+  const std::string text = harness::read_text(log);
+  EXPECT_EQ(code, 1) << text;
+  EXPECT_NE(text.find("cannot write '" + h5 + "': File too large"), std::string::npos) << text;
+  EXPECT_EQ(text.find("finished after"), std::string::npos) << text;
+  EXPECT_NE(text.find("the earlier '" + h5 + "' is back in place"), std::string::npos) << text;
+  EXPECT_TRUE(bytes(h5) == before) << "the record of the stopped run was changed";
+  EXPECT_TRUE(leftovers(dir).empty()) << leftovers(dir).front();
+
+  std::this_thread::sleep_for(std::chrono::milliseconds(2500));  // the orphans' idle timeout
+  auto again = harness::spawn({harness::bin("cosim_master"), "--resume", h5}, dir + "/resume.log");
+  ASSERT_EQ(harness::wait_for(again, 120), 0) << harness::read_text(dir + "/resume.log");
+  EXPECT_EQ(harness::read_string(h5, "status"), "finished");
+  EXPECT_EQ(complete_flag(h5), 1);
+  EXPECT_EQ(harness::read_dataset(h5, "time").size(), 10001u);
   EXPECT_TRUE(leftovers(dir).empty()) << leftovers(dir).front();
 }
 
