@@ -1,5 +1,7 @@
 #include "dem/output.hpp"
 
+#include <unistd.h>
+
 #include <algorithm>
 #include <array>
 #include <charconv>
@@ -121,6 +123,16 @@ std::vector<Vec3> clip(const std::vector<Vec3>& poly, const Wall& o, double eps)
 RunOutput::RunOutput(const std::string& path, const Scene& scene, const std::string& config_text)
     : path_(path), scene_(scene), staged_(std::make_unique<cosim::StagedFile>(path)) {
   xdmf_ = std::filesystem::path(path).replace_extension(".xdmf").string();
+  {  // An earlier XDMF describes the earlier file of this name: kept (a second name, no copy)
+     // until this output is complete, and put back with that file if this one fails.
+    const std::filesystem::path x(xdmf_);
+    std::string name = ".";
+    name += x.filename().string();
+    name += ".previous-run-" + std::to_string(static_cast<long>(::getpid()));  // not StagedFile's name
+    xdmf_earlier_ = (x.parent_path() / name).string();
+    std::remove(xdmf_earlier_.c_str());
+    if (::link(xdmf_.c_str(), xdmf_earlier_.c_str()) != 0) xdmf_earlier_.clear();
+  }
   H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);  // failures are reported with their cause
   file_ = H5Fcreate(staged_->current().c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
   if (file_ < 0)
@@ -181,9 +193,14 @@ RunOutput::~RunOutput() {
   wall_rows_.reset();
   const hid_t f = file_;
   file_ = -1;
-  if (H5Fclose(f) < 0)
+  if (H5Fclose(f) < 0) {
     std::fprintf(stderr, "dem: %s; %s\n", cosim::write_failure(path_, cosim::h5::error_cause()).c_str(),
                  staged_->restore().c_str());
+    if (!xdmf_earlier_.empty()) std::rename(xdmf_earlier_.c_str(), xdmf_.c_str());
+    else if (xdmf_written_) std::remove(xdmf_.c_str());
+  } else if (!xdmf_earlier_.empty()) {
+    std::remove(xdmf_earlier_.c_str());
+  }
 }
 
 void RunOutput::abandon() {
@@ -206,6 +223,9 @@ void RunOutput::checked(F&& f) {
                                  ? message
                                  : cosim::write_failure(path_, message);
     const std::string restored = staged_->restore();
+    if (!xdmf_earlier_.empty()) std::rename(xdmf_earlier_.c_str(), xdmf_.c_str());
+    else if (xdmf_written_) std::remove(xdmf_.c_str());
+    xdmf_earlier_.clear();
     failure_ = restored.empty() ? what : what + "; " + restored;
     throw std::runtime_error(failure_);
   }
@@ -336,6 +356,8 @@ void RunOutput::write_summary(const Timing& t, const State& s, double sim_time) 
     staged_->commit();
     staged_->done();  // the earlier file of this name is dropped only now
     write_xdmf();
+    if (!xdmf_earlier_.empty()) std::remove(xdmf_earlier_.c_str());
+    xdmf_earlier_.clear();
   });
 }
 
@@ -454,6 +476,7 @@ void RunOutput::write_xdmf() const {
   out.close();
   if (!out) throw std::runtime_error(cosim::write_failure(xdmf_, std::strerror(errno)));
   staged.commit();
+  xdmf_written_ = true;
 }
 
 }  // namespace dem

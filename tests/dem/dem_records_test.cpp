@@ -161,8 +161,9 @@ TEST(dem_Records, AFullDiskStopsDemRunAndKeepsTheEarlierOutput) {
   const std::vector<std::string> cmd{DEM_RUN_EXE, cfg, "--output", out};
   ASSERT_EQ(run(cmd, d + "/first.log", 0), 0) << text_of(d + "/first.log");
   EXPECT_EQ(complete_flag(out), 1) << "a finished dem_run output says it is complete";
-  const std::string earlier = text_of(out);
+  const std::string earlier = text_of(out), earlier_xdmf = text_of(d + "/out.xdmf");
   ASSERT_GT(earlier.size(), 300000u);
+  ASSERT_NE(earlier_xdmf.find("out.h5:/particles/"), std::string::npos) << earlier_xdmf;
 
   const int code = run(cmd, d + "/full.log", 200 * 1024);
   const std::string log = text_of(d + "/full.log");
@@ -172,8 +173,11 @@ TEST(dem_Records, AFullDiskStopsDemRunAndKeepsTheEarlierOutput) {
   EXPECT_NE(log.find("the earlier '" + out + "' is back in place"), std::string::npos) << log;
   EXPECT_EQ(log.find("dem_run: wrote"), std::string::npos) << log;
   EXPECT_TRUE(text_of(out) == earlier) << "the earlier output was changed";
-  for (const auto& e : fs::directory_iterator(d))
+  EXPECT_TRUE(text_of(d + "/out.xdmf") == earlier_xdmf) << "the earlier XDMF was changed";
+  for (const auto& e : fs::directory_iterator(d)) {
     EXPECT_EQ(e.path().filename().string().find(".partial-"), std::string::npos) << e.path();
+    EXPECT_EQ(e.path().filename().string().find(".previous-"), std::string::npos) << e.path();
+  }
 }
 
 // A checkpoint past the limit: the earlier checkpoint of that name stays whole and loads.

@@ -61,6 +61,8 @@ class RunOutput {
   void write_wall_geometry();
   std::string path_, xdmf_;
   std::string failure_;  // the message of a failed write; every later write raises it again
+  std::string xdmf_earlier_;     // the XDMF of an earlier file of this name, kept until complete
+  mutable bool xdmf_written_ = false;  // this run wrote the XDMF file
   const Scene& scene_;
   std::unique_ptr<cosim::StagedFile> staged_;
   long long file_ = -1;
