@@ -6,7 +6,10 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <fcntl.h>
+
 #include <chrono>
+#include <cstring>
 #include <climits>
 #include <cstdlib>
 #include <iostream>
@@ -29,6 +32,19 @@ std::string own_dir() {
   if (n <= 0) return ".";
   std::string p(buf, static_cast<std::size_t>(n));
   return p.substr(0, p.rfind('/'));
+}
+
+// The master's environment for a child; with a shared key, COSIM_KEY_FILE names the inherited
+// descriptor and no other key variable is passed on.
+std::vector<std::string> child_environment(int key_fd) {
+  std::vector<std::string> env;
+  for (char** e = environ; e && *e; ++e) {
+    const std::string v = *e;
+    if (key_fd >= 0 && (v.rfind("COSIM_KEY=", 0) == 0 || v.rfind("COSIM_KEY_FILE=", 0) == 0)) continue;
+    env.push_back(v);
+  }
+  if (key_fd >= 0) env.push_back("COSIM_KEY_FILE=/proc/self/fd/" + std::to_string(key_fd));
+  return env;
 }
 
 std::string describe_status(int status) {
@@ -69,13 +85,19 @@ void Launcher::start(const ParticipantSpec& spec, const std::string& bus_url, in
   std::vector<char*> argv;
   for (auto& a : args) argv.push_back(a.data());
   argv.push_back(nullptr);
+  std::vector<std::string> env = child_environment(key_fd_);
+  std::vector<char*> envp;
+  for (auto& e : env) envp.push_back(e.data());
+  envp.push_back(nullptr);
+  const int key_fd = key_fd_;
   const pid_t parent = getpid();
   const pid_t pid = fork();
   if (pid < 0) throw std::runtime_error("cannot start participant " + spec.name + ": fork failed");
   if (pid == 0) {
     prctl(PR_SET_PDEATHSIG, SIGTERM);  // no orphans if the master dies
     if (getppid() != parent) _exit(1);
-    execv(argv[0], argv.data());
+    if (key_fd >= 0 && fcntl(key_fd, F_SETFD, 0) != 0) _exit(126);  // inherited across exec
+    execve(argv[0], argv.data(), envp.data());
     _exit(127);
   }
   children_.push_back({spec.name, pid});

@@ -18,6 +18,10 @@ class Launcher {
   // Starts `spec.launch` with --name, --bus and --session appended (it joins only that
   // session); raises ConfigError if the program is not found.
   void start(const ParticipantSpec& spec, const std::string& bus_url, int64_t session);
+  // The participants started from now on inherit `fd` (an open key file, run_key.hpp) and find
+  // it as COSIM_KEY_FILE=/proc/self/fd/<fd> in their environment ($COSIM_KEY is removed there).
+  // -1: they inherit the master's environment as it is.
+  void share_key(int fd) { key_fd_ = fd; }
   // Raises cosim::LinkError naming a launched participant that has exited.
   void check() ;
   // Waits up to `grace` seconds for the participants to exit, then sends SIGTERM to those
@@ -31,6 +35,7 @@ class Launcher {
  private:
   struct Child { std::string name; pid_t pid; bool exited = false; int status = 0; };
   std::vector<Child> children_;
+  int key_fd_ = -1;
 };
 
 std::string find_program(const std::string& program);
