@@ -292,9 +292,12 @@ void Application::load_new_config() {
 // says which participants are played (choose_key after load_replay).
 void Application::choose_key() {
   master::settle_run_key(key_, config_, master::hand_started(config_, [&](const std::string& n) { return played(n); }));
-  if (key_.source != master::RunKey::Source::per_run) return;
+  // A key from the environment reaches the launched participants with it; any other one as an
+  // unnamed file they inherit.
+  if (!key_.key || key_.source == master::RunKey::Source::environment) return;
   key_fd_ = master::key_as_unnamed_file(*key_.key);
   launcher_.share_key(key_fd_);
+  if (key_.source != master::RunKey::Source::per_run) return;
   if (o_.record.empty()) return;
   // The log is sealed with this key: keep it beside the log, readable by its owner only, so
   // that --replay can check the log later.

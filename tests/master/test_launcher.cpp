@@ -2,10 +2,17 @@
 // finish its outputs (term_grace) before it is killed; one that ignores SIGTERM is killed.
 #include <gtest/gtest.h>
 
+#include <unistd.h>
+
 #include <chrono>
+#include <cosim/auth.hpp>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
 #include <thread>
 
 #include "launcher.hpp"
+#include "run_key.hpp"
 
 namespace {
 
@@ -58,4 +65,38 @@ TEST(Launcher, ParticipantIgnoringSigtermIsKilledAfterTermGrace) {
   EXPECT_EQ(launcher.exit_description("stubborn"), "was killed by signal 9");
   EXPECT_GT(took, 0.4);
   EXPECT_LT(took, 3.0);
+}
+
+// share_key: a launched participant finds the key as COSIM_KEY_FILE, a file only its owner can
+// read that it inherited (not a path anyone can open, not on its command line), and no
+// $COSIM_KEY of the master's environment.
+TEST(Launcher, SharedKeyIsInheritedAsAPrivateFileAndNothingElse) {
+  const cosim::auth::Key key = cosim::auth::parse_key_hex(cosim::auth::new_key_hex(), "test");
+  const int fd = master::key_as_unnamed_file(key);
+  ASSERT_GE(fd, 0);
+  const std::string out = std::string(TEST_TMP_DIR) + "/launcher_key.txt";
+  std::remove(out.c_str());
+  setenv("COSIM_KEY", "00", 1);
+  master::Launcher launcher;
+  launcher.share_key(fd);
+  launcher.start(shell("keyed", "{ echo \"$COSIM_KEY_FILE\"; stat -L -c %a \"$COSIM_KEY_FILE\"; cat \"$COSIM_KEY_FILE\"; "
+                                "echo \"${COSIM_KEY:-unset}\"; cat /proc/$$/cmdline | tr '\\0' ' '; echo; } > " + out),
+                 "udpm://239.255.76.67:7667?ttl=0", 1);
+  launcher.stop(10.0);
+  unsetenv("COSIM_KEY");
+  EXPECT_EQ(master::key_hex(cosim::auth::read_key_file("/proc/self/fd/" + std::to_string(fd))), master::key_hex(key));
+  ::close(fd);
+  EXPECT_EQ(launcher.exit_description("keyed"), "exited with code 0");
+  std::ifstream in(out);
+  std::string path, mode, hex, env_key, cmdline;
+  std::getline(in, path);
+  std::getline(in, mode);
+  std::getline(in, hex);
+  std::getline(in, env_key);
+  std::getline(in, cmdline);
+  EXPECT_EQ(path.rfind("/proc/self/fd/", 0), 0u) << path;
+  EXPECT_EQ(mode, "600");
+  EXPECT_EQ(hex, master::key_hex(key));
+  EXPECT_EQ(env_key, "unset");
+  EXPECT_EQ(cmdline.find(hex), std::string::npos) << cmdline;
 }

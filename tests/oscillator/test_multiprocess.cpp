@@ -114,7 +114,8 @@ TEST(MultiProcess, KilledParticipantIsNamedAndCompletedStepsAreKept) {
                            h5 + ".mass2.log");
   auto master = harness::spawn(
       {harness::bin("cosim_master"), harness::source("configs/oscillator.yaml"), "--output", h5, "--set",
-       "bus.url=" + url, "--set", "participants.mass1.launch=null", "--set", "participants.mass2.launch=null",
+       "bus.url=" + url, "--set", "participants.mass1.launch=null", "--set", "participants.mass2.launch=null", "--set",
+       "bus.authenticate=false",
        "--set", "participants.mass2.timeout=0.3", "--set", "participants.mass2.retries=2", "--set",
        "time.end=200", "--set", "output.csv=", "--set", "output.progress=off"},
       h5 + ".log");
@@ -216,7 +217,8 @@ TEST(MultiProcess, TwoFreeParticipantsWithOneNameAreAnErrorNamingBoth) {
   auto master = harness::spawn({harness::bin("cosim_master"), harness::source("configs/oscillator.yaml"), "--output",
                                 h5, "--set", "bus.url=" + url, "--set", "participants.mass1.launch=null",
                                 "--set", "participants.mass2.launch=null", "--set", "output.csv=",
-                                "--set", "output.progress=off", "--set", "time.end=0.05"},
+                                "--set", "output.progress=off", "--set", "time.end=0.05", "--set",
+                                "bus.authenticate=false"},
                                h5 + ".log");
   const pid_t first = parts[0].pid, second = parts[1].pid;
   const int code = harness::wait_for(master, 30);
@@ -241,7 +243,8 @@ TEST(MultiProcess, InterruptedMasterWritesItsStatusAndStopsTheParticipants) {
                            h5 + ".mass2.log");
   auto master = harness::spawn(
       {harness::bin("cosim_master"), harness::source("configs/oscillator.yaml"), "--output", h5, "--set",
-       "bus.url=" + url, "--set", "participants.mass1.launch=null", "--set", "participants.mass2.launch=null",
+       "bus.url=" + url, "--set", "participants.mass1.launch=null", "--set", "participants.mass2.launch=null", "--set",
+       "bus.authenticate=false",
        "--set", "time.end=200", "--set", "output.csv=", "--set", "output.progress=off"},
       h5 + ".log");
   // let the run record steps (about 2000 per second here; the file cannot be read while the
