@@ -2,6 +2,7 @@
 // finish its outputs (term_grace) before it is killed; one that ignores SIGTERM is killed.
 #include <gtest/gtest.h>
 
+#include <fcntl.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -99,4 +100,53 @@ TEST(Launcher, SharedKeyIsInheritedAsAPrivateFileAndNothingElse) {
   EXPECT_EQ(hex, master::key_hex(key));
   EXPECT_EQ(env_key, "unset");
   EXPECT_EQ(cmdline.find(hex), std::string::npos) << cmdline;
+}
+
+// Participants that write their lines in pieces (an unbuffered stderr does: one write per <<)
+// at the same time into the log the master writes to: every line arrives whole. Without the
+// relay, the pieces of the two writers interleave ("mass1cosim_master: ...").
+TEST(Launcher, LinesOfParticipantsSharingTheMastersLogArriveWhole) {
+  const std::string log = std::string(TEST_TMP_DIR) + "/launcher_lines.log";
+  const int file = ::open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  ASSERT_GE(file, 0);
+  std::fflush(stderr);
+  const int saved_err = ::dup(STDERR_FILENO), saved_out = ::dup(STDOUT_FILENO);
+  ::dup2(file, STDERR_FILENO);
+  ::dup2(file, STDOUT_FILENO);
+  // Each line: its writer's name, then 20 pieces, each its own write() (printf is a shell
+  // builtin), the newline last; to stderr and stdout alike.
+  auto script = [](const std::string& who) {
+    return "i=0; while [ $i -lt 150 ]; do printf '" + who + ":' >&2; j=0; while [ $j -lt 20 ]; do printf ' " + who +
+           "' >&2; j=$((j+1)); done; printf '\\n' >&2; printf '" + who + "-out\\n'; i=$((i+1)); done";
+  };
+  {
+    master::Launcher launcher;
+    launcher.relay_lines(true);
+    launcher.start(shell("a", script("aa")), "udpm://239.255.76.67:7667?ttl=0", 1);
+    launcher.start(shell("b", script("bb")), "udpm://239.255.76.67:7667?ttl=0", 1);
+    launcher.stop(30.0);
+    EXPECT_EQ(launcher.exit_description("a"), "exited with code 0");
+  }
+  ::dup2(saved_err, STDERR_FILENO);
+  ::dup2(saved_out, STDOUT_FILENO);
+  ::close(saved_err);
+  ::close(saved_out);
+  ::close(file);
+  std::string whole_a = "aa:", whole_b = "bb:";
+  for (int j = 0; j < 20; ++j) whole_a += " aa", whole_b += " bb";
+  std::ifstream in(log);
+  std::string line;
+  int a = 0, b = 0, a_out = 0, b_out = 0, broken = 0;
+  while (std::getline(in, line)) {
+    if (line == whole_a) ++a;
+    else if (line == whole_b) ++b;
+    else if (line == "aa-out") ++a_out;
+    else if (line == "bb-out") ++b_out;
+    else if (++broken <= 3) ADD_FAILURE() << "a line cut by another writer: '" << line << "'";
+  }
+  EXPECT_EQ(broken, 0);
+  EXPECT_EQ(a, 150);
+  EXPECT_EQ(b, 150);
+  EXPECT_EQ(a_out, 150);
+  EXPECT_EQ(b_out, 150);
 }
