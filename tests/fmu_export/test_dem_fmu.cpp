@@ -7,6 +7,9 @@
 #include <cosim/trajectory.hpp>
 #include <cosim/yaml_config.hpp>
 
+#include <fcntl.h>
+#include <unistd.h>
+
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -363,4 +366,33 @@ TEST(DemFmuUnderCosimMaster, LongerMacroStepStaysWithinTheNativeError) {
   // prediction). The adapter passes the same polynomial's position and velocity derivatives;
   // the orientation is held over each step (quaternion derivatives are not passed).
   EXPECT_LT(e, 1.5 * 3.9e-3);
+}
+
+// What the FMU's bus layer prints itself (here: the unsealed announces of a dem_service without
+// the key, which it drops) is prefixed "dem_fmu:", the program it runs in, not "cosim_master:".
+TEST(DemFmu, ItsBusMessagesAreItsOwn) {
+  const std::string captured = harness::temp_path("_stderr.log");
+  Library lib("dem_fmu");
+  DemService dem;  // no key
+  std::fflush(stderr);
+  const int saved = ::dup(STDERR_FILENO);
+  const int file = ::open(captured.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  ASSERT_GE(file, 0);
+  ::dup2(file, STDERR_FILENO);
+  setenv("COSIM_KEY", cosim::auth::new_key_hex().c_str(), 1);
+  fmi2Status init;
+  {
+    Instance f(lib, "dem_fmu", "prefix");
+    configure(f, 2.0);
+    init = f.initialize(0, kEnd);
+  }
+  unsetenv("COSIM_KEY");
+  std::fflush(stderr);
+  ::dup2(saved, STDERR_FILENO);
+  ::close(saved);
+  ::close(file);
+  EXPECT_EQ(init, fmi2Error);
+  const std::string text = harness::read_text(captured);
+  EXPECT_NE(text.find("dem_fmu: dropped an unsealed message on COSIM_ANNOUNCE"), std::string::npos) << text;
+  EXPECT_EQ(text.find("cosim_master:"), std::string::npos) << text;
 }

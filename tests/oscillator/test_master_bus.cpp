@@ -127,6 +127,16 @@ class Forger {
 
 const std::vector<std::string> kRun{"time.end=1.0"};  // 2000 steps
 
+// cosim_master on the oscillator with ARGS, as a user runs it (no bus option).
+int default_run(const std::vector<std::string>& args, const std::string& h5) {
+  std::vector<std::string> a{harness::bin("cosim_master"), harness::source("configs/oscillator.yaml"), "--output", h5,
+                             "--set", "bus.url=" + harness::bus_url(), "--set", "output.csv=",
+                             "--set", "output.progress=off"};
+  a.insert(a.end(), args.begin(), args.end());
+  harness::Process p = harness::spawn(a, h5 + ".log");
+  return harness::wait_for(p, 120);
+}
+
 }  // namespace
 
 TEST(MasterBus, ADefaultRunIsKeyedAndAForgedReplyIsDropped) {
@@ -194,15 +204,12 @@ TEST(MasterBus, TheRecordedLogOfADefaultRunKeepsItsKeyForTheReplay) {
   const std::string a = harness::temp_path("_recorded.h5"), b = harness::temp_path("_replayed.h5");
   const std::string log = harness::temp_path(".lcmlog");
   std::remove((log + ".key").c_str());
-  ASSERT_EQ(replay_harness::run_cosim_master("configs/oscillator.yaml", a, {"--set", "time.end=0.2", "--record", log}), 0)
-      << harness::read_text(a + ".log");
+  ASSERT_EQ(default_run({"--set", "time.end=0.2", "--record", log}, a), 0) << harness::read_text(a + ".log");
   struct stat st {};
   ASSERT_EQ(stat((log + ".key").c_str(), &st), 0) << harness::read_text(a + ".log");
   EXPECT_EQ(st.st_mode & 0777, 0600u);
   EXPECT_NO_THROW(cosim::auth::read_key_file(log + ".key"));
-  ASSERT_EQ(replay_harness::run_cosim_master("configs/oscillator.yaml", b,
-                                             {"--set", "time.end=0.2", "--replay", log, "--replay-side", "mass1"}),
-            0)
+  ASSERT_EQ(default_run({"--set", "time.end=0.2", "--replay", log, "--replay-side", "mass1"}, b), 0)
       << harness::read_text(b + ".log");
   EXPECT_TRUE(contains(harness::read_text(b + ".log"), "sealed: each checked with the key")) << harness::read_text(b + ".log");
   const auto c = record_compare::compare(a, b);
