@@ -6,7 +6,8 @@
 //   continues a stopped run from its last checkpoint, appending to FILE.h5
 //   (docs/protocol.md#checkpoints-and-resume)
 // The bus key comes from $COSIM_KEY_FILE or $COSIM_KEY, never from the command line; the
-// participants the master launches inherit it.
+// participants the master launches inherit it. Without one, a run whose participants are all
+// launched gets a fresh key (run_key.hpp); bus.authenticate: false for an unkeyed bus.
 // Exit codes: 0 finished, 1 the run failed (participant lost, refused or failed a step),
 // 2 the configuration was refused before any step, 130 / 143 interrupted by SIGINT / SIGTERM
 // (the step under way is abandoned, /status says "stopped: interrupted", participants are
@@ -71,7 +72,9 @@ void usage() {
                "  --new-key write a new random key for the bus to FILE (mode 600; an existing file is\n"
                "            not overwritten); give it to every process of a run as COSIM_KEY_FILE=FILE\n"
                "The bus key comes from $COSIM_KEY_FILE (a file only its owner can read) or $COSIM_KEY,\n"
-               "never from the command line; participants the master launches inherit it.\n"
+               "never from the command line; participants the master launches inherit it. Without one, a\n"
+               "run whose participants the master launches all gets a fresh key of its own; one with\n"
+               "participants started by hand needs a key, or bus.authenticate: false for an unkeyed bus.\n"
                "See docs/config.md for the config keys, docs/output.md for the recorded layout,\n"
                "docs/security.md for the key and docs/replay.md for recording and replay.\n";
 }
