@@ -37,6 +37,7 @@ CoSimulation::CoSimulation(const Config& config, cosim::Transport& transport,
                            std::unique_ptr<CouplingAlgorithm> algorithm)
     : config_(config), transport_(transport), algorithm_(std::move(algorithm)) {
   if (!algorithm_) algorithm_ = make_algorithm(config);
+  algorithm_->setup(config);
 }
 
 void CoSimulation::set_checkpoints(int64_t run_id, std::string folder) {

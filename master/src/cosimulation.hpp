@@ -90,7 +90,7 @@ class Observer {
 
 // The participants as a coupling algorithm sees them (Coupling), the predictors between them,
 // and the records of every step for the observers. The algorithm (make_algorithm(config)
-// unless one is given) owns the step loop.
+// unless one is given; set up here with the config) owns the step loop.
 class CoSimulation final : private Coupling {
  public:
   CoSimulation(const Config& config, cosim::Transport& transport,

@@ -84,7 +84,7 @@ class FixedStepAlgorithm final : public CouplingAlgorithm {
   bool can_iterate_ = false;  // every participant can repeat a step
 };
 
-// The algorithm a config asks for (today: FixedStepAlgorithm for either scheme), set up.
+// The algorithm a config asks for (today: FixedStepAlgorithm for either scheme), not set up yet.
 std::unique_ptr<CouplingAlgorithm> make_algorithm(const Config& config);
 
 }  // namespace master
