@@ -626,7 +626,10 @@ void RunNotes::on_finish(bool ok, const std::string& message) {
   if (recorder_) {
     recorder_->finish(ok ? "finished" : "stopped: " + message);
     std::cerr << "cosim_master: recorded " << recorder_->events() << " bus message(s) of session "
-              << cosim::id_hex(recorder_->session()) << " to " << recorder_->path() << " (LCM log)\n";
+              << cosim::id_hex(recorder_->session()) << " to " << recorder_->path() << " (LCM log)";
+    if (recorder_->dropped() > 0)
+      std::cerr << "; dropped " << recorder_->dropped() << " truncated datagram(s) at the transport edge";
+    std::cerr << "\n";
   }
   if (replay_ && recording_) std::cerr << "cosim_master: " << summary(*recording_, replay_->report()) << "\n";
   if (h5_.empty()) return;
@@ -637,6 +640,7 @@ void RunNotes::on_finish(bool ok, const std::string& message) {
     write_text(f, "bus/recording", "file", recorder_->path());
     write_text(f, "bus/recording", "session", cosim::id_hex(recorder_->session()));
     write_number(f, "bus/recording", "events", static_cast<double>(recorder_->events()));
+    write_number(f, "bus/recording", "dropped", static_cast<double>(recorder_->dropped()));
   }
   if (replay_ && recording_) {
     const Report& rep = replay_->report();
