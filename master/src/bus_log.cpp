@@ -257,15 +257,16 @@ bool BusRecorder::admit(const lcm::ReceiveBuffer* rbuf, const std::string& chann
   if (rbuf && cosim::wire_size_ok(rbuf->data, rbuf->data_size)) return true;
   ++truncated_;
   refuse(channel, "a truncated datagram (LCM reports " + std::to_string(rbuf ? rbuf->data_size : 0) +
-                      " bytes: it ended inside its header)");
+                      " bytes: it ended inside its header)", truncated_);
   return false;
 }
 
-void BusRecorder::refuse(const std::string& channel, const std::string& why) {
-  if (dropped() > kDroppedLines) return;
+// A few lines per kind (truncated, refused); the rest are counted.
+void BusRecorder::refuse(const std::string& channel, const std::string& why, int64_t nth) {
+  if (nth > kDroppedLines) return;
   const std::string line = "cosim_master: --record: dropped " + why + " on " + channel +
                            "; not written to the log" +
-                           (dropped() == kDroppedLines ? " [further ones are counted, not logged]" : "") + "\n";
+                           (nth == kDroppedLines ? " [further ones of this kind are counted, not logged]" : "") + "\n";
   std::fputs(line.c_str(), stderr);  // one write: participants may share the master's log
 }
 
@@ -289,7 +290,8 @@ bool BusRecorder::genuine(const std::string& channel, const std::uint8_t* data, 
     const auto o = opener_->open(channel, {sealed_for}, data, size);
     if (o.verdict == cosim::auth::Verdict::ok) return true;
     ++refused_;
-    refuse(channel, std::string("a message that is ") + cosim::auth::to_string(o.verdict));
+    ++refused_by_[cosim::auth::to_string(o.verdict)];
+    refuse(channel, std::string("a message that is ") + cosim::auth::to_string(o.verdict), refused_);
     return false;
   }
   bool ok = false;
@@ -301,7 +303,8 @@ bool BusRecorder::genuine(const std::string& channel, const std::uint8_t* data, 
   else if (ends_with(channel, "_END")) ok = decodes<cosim::terminate_t>(data, size);
   if (ok) return true;
   ++refused_;
-  refuse(channel, "a message that does not decode as this channel's");
+  ++refused_by_["not decodable"];
+  refuse(channel, "a message that does not decode as this channel's", refused_);
   return false;
 }
 
@@ -346,6 +349,13 @@ void BusRecorder::on_configure(const lcm::ReceiveBuffer* rbuf, const std::string
   // Sealed before a session exists (session 0), as the participant opens it.
   if (!genuine(channel, static_cast<const std::uint8_t*>(rbuf->data), rbuf->data_size, 0)) return;
   write_received(rbuf, channel);
+}
+
+std::string BusRecorder::dropped_text() const {
+  if (dropped() == 0) return "";
+  std::string s = std::to_string(truncated_) + " truncated";
+  for (const auto& [why, n] : refused_by_) s += ", " + std::to_string(n) + " " + why;
+  return s;
 }
 
 void BusRecorder::poll() {

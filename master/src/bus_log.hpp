@@ -15,6 +15,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <functional>
+#include <map>
 #include <memory>
 #include <optional>
 #include <stdexcept>
@@ -97,6 +98,8 @@ class BusRecorder {
   // record says how many ("dropped: N"), so that a replay of the log sees only the run.
   int64_t dropped() const { return truncated_ + refused_; }
   int64_t truncated() const { return truncated_; }
+  // "T truncated, N not decodable / forged / replayed ..." ("" when none were dropped).
+  std::string dropped_text() const;
 
   // The LCM handlers (public for tests and tests/fuzz/fuzz_datagrams.cpp): every received
   // buffer is checked before a byte of it is read or written. They never throw (they run inside
@@ -107,7 +110,7 @@ class BusRecorder {
  private:
   bool admit(const lcm::ReceiveBuffer* rbuf, const std::string& channel);
   bool genuine(const std::string& channel, const std::uint8_t* data, std::size_t size, int64_t sealed_for);
-  void refuse(const std::string& channel, const std::string& why);
+  void refuse(const std::string& channel, const std::string& why, int64_t nth);
   void write_received(const lcm::ReceiveBuffer* rbuf, const std::string& channel);
   void raise_pending();
   void write(const std::string& channel, const void* data, std::size_t size, int64_t utime);
@@ -122,6 +125,7 @@ class BusRecorder {
   int64_t events_ = 0;
   int64_t last_flush_us_ = 0;
   int64_t truncated_ = 0, refused_ = 0;
+  std::map<std::string, int64_t> refused_by_;  // why -> count
   std::optional<cosim::auth::Opener> opener_;  // with a key: what is written must be authentic
   std::optional<std::string> failed_;  // a write that failed inside a handler
   bool finished_ = false;

@@ -628,7 +628,8 @@ void RunNotes::on_finish(bool ok, const std::string& message) {
     std::cerr << "cosim_master: recorded " << recorder_->events() << " bus message(s) of session "
               << cosim::id_hex(recorder_->session()) << " to " << recorder_->path() << " (LCM log)";
     if (recorder_->dropped() > 0)
-      std::cerr << "; dropped " << recorder_->dropped() << " truncated datagram(s) at the transport edge";
+      std::cerr << "; dropped " << recorder_->dropped() << " datagram(s) that were not the run's ("
+                << recorder_->dropped_text() << ")";
     std::cerr << "\n";
   }
   if (replay_ && recording_) std::cerr << "cosim_master: " << summary(*recording_, replay_->report()) << "\n";

@@ -60,8 +60,11 @@ class MissingAverageError : public LinkError {
 // Resends are not timed by these: each participant has an adaptive resend timeout
 // (ResendTimer) measured from its round trips.
 struct LinkSettings {
-  // Liveness: a participant silent this long (no heartbeat, no reply) is declared gone.
-  double timeout_s = 2.0;
+  // Liveness: a participant silent this long (no heartbeat, no reply) is declared gone. The
+  // default tolerates a participant paused for 10 s and more (a stopped process, a swapping
+  // host); the price is that a participant started by hand whose host goes away silently is
+  // detected 12 s late (a launched one that dies is detected at once, by its exit).
+  double timeout_s = 12.0;
   // A participant that is heard from but has neither answered a request nor reported working
   // on it (busy heartbeat) for (retries + 1) x timeout_s is reported (its replies never arrive).
   int retries = 3;
