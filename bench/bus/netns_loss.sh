@@ -43,6 +43,14 @@ run() {
 
 printf "%-44s %8s %8s %8s %8s\n" "impairment on every link" "wall s" "/delay" "/none" "resends"
 for r in $(seq "$repeats"); do
+  # Against the clean run: loss with duplication and reordering, no added delay.
+  read -r none _ < <(run none "loss=0")
+  printf "%-44s %8.2f %8s %8.2f %8s\n" "none" "$none" "-" 1 0
+  for loss in 0.05 0.20; do
+    read -r wall resent < <(run "n$loss" "loss=$loss,dup=0.01,reorder=0.05")
+    printf "%-44s %8.2f %8s %8.2f %8s\n" "$loss loss, 0.01 dup, 0.05 reorder" "$wall" "-" \
+      "$(echo "$wall / $none" | bc -l)" "$resent"
+  done
   read -r none _ < <(run none "loss=0")
   read -r base _ < <(run base "delay=0.001")
   printf "%-44s %8.2f %8.2f %8.2f %8s\n" "none" "$none" "$(echo "$none / $base" | bc -l)" 1 0
