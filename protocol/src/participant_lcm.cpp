@@ -14,6 +14,7 @@
 #include <lcm/lcm-cpp.hpp>
 #include <mutex>
 #include <thread>
+#include <tuple>
 
 #include "cosim/bus.hpp"
 #include "cosim/participant.hpp"
@@ -37,6 +38,7 @@ struct Server {
   bool error = false;
   Clock::time_point last_master = Clock::now();
   lcm::Subscription* req_sub = nullptr;
+  std::optional<std::tuple<int64_t, int32_t, int32_t>> answered;  // the last request answered
 
   // A configure comes on this instance's channel before a session exists (sealed with session
   // 0), or on the channel of the session this process was started for.
@@ -69,9 +71,16 @@ struct Server {
     last_master = Clock::now();
     auto reply = core.handle(*q);
     if (!reply) return;
-    if (reply->status != step_reply_t::OK)
+    // Redundancy (docs/protocol.md#loss-recovery-and-liveness): the master sends each request
+    // twice; the first copy heard is answered twice, a further copy of the same request (same
+    // step, iteration and attempt) once, from the cache.
+    const auto id = std::make_tuple(q->step_index, q->iteration, q->attempt);
+    const bool copy = answered && *answered == id;
+    if (reply->status != step_reply_t::OK && !copy)
       std::cerr << core.name() << ": step " << q->step_index << ": " << reply->message << "\n";
-    bus.publish(channel::reply(core.session(), core.name()), core.session(), *reply);
+    for (int i = 0; i < (copy ? 1 : 2); ++i)
+      bus.publish(channel::reply(core.session(), core.name()), core.session(), *reply);
+    answered = id;
   }
   void on_heartbeat(const lcm::ReceiveBuffer* rbuf, const std::string& ch) {
     heartbeat_t msg;

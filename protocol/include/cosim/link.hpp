@@ -71,6 +71,10 @@ struct LinkSettings {
   // Launched by the master with --session: configured on the session's channel. Otherwise
   // the master configures the one free instance that announces this name.
   bool launched = false;
+  // Redundancy against loss (docs/protocol.md#loss-recovery-and-liveness): every request goes
+  // out this many times back to back (the participant sends a fresh reply twice, and answers a
+  // further copy of a request it answered from its cache, once). 1: no redundancy.
+  int copies = 2;
 };
 
 // Messages a test asks the transport to lose, once each: (participant, step_index).
@@ -90,6 +94,7 @@ struct ParticipantInfo {
 
 struct ExchangeStats {
   uint64_t resends = 0;
+  uint64_t redundant_copies = 0;  // request copies sent beyond the first (LinkSettings::copies)
   uint64_t dropped_by_plan = 0;
   uint64_t ignored_replies = 0;  // duplicates, other steps, other sessions
   // Per participant: resends, and the resend timeout base (s) and smoothed network round
