@@ -56,6 +56,11 @@ class MissingAverageError : public LinkError {
   using LinkError::LinkError;
 };
 
+// Copies of every request and fresh reply (redundancy against loss): 2, or $COSIM_BUS_COPIES
+// (1 or 2: 1 turns the redundancy off, for measuring what it costs and saves); raises
+// std::invalid_argument naming the variable for any other value.
+int bus_copies();
+
 // Per participant (config: participants.<name>.timeout, .retries; docs/protocol.md).
 // Resends are not timed by these: each participant has an adaptive resend timeout
 // (ResendTimer) measured from its round trips.
@@ -72,9 +77,10 @@ struct LinkSettings {
   // the master configures the one free instance that announces this name.
   bool launched = false;
   // Redundancy against loss (docs/protocol.md#loss-recovery-and-liveness): every request goes
-  // out this many times back to back (the participant sends a fresh reply twice, and answers a
-  // further copy of a request it answered from its cache, once). 1: no redundancy.
-  int copies = 2;
+  // out this many times back to back (the participant sends a fresh reply as many times, and
+  // answers a further copy of a request it answered from its cache, once). 1: no redundancy.
+  // The default is bus_copies(): 2, or $COSIM_BUS_COPIES for measurements.
+  int copies = bus_copies();
 };
 
 // Messages a test asks the transport to lose, once each: (participant, step_index).
