@@ -184,9 +184,19 @@ std::string LogDigest::hex() const {
 
 // ---------------------------------------------------------------------------------------------
 
+namespace {
+// The recorder listens and cannot ask again: a datagram its socket buffer has no room for (its
+// receive thread starved on a loaded host, a burst of redundant copies) is lost from the log. A
+// multicast URL without recv_buf_size gets 4 MiB (the kernel caps it at net.core.rmem_max).
+std::string recorder_url(const std::string& url) {
+  if (url.rfind("udpm://", 0) != 0 || url.find("recv_buf_size=") != std::string::npos) return url;
+  return url + (url.find('?') == std::string::npos ? "?" : "&") + "recv_buf_size=4194304";
+}
+}  // namespace
+
 BusRecorder::BusRecorder(const std::string& path, const std::string& url, int64_t session,
                          const std::optional<cosim::auth::Key>& key, const std::string& effective_config)
-    : path_(path), session_(session), lcm_(url) {
+    : path_(path), session_(session), lcm_(recorder_url(url)) {
   if (!lcm_.good()) throw std::runtime_error("--record: cannot open the bus '" + url + "'");
   file_ = std::make_unique<lcm::LogFile>(path, "w");
   if (!file_->good())
