@@ -92,6 +92,7 @@ void write_bus_stats(hid_t file, const RunSetup& setup) {
   write_number(file, "bus/auth", "other_session", static_cast<double>(au.counts.other_session));
   write_number(file, "bus/auth", "replayed", static_cast<double>(au.counts.replayed));
   write_number(file, "bus/auth", "unreadable", static_cast<double>(au.unreadable));
+  write_number(file, "bus/auth", "truncated", static_cast<double>(au.truncated));
   for (const auto& [name, info] : setup.participants) {
     const std::string g = "participants/" + name + "/bus";
     auto value = [&](const auto& m) { auto it = m.find(name); return it == m.end() ? 0.0 : static_cast<double>(it->second); };
