@@ -1,6 +1,7 @@
 #include "cosimulation.hpp"
 
 #include <cmath>
+#include <cstdio>
 
 #include <cosim/bus.hpp>
 #include <cosim/quantities.hpp>
@@ -189,7 +190,7 @@ std::vector<cosim::StepAnswer> CoSimulation::exchange(const std::vector<cosim::s
   }
 }
 
-void CoSimulation::run_step(int64_t step, TimePoint t0, TimePoint t1) {
+std::optional<std::string> CoSimulation::run_step(int64_t step, TimePoint t0, TimePoint t1) {
   const cosim::Stopwatch step_wall;
   double waiting = 0;
   StepRecord rec;
@@ -202,8 +203,12 @@ void CoSimulation::run_step(int64_t step, TimePoint t0, TimePoint t1) {
   const int iterations = iterate ? 1 + config_.startup_iterations : 1;
   std::vector<InputPolynomial> sent(config_.connections.size());
   std::map<std::string, cosim::Signals> averages;  // participants asked for interval averages
-  for (int it = 0; it < iterations; ++it) {
+  std::optional<std::string> ended;  // a participant ended itself (FMU terminate) in this step
+  bool ended_inside = false;         // ... before t1: the step is not recorded
+  int done = 0;
+  for (int it = 0; it < iterations && !ended; ++it, ++done) {
     for (const auto& group : groups_) {
+      if (ended_inside) break;
       // The checkpoint goes with the last iteration: the state after it is the step's result.
       auto qs = requests(group, step, it, t0, t1, it + 1 == iterations && checkpoint_due(step));
       for (std::size_t i = 0; i < config_.connections.size(); ++i)
@@ -219,6 +224,17 @@ void CoSimulation::run_step(int64_t step, TimePoint t0, TimePoint t1) {
         rec.compute_seconds[name] = answers[g].compute_seconds;
         rec.round_trip_seconds[name] = answers[g].round_trip_seconds;
         if (answers[g].average) averages[name] = *answers[g].average;
+        if (answers[g].ended_at) {
+          char text[96];
+          std::snprintf(text, sizeof text, "participant '%s' ended the run at t = %.9g s: ", name.c_str(),
+                        cosim::to_seconds(*answers[g].ended_at));
+          ended = text + answers[g].ended_reason;
+          ended_inside = *answers[g].ended_at < t1;
+          char tail[96];
+          std::snprintf(tail, sizeof tail, "; recorded up to t = %.9g s",
+                        cosim::to_seconds(ended_inside ? t0 : t1));
+          *ended += tail;
+        }
         for (std::size_t i = 0; i < config_.connections.size(); ++i) {
           const auto& k = config_.connections[i];
           if (k.from.participant != name) continue;
@@ -230,8 +246,9 @@ void CoSimulation::run_step(int64_t step, TimePoint t0, TimePoint t1) {
       }
     }
   }
-  rec.iterations = iterations;
-  rec.checkpoint = checkpoint_due(step);  // every reply confirmed it, or exchange() raised
+  if (ended_inside) return ended;  // the others' outputs are at t1, this one's earlier: not a row
+  rec.iterations = done;
+  rec.checkpoint = !ended && checkpoint_due(step);  // every reply confirmed it, or exchange() raised
   for (std::size_t i = 0; i < config_.connections.size(); ++i) {
     const auto& k = config_.connections[i];
     ConnectionRecord c;
@@ -267,22 +284,25 @@ void CoSimulation::run_step(int64_t step, TimePoint t0, TimePoint t1) {
   rec.wall_seconds = step_wall.seconds();
   rec.master_seconds = rec.wall_seconds - waiting;
   for (auto* o : observers_) o->on_step(rec);
+  return ended;
 }
 
 void CoSimulation::run() {
   for (auto* o : observers_) o->on_start(setup_);
   int64_t step = setup_.first_step;
+  std::optional<std::string> ended;
   try {
-    for (TimePoint t = config_.t_start + step * config_.macro_step; t < config_.t_end;
+    for (TimePoint t = config_.t_start + step * config_.macro_step; t < config_.t_end && !ended;
          t += config_.macro_step, ++step)
-      run_step(step, t, t + config_.macro_step);
+      ended = run_step(step, t, t + config_.macro_step);
   } catch (const std::exception& e) {
     transport_.terminate(true, e.what());
     for (auto* o : observers_) o->on_finish(false, e.what());
     throw;
   }
-  transport_.terminate(false, "finished");
-  for (auto* o : observers_) o->on_finish(true, "");
+  if (ended) std::fprintf(stderr, "cosim_master: %s\n", ended->c_str());
+  transport_.terminate(false, ended ? *ended : "finished");
+  for (auto* o : observers_) o->on_finish(true, ended.value_or(""));
 }
 
 }  // namespace master

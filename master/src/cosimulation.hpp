@@ -106,7 +106,9 @@ class CoSimulation {
   std::vector<cosim::step_request_t> requests(const std::vector<std::string>& group, int64_t step,
                                        int iteration, TimePoint t0, TimePoint t1, bool checkpoint);
   bool checkpoint_due(int64_t step) const;
-  void run_step(int64_t step, TimePoint t0, TimePoint t1);
+  // Returns a message when a participant ended itself in this step (step_reply_t::ENDED): the
+  // run ends there; the step is recorded when that participant reached its end.
+  std::optional<std::string> run_step(int64_t step, TimePoint t0, TimePoint t1);
   // transport_.exchange, with a missing interval average named by its connection.
   std::vector<cosim::StepAnswer> exchange(const std::vector<cosim::step_request_t>& requests);
 

@@ -394,6 +394,7 @@ void H5Recorder::on_finish(bool ok, const std::string& message) {
   if (I.time) {
     I.flush_all();
     cosim::h5::write_string(I.file, "status", ok ? "finished" : "stopped: " + message);
+    if (ok && !message.empty()) cosim::h5::write_string(I.file, "ended", message);  // a participant ended the run
     if (I.setup && I.setup->bus) write_bus_stats(I.file, *I.setup);
   }
   I.outputs.clear();

@@ -119,7 +119,9 @@ TEST(FmuBroken, ModelDescriptionProblems) {
   EXPECT_HAS(msg, "at line");
   EXPECT_HAS(msg, "_malformed.fmu");
   msg = with_xml("fmiVersion=\"2.0\"", "fmiVersion=\"3.0\"", "_fmi3.fmu");
-  EXPECT_HAS(msg, "fmiVersion is \"3.0\"; fmu_adapter imports FMI 2.0 only");
+  EXPECT_HAS(msg, "no instantiationToken attribute (required by FMI 3.0)");  // read as 3.0
+  msg = with_xml("fmiVersion=\"2.0\"", "fmiVersion=\"4.0\"", "_fmi4.fmu");
+  EXPECT_HAS(msg, "fmiVersion is \"4.0\"; fmu_adapter imports FMI 2.0 and 3.0");
   msg = with_xml("fmiVersion=\"2.0\"", "fmiVersion=\"1.0\"", "_fmi1.fmu");
   EXPECT_HAS(msg, "fmiVersion is \"1.0\"");
   msg = with_xml("<CoSimulation modelIdentifier", "<ModelExchange modelIdentifier", "_me.fmu");
@@ -730,6 +732,398 @@ TEST(FmuBroken, RunsStopWithTheFmuNamedOverLcm) {
   EXPECT_HAS(log, "fmu_adapter failing: FMU 'FmuBroken_RunsStopWithTheFmuNamedOverLcm_good.fmu (model 'FailFmu')' (instance 'failing') [fmi2Error, logStatusError]: deliberate failure");
   EXPECT_EQ(harness::read_dataset(csv2 + ".h5", "participants/failing/outputs/x").size(), 6u);  // t = 0 .. 0.5
   EXPECT_LT(wall.seconds(), 60.0);
+}
+
+
+// ---------------------------------------------------------------------------------------------
+// FMI 2.0 fixes (issue 47): an FMU that ends itself, a resource folder with a space and a '%',
+// start values of the wrong type found at start, a modelIdentifier that names no binary.
+
+// The counter FMU reaches stop_at inside a doStep: fmi2Discard with fmi2Terminated. The step
+// ends at the time the FMU reached, with its outputs there, and says so; no further step.
+TEST(FmuEnds, TheStepEndsWhereTheFmuEndedItself) {
+  fmu::FmuModel m(YAML::Node(YAML::NodeType::Map), "");
+  YAML::Node p = yaml("{instance: c, substeps: 4, start: {stop_at: 0.35}, outputs: [{name: count, scalar: count}]}");
+  p["fmu"] = fmutest::pack(fmutest::counter_fmu_entries("2.5"));
+  m.configure(p, run_info(1.0, 0.2));
+  cosim::Polynomials none;
+  auto r = m.step(cosim::StepInputs(cosim::TimePoint{}, cosim::seconds_to_time_point(0.2, "t"), none), false);
+  EXPECT_FALSE(r.ended_at);
+  EXPECT_NEAR(r.outputs.at("count").value[0], 0.5, 1e-15);
+  // Sub-steps of 0.05 s: [0.3, 0.35] completes, [0.35, 0.4] passes stop_at = 0.35 and ends.
+  r = m.step(cosim::StepInputs(cosim::seconds_to_time_point(0.2, "t"), cosim::seconds_to_time_point(0.4, "t"), none), false);
+  ASSERT_TRUE(r.ended_at);
+  EXPECT_EQ(*r.ended_at, cosim::seconds_to_time_point(0.35, "t"));
+  EXPECT_NEAR(r.outputs.at("count").value[0], 2.5 * 0.35, 1e-14);  // the outputs where it ended
+  EXPECT_HAS(r.ended_reason, "(instance 'c') ended itself: fmi2DoStep at t = 0.35 s (step 0.05 s) returned fmi2Discard "
+                             "with fmi2Terminated: the FMU ended the simulation at its last successful time 0.35 s");
+  EXPECT_THROW(m.step(cosim::StepInputs(cosim::seconds_to_time_point(0.4, "t"), cosim::seconds_to_time_point(0.6, "t"), none), false),
+               fmu::FmuError);
+  // A discard without fmi2Terminated is a failure that says what the FMU did and did not say.
+  fmu::FmuModel d(YAML::Node(YAML::NodeType::Map), "");
+  YAML::Node q = yaml("{start: {stop_at: 0.15, terminate: false}, outputs: [{name: count, scalar: count}]}");
+  q["fmu"] = fmutest::pack(fmutest::counter_fmu_entries(), "_discard.fmu");
+  d.configure(q, run_info(1.0, 0.2));
+  try {
+    d.step(cosim::StepInputs(cosim::TimePoint{}, cosim::seconds_to_time_point(0.2, "t"), none), false);
+    ADD_FAILURE() << "a plain discard was accepted";
+  } catch (const fmu::FmuError& e) {
+    EXPECT_HAS(e.what(), "fmi2DoStep at t = 0 s (step 0.2 s) returned fmi2Discard: the FMU could not complete the step and "
+                         "did not ask to end the simulation (fmi2GetBooleanStatus(fmi2Terminated) is false)");
+  }
+}
+
+// Under cosim_master over LCM: the counter ends itself at t = 9 s of a 10 s run (the doStep
+// from 9 s is refused at once: ended at the step's start) and at 9.05 s (inside a step). The
+// run ends cleanly (exit 0, /status finished, /ended says why), recorded up to 9 s, the count
+// exact there; without fmi2Terminated it is a failed run (exit 1) with the reason.
+TEST(FmuEnds, AnFmuThatEndsItselfEndsTheRunCleanlyOverLcm) {
+  const std::string fmu = fmutest::pack(fmutest::counter_fmu_entries("2.5"));
+  for (const std::string stop : {"9", "9.05"}) {
+    const std::string csv = fmutest::temp_path("_" + stop + ".csv");
+    ASSERT_EQ(run("counter.yaml", {"participants.counter.parameters.fmu=" + fmu,
+                                   "participants.counter.parameters.start.stop_at=" + stop}, csv), 0)
+        << harness::read_text(csv + ".h5.log");
+    const std::string log = harness::read_text(csv + ".h5.log");
+    EXPECT_HAS(log, "cosim_master: participant 'counter' ended the run at t = " + stop + " s: FMU '");
+    EXPECT_HAS(log, "(instance 'counter') ended itself: fmi2DoStep at t = 9 s (step 0.1 s) returned fmi2Discard with "
+                    "fmi2Terminated: the FMU ended the simulation at its last successful time " + stop + " s; recorded up to t = 9 s");
+    const auto t = fmutest::read_csv(csv);
+    ASSERT_EQ(t.rows.size(), 91u) << stop;  // t = 0, 0.1, ..., 9
+    EXPECT_NEAR(t.number(90, "time"), 9.0, 1e-12);
+    EXPECT_NEAR(t.number(90, "counter.count"), 22.5, 1e-12);
+    EXPECT_EQ(harness::read_dataset(csv + ".h5", "time").size(), 91u);
+    EXPECT_EQ(harness::read_string(csv + ".h5", "status"), "finished");
+    EXPECT_HAS(harness::read_string(csv + ".h5", "ended"), "participant 'counter' ended the run at t = " + stop + " s");
+  }
+  const std::string csv = fmutest::temp_path("_discard.csv");
+  ASSERT_EQ(run("counter.yaml", {"participants.counter.parameters.fmu=" + fmu, "participants.counter.parameters.start.terminate=false"}, csv), 1);
+  EXPECT_HAS(harness::read_text(csv + ".h5.log"), "returned fmi2Discard: the FMU could not complete the step and did not ask to end the simulation");
+}
+
+TEST(FmuResources, TheResourceLocationIsAPercentEncodedFileUri) {
+  EXPECT_EQ(fmu::file_uri("/tmp/a b%c/resources/"), "file:///tmp/a%20b%25c/resources/");
+  EXPECT_EQ(fmu::file_uri("/x/Ab-9._~/"), "file:///x/Ab-9._~/");
+  EXPECT_EQ(fmu::file_uri("/\xc3\xa4#?"), "file:///%C3%A4%23%3F");
+  // The counter FMU decodes the URI and reads resources/rate.txt; unpacked below a folder whose
+  // name has a space and a '%' (and "%41", which a decoder would turn into "A" if it were not
+  // encoded), it must find it.
+  namespace fs = std::filesystem;
+  const fs::path odd = fmutest::temp_path("_dir with space%41%");
+  fs::remove_all(odd);
+  fs::create_directories(odd);
+  setenv("TMPDIR", odd.c_str(), 1);
+  {
+    fmu::FmuModel m(YAML::Node(YAML::NodeType::Map), "");
+    YAML::Node p = yaml("{outputs: [{name: count, scalar: count}, {name: rate, scalar: rate_out}]}");
+    p["fmu"] = fmutest::pack(fmutest::counter_fmu_entries("4.25"));
+    try {
+      m.configure(p, run_info(1.0, 0.5));
+      const auto r = m.step(cosim::StepInputs(cosim::TimePoint{}, cosim::seconds_to_time_point(0.5, "t"), cosim::Polynomials{}), false);
+      EXPECT_EQ(r.outputs.at("rate").value[0], 4.25);
+      EXPECT_EQ(r.outputs.at("count").value[0], 4.25 * 0.5);
+    } catch (const std::exception& e) {
+      ADD_FAILURE() << e.what();
+    }
+  }
+  unsetenv("TMPDIR");
+  EXPECT_TRUE(fs::is_empty(odd));
+}
+
+// A start value of the wrong type is refused when the adapter starts with the FMU and the
+// mapping, without a master (exit 2 at once, not 3 after waiting for one).
+TEST(FmuCommandLine, AStartValueOfTheWrongTypeIsRefusedAtStart) {
+  namespace fs = std::filesystem;
+  const fs::path dir = fmutest::temp_path("_dir");
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  fmutest::write_zip((dir / "echo.fmu").string(), fmutest::echo_fmu_entries());
+  std::ofstream(dir / "int.yaml") << "start: {n: 2.5}\noutputs: [{name: y, scalar: y0}]\n";
+  std::ofstream(dir / "bool.yaml") << "start: {b: 1.5}\noutputs: [{name: y, scalar: y0}]\n";
+  std::ofstream(dir / "real.yaml") << "start: {u0: yes please}\noutputs: [{name: y, scalar: y0}]\n";
+  const std::string url = harness::bus_url();
+  for (const auto& [file, expect] : std::vector<std::pair<std::string, std::string>>{
+           {"int.yaml", "start.n: 'n' is an FMI Integer variable; expected an integer, got '2.5'"},
+           {"bool.yaml", "start.b: 'b' is an FMI Boolean variable; expected true or false, got '1.5'"},
+           {"real.yaml", "start.u0: 'u0' is an FMI Real variable; expected a finite number, got 'yes please'"}}) {
+    auto p = harness::spawn({harness::bin("fmu_adapter"), (dir / "echo.fmu").string(), "--mapping", (dir / file).string(),
+                             "--wait", "20", "--bus", url},
+                            (dir / (file + ".log")).string());
+    EXPECT_EQ(harness::wait_for(p, 15), 2) << file;
+    const std::string log = harness::read_text((dir / (file + ".log")).string());
+    EXPECT_HAS(log, "fmu_adapter: config error in " + (dir / file).string() + ": " + expect);
+  }
+}
+
+// binaries/linux64/ holds a library, but not the one the modelIdentifier names: the message
+// says so (not "no binary for this platform ... it has binaries for: linux64").
+TEST(FmuBroken, AModelIdentifierThatNamesNoBinaryIsNamed) {
+  Entries e = fmutest::fail_fmu_entries();
+  e.back().first = "binaries/linux64/FailFmu.so";
+  const std::string msg = configure_error(fmutest::pack(e, "_renamed.fmu"));
+  EXPECT_HAS(msg, "<CoSimulation modelIdentifier=\"fail_fmu\"> in modelDescription.xml names the binary "
+                  "binaries/linux64/fail_fmu.so, which is not in the archive; binaries/linux64/ holds FailFmu.so");
+  EXPECT_HAS(msg, "repack it with the binary named fail_fmu.so");
+  EXPECT_EQ(msg.find("no binary for this platform"), std::string::npos) << msg;
+}
+
+// --resume with an FMU (canSerializeFMUstate): the counter run by a hand-started fmu_adapter is
+// killed (kill -9) after a checkpoint; a new fmu_adapter and cosim_master --resume finish the
+// run, and the record and the CSV equal an uninterrupted run's bit for bit. The counter's state
+// (its time and count) comes back from the serialized FMU state: a fresh instance would refuse
+// the first step (it is at t = 0) and count from 0.
+TEST(FmuResume, AKilledFmuAdapterResumesFromItsSerializedState) {
+  namespace fs = std::filesystem;
+  const std::string url = harness::bus_url();
+  const std::string fmu = fmutest::pack(fmutest::counter_fmu_entries("1.5"));
+  const std::string full = fmutest::temp_path("_full.h5"), h5 = fmutest::temp_path(".h5");
+  fs::remove_all(h5 + ".checkpoints");
+  auto master_args = [&](const std::string& out) {
+    std::vector<std::string> a{harness::bin("cosim_master"), harness::source(config("counter.yaml")), "--output", out, "--csv", out + ".csv"};
+    for (const std::string& s : {"bus.url=" + url, std::string("participants.counter.launch=null"), std::string("participants.counter.timeout=0.5"),
+                                 std::string("time.end=20"), std::string("time.macro_step=0.001"), std::string("checkpoints.every=0.1"),
+                                 "participants.counter.parameters.fmu=" + fmu, std::string("participants.counter.parameters.start.stop_at=1e300")})
+      a.insert(a.end(), {"--set", s});
+    return a;
+  };
+  auto adapter = [&](const std::string& log) {
+    return harness::spawn({harness::bin("fmu_adapter"), "--name", "counter", "--bus", url, "--wait", "60"}, log);
+  };
+  {
+    auto a = adapter(full + ".adapter.log");
+    auto m = harness::spawn(master_args(full), full + ".log");
+    ASSERT_EQ(harness::wait_for(m, 180), 0) << harness::read_text(full + ".log");
+    EXPECT_EQ(harness::wait_for(a, 10), 0);
+  }
+  auto a = adapter(h5 + ".adapter.log");
+  auto m = harness::spawn(master_args(h5), h5 + ".log");
+  const std::string folder = h5 + ".checkpoints";
+  bool checkpointed = false;
+  for (int i = 0; i < 60000 && !checkpointed; ++i) {
+    std::error_code ec;
+    for (const auto& f : fs::directory_iterator(folder, ec)) {
+      const std::string name = f.path().filename().string();
+      const auto us = name.rfind('_');
+      if (name.size() > 5 && name.substr(name.size() - 5) == ".ckpt" && us != std::string::npos &&
+          std::stoll(name.substr(us + 1)) >= 3000)
+        checkpointed = true;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  ASSERT_TRUE(checkpointed) << harness::read_text(h5 + ".log");
+  kill(a.pid, SIGKILL);
+  harness::wait_for(a, 5);
+  EXPECT_EQ(harness::wait_for(m, 30), 1) << harness::read_text(h5 + ".log");
+  const std::size_t rows = harness::read_dataset(h5, "time").size();
+  ASSERT_LT(rows, 20001u) << "the run was not interrupted";
+  const double at = harness::read_dataset(h5, "checkpoint/steps_done").at(0);
+  EXPECT_GE(at, 2900);
+  std::printf("fmu_adapter killed after %zu of 20000 steps; resuming after %.0f\n", rows - 1, at);
+  auto b = adapter(h5 + ".adapter2.log");
+  auto r = harness::spawn({harness::bin("cosim_master"), "--resume", h5}, h5 + ".resume.log");
+  ASSERT_EQ(harness::wait_for(r, 180), 0) << harness::read_text(h5 + ".resume.log") << harness::read_text(h5 + ".adapter2.log");
+  EXPECT_EQ(harness::wait_for(b, 10), 0);
+  const auto x_full = harness::read_dataset(full, "participants/counter/outputs/count");
+  const auto x = harness::read_dataset(h5, "participants/counter/outputs/count");
+  ASSERT_EQ(x_full.size(), 20001u);
+  ASSERT_EQ(x.size(), x_full.size());
+  EXPECT_EQ(std::memcmp(x.data(), x_full.data(), x.size() * sizeof(double)), 0);
+  EXPECT_EQ(harness::read_dataset(h5, "time"), harness::read_dataset(full, "time"));
+  EXPECT_NEAR(x.back(), 1.5 * 20, 1e-9);
+  EXPECT_TRUE(harness::read_text(h5 + ".csv") == harness::read_text(full + ".csv")) << "the resumed CSV differs";
+  EXPECT_EQ(harness::read_string(h5, "status"), "finished");
+  EXPECT_FALSE(fs::exists(folder)) << "the finished run's checkpoints were not deleted";
+}
+
+
+// ---------------------------------------------------------------------------------------------
+// FMI 3.0 (the Reference FMUs in fmi3/, skipped when absent) against the reference CSVs in fmi2/:
+// the same model sources with the same fixed-step solver inside doStep.
+
+// Tolerance for the FMI 3.0 builds against the CSVs of the FMI 2.0 builds: the same C model
+// and the same forward Euler with the same internal step (BouncingBall 1 ms, Dahlquist 0.1 s,
+// VanDerPol 0.1 s), but another binary: the arithmetic order may differ in the last bits
+// (measured: see the test output). 1e-9 still catches one step of the wrong length or a wrong
+// start value (1e-4 and more, as for FMI 2.0 above).
+constexpr double kFmi3Tolerance = 1e-9;
+
+TEST(Fmi3Reference, BouncingBallDahlquistVanDerPolMatchTheirReferencesOverLcm) {
+  REQUIRE_FMI3_REFERENCE_FMUS();
+  struct Case {
+    std::string config, participant, fmu;
+    std::vector<std::pair<std::string, std::string>> columns;
+  };
+  for (const Case& c : std::vector<Case>{{"bouncing_ball.yaml", "ball", "BouncingBall", {{"h", "h"}, {"v", "v"}}},
+                                         {"dahlquist.yaml", "dahlquist", "Dahlquist", {{"x", "x"}}},
+                                         {"van_der_pol.yaml", "vdp", "VanDerPol", {{"x0", "x0"}, {"x1", "x1"}}}}) {
+    const std::string csv = fmutest::temp_path("_" + c.fmu + ".csv");
+    ASSERT_EQ(run(c.config, {"participants." + c.participant + ".parameters.fmu=" + fmutest::fmus3_dir() + "/" + c.fmu + ".fmu"}, csv), 0)
+        << harness::read_text(csv + ".h5.log");
+    std::cerr << c.fmu << " (FMI 3.0): ";
+    compare(fmutest::read_csv(csv), fmutest::read_csv(fmutest::fmus_dir() + "/" + c.fmu + "_out.csv"), c.participant + ".",
+            c.columns, kFmi3Tolerance);
+  }
+  // A start value reaches the 3.0 FMU: Dahlquist with k = 1.01 is 1 - 0.101 after one step.
+  const std::string k = fmutest::temp_path("_k.csv");
+  ASSERT_EQ(run("dahlquist.yaml", {"participants.dahlquist.parameters.fmu=" + fmutest::fmus3_dir() + "/Dahlquist.fmu",
+                                   "participants.dahlquist.parameters.start={k: 1.01}"}, k), 0)
+      << harness::read_text(k + ".h5.log");
+  EXPECT_NEAR(fmutest::read_csv(k).number(1, "dahlquist.x"), 0.899, 1e-12);
+}
+
+// Feedthrough 3.0 alone, inputs at their start values: every numeric column of the reference
+// CSV exactly (a copy does no arithmetic), Boolean as 0/1; String and Binary, which ports do not
+// carry, read from the instance: "Set me!" and 666f6f as in the CSV.
+TEST(Fmi3Reference, FeedthroughEveryTypeMatchesItsReferenceOverLcm) {
+  REQUIRE_FMI3_REFERENCE_FMUS();
+  const std::string csv = fmutest::temp_path(".csv");
+  ASSERT_EQ(run("feedthrough3_alone.yaml", {"participants.ft.parameters.fmu=" + fmutest::fmus3_dir() + "/Feedthrough.fmu"}, csv), 0)
+      << harness::read_text(csv + ".h5.log");
+  const auto ref = fmutest::read_csv(fmutest::fmus_dir() + "/Feedthrough_out.csv");
+  const auto ours = fmutest::read_csv(csv);
+  std::vector<std::pair<std::string, std::string>> numeric;
+  for (const char* n : {"Float32_continuous_output", "Float32_discrete_output", "Float64_continuous_output",
+                        "Float64_discrete_output", "Int8_output", "UInt8_output", "Int16_output", "UInt16_output",
+                        "Int32_output", "UInt32_output", "Int64_output", "UInt64_output", "Enumeration_output"})
+    numeric.push_back({n, n});
+  compare(ours, ref, "ft.", numeric, 0.0);
+  for (std::size_t i = 0; i < ours.rows.size(); ++i)
+    EXPECT_EQ(ours.number(i, "ft.Boolean_output"), ref.rows[i][ref.column("Boolean_output")] == "true" ? 1.0 : 0.0) << i;
+  fmu::FmuModel m(YAML::Node(YAML::NodeType::Map), "");
+  YAML::Node p = yaml("outputs: [{name: y, scalar: Int8_output}]");
+  p["fmu"] = fmutest::fmus3_dir() + "/Feedthrough.fmu";
+  m.configure(p, run_info(2.0, 0.1));
+  m.step(cosim::StepInputs(cosim::TimePoint{}, cosim::seconds_to_time_point(0.1, "t"), cosim::Polynomials{}), false);
+  EXPECT_EQ(m.value_text("String_output"), ref.rows[1][ref.column("String_output")]);
+  EXPECT_EQ(m.value_text("Binary_output"), ref.rows[1][ref.column("Binary_output")]);
+}
+
+// Every FMI 3.0 type through ports and start values: each input set, copied by the FMU, read
+// back exactly; the ends of each integer range pass, one beyond is refused with the type named;
+// String and Binary start values reach the FMU; wrong start values are refused at configure.
+TEST(Fmi3Types, EveryTypeRoundTripsAndRangesAreChecked) {
+  REQUIRE_FMI3_REFERENCE_FMUS();
+  const std::vector<std::string> types{"Float32_continuous", "Float64_continuous", "Int8", "UInt8", "Int16", "UInt16",
+                                       "Int32", "UInt32", "Int64", "UInt64", "Boolean", "Enumeration"};
+  std::string in, out;
+  for (const auto& t : types) {
+    in += (in.empty() ? "" : ", ") + std::string("{name: i_") + t + ", scalar: " + t + "_input}";
+    out += (out.empty() ? "" : ", ") + std::string("{name: o_") + t + ", scalar: " + t + "_output}";
+  }
+  fmu::FmuModel m(YAML::Node(YAML::NodeType::Map), "");
+  YAML::Node p = yaml("{start: {String_input: 'hello, FMI 3', Binary_input: 00ff10, Int64_input: -9223372036854775808, "
+                      "UInt64_input: 18446744073709551615, Float64_tunable_parameter: 2.5, Float64_fixed_parameter: 1.5}, "
+                      "inputs: [" + in + "], outputs: [" + out + "]}");
+  p["fmu"] = fmutest::fmus3_dir() + "/Feedthrough.fmu";
+  m.configure(p, run_info(2.0, 0.1));
+  EXPECT_EQ(m.value_text("String_output"), "hello, FMI 3");
+  EXPECT_EQ(m.value_text("Binary_output"), "00ff10");
+  EXPECT_EQ(m.value_text("Int64_output"), "-9223372036854775808");  // exact, beyond 2^53
+  EXPECT_EQ(m.value_text("UInt64_output"), "18446744073709551615");
+  EXPECT_EQ(m.value_text("Float64_fixed_parameter"), "1.5");
+  const std::map<std::string, double> values{
+      {"Float32_continuous", 0.1}, {"Float64_continuous", 0.1}, {"Int8", -128}, {"UInt8", 255}, {"Int16", -32768},
+      {"UInt16", 65535}, {"Int32", 2147483647}, {"UInt32", 4294967295.0}, {"Int64", -9007199254740992.0},
+      {"UInt64", 9007199254740992.0}, {"Boolean", 1}, {"Enumeration", 2}};
+  cosim::Polynomials polys;
+  for (const auto& [t, v] : values) polys["i_" + t] = cosim::InputPolynomial::constant(cosim::SignalKind::Scalar, {v});
+  const auto r = m.step(cosim::StepInputs(cosim::TimePoint{}, cosim::seconds_to_time_point(0.1, "t"), polys), false);
+  for (const auto& [t, v] : values) {
+    const double expect = t == "Float32_continuous" ? static_cast<double>(0.1f) : v;  // rounded to float
+    EXPECT_EQ(r.outputs.at("o_" + t).value[0], expect) << t;
+  }
+  EXPECT_EQ(m.value_text("Int8_output"), "-128");
+  // One beyond each range: refused (the step is rejected, state kept), naming the type.
+  for (const auto& [t, v] : std::vector<std::pair<std::string, double>>{
+           {"Int8", 128}, {"UInt8", -1}, {"Int16", 32768}, {"UInt16", 65536}, {"Int32", 2147483648.0},
+           {"UInt32", 4294967296.0}, {"Int64", 9223372036854775808.0}, {"UInt64", 18446744073709551616.0}}) {
+    cosim::Polynomials bad = polys;
+    bad["i_" + t] = cosim::InputPolynomial::constant(cosim::SignalKind::Scalar, {v});
+    try {
+      m.step(cosim::StepInputs(cosim::seconds_to_time_point(0.1, "t"), cosim::seconds_to_time_point(0.2, "t"), bad), false);
+      ADD_FAILURE() << t << " took " << v;
+    } catch (const cosim::InputError& e) {
+      EXPECT_HAS(e.what(), "does not fit FMU " + t + " variable '" + t + "_input' (" + t + " range)");
+    }
+  }
+  // Start values of the wrong type or out of range, refused at configure with the key.
+  for (const auto& [start, expect] : std::vector<std::pair<std::string, std::string>>{
+           {"{Int8_input: 200}", "start.Int8_input: 'Int8_input' is an FMI Int8 variable; expected an integer from -128 to 127, got '200'"},
+           {"{UInt16_input: 2.5}", "start.UInt16_input: 'UInt16_input' is an FMI UInt16 variable; expected an integer (UInt16), got '2.5'"},
+           {"{UInt64_input: -1}", "expected an integer from 0 to 18446744073709551615, got '-1'"},
+           {"{Float32_continuous_input: 1e39}", "expected a number within the Float32 range"},
+           {"{Binary_input: xyz}", "'Binary_input' is an FMI Binary variable; expected hex digits, two per byte (e.g. 666f6f), got 'xyz'"},
+           {"{Enumeration_input: Option 3}", "expected an item of Option: Option 1 (1), Option 2 (2), got 'Option 3'"},
+           {"{Float64_continuous_output: 1}", "'Float64_continuous_output' is calculated by the FMU"}}) {
+    fmu::FmuModel bad(YAML::Node(YAML::NodeType::Map), "");
+    YAML::Node q = yaml("{start: " + start + ", outputs: [{name: y, scalar: Int8_output}]}");
+    q["fmu"] = fmutest::fmus3_dir() + "/Feedthrough.fmu";
+    try {
+      bad.configure(q, run_info());
+      ADD_FAILURE() << start << " was accepted";
+    } catch (const std::exception& e) {
+      EXPECT_HAS(e.what(), expect);
+    }
+  }
+  // String and Binary are not port types.
+  EXPECT_HAS(configure_error(fmutest::fmus3_dir() + "/Feedthrough.fmu", "outputs: [{name: s, scalar: String_output}]"),
+             "'String_output' is a String variable; ports carry numbers");
+  EXPECT_HAS(configure_error(fmutest::fmus3_dir() + "/Feedthrough.fmu", "outputs: [{name: s, scalar: Binary_output}]"),
+             "'Binary_output' is a Binary variable; ports carry numbers");
+}
+
+// Repeated steps through fmi3GetFMUState/SetFMUState are bit-identical, and a checkpoint
+// (fmi3SerializeFMUState) loaded into a new instance continues bit for bit: VanDerPol 3.0.
+TEST(Fmi3State, RepeatedStepsAndSerializedCheckpointsAreBitIdentical) {
+  REQUIRE_FMI3_REFERENCE_FMUS();
+  const std::string mapping = "outputs: [{name: x0, scalar: x0}, {name: x1, scalar: x1}]";
+  auto make = [&](fmu::FmuModel& m) {
+    YAML::Node p = yaml(mapping);
+    p["fmu"] = fmutest::fmus3_dir() + "/VanDerPol.fmu";
+    m.configure(p, run_info(20.0, 0.01));
+  };
+  auto step = [](fmu::FmuModel& m, int i) {  // [0.01 i, 0.01 (i + 1)], the reference CSV's rows
+    const cosim::Duration h(10'000'000);
+    const auto r = m.step(cosim::StepInputs(cosim::TimePoint{} + h * i, cosim::TimePoint{} + h * (i + 1), cosim::Polynomials{}), false);
+    return std::array<double, 2>{r.outputs.at("x0").value[0], r.outputs.at("x1").value[0]};
+  };
+  fmu::FmuModel a(YAML::Node(YAML::NodeType::Map), "");
+  make(a);
+  EXPECT_TRUE(a.can_repeat());
+  EXPECT_TRUE(a.can_checkpoint());
+  std::vector<std::array<double, 2>> once;
+  for (int i = 0; i < 100; ++i) {
+    a.save_snapshot();
+    const auto first = step(a, i);
+    a.restore_snapshot();
+    const auto again = step(a, i);
+    EXPECT_EQ(std::memcmp(first.data(), again.data(), sizeof first), 0) << i;
+    once.push_back(again);
+  }
+  const std::string ckpt = fmutest::temp_path(".ckpt");
+  a.save_checkpoint(ckpt);
+  std::vector<std::array<double, 2>> rest;
+  for (int i = 100; i < 150; ++i) rest.push_back(step(a, i));
+  fmu::FmuModel b(YAML::Node(YAML::NodeType::Map), "");
+  make(b);
+  b.load_checkpoint(ckpt);
+  for (int i = 100; i < 150; ++i) {
+    const auto r = step(b, i);
+    EXPECT_EQ(std::memcmp(r.data(), rest[i - 100].data(), sizeof r), 0) << i;
+  }
+  const auto ref = fmutest::read_csv(fmutest::fmus_dir() + "/VanDerPol_out.csv");
+  for (std::size_t i = 0; i < 100; ++i) EXPECT_NEAR(once[i][0], ref.number(i + 1, "x0"), kFmi3Tolerance) << i;
+  // A checkpoint of another FMU is refused by its GUID (instantiation token).
+  fmu::FmuModel c(YAML::Node(YAML::NodeType::Map), "");
+  YAML::Node p = yaml("outputs: [{name: x, scalar: x}]");
+  p["fmu"] = fmutest::fmus3_dir() + "/Dahlquist.fmu";
+  c.configure(p, run_info(20.0, 0.01));
+  try {
+    c.load_checkpoint(ckpt);
+    ADD_FAILURE() << "a VanDerPol checkpoint was loaded into Dahlquist";
+  } catch (const fmu::FmuError& e) {
+    EXPECT_HAS(e.what(), "resume with the FMU the run started with");
+  }
 }
 
 }  // namespace

@@ -1,9 +1,11 @@
 #include "fmu_model.hpp"
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <iostream>
 #include <limits>
 #include <set>
@@ -47,7 +49,7 @@ std::string variables_with(const ModelDescription& md, std::initializer_list<Cau
   std::vector<std::string> names;
   for (const auto& v : md.variables)
     for (Causality c : cs)
-      if (v.causality == c && v.type != VarType::String) names.push_back(v.name);
+      if (v.causality == c && is_numeric(v.type) && v.dimensions.empty()) names.push_back(v.name);
   if (names.size() > 12) {
     names.resize(12);
     names.push_back("...");
@@ -68,6 +70,7 @@ FmuModel::FmuModel(YAML::Node root, std::string base_dir)
 FmuModel::~FmuModel() {
   inst_.reset();
   lib_.reset();
+  lib3_.reset();
   unpacked_.reset();
 }
 
@@ -86,6 +89,17 @@ const Variable& FmuModel::variable(const std::string& name, const std::string& p
   return *v;
 }
 
+// Ports carry numbers, one per variable.
+void check_port_variable(const Variable& v, const std::string& path) {
+  if (!is_numeric(v.type))
+    throw cfg::ConfigError(path + ": '" + v.name + "' is a " + type_name(v.type) +
+                           " variable; ports carry numbers (Real, Integer, Boolean, Enumeration; FMI 3.0: Float32/64, "
+                           "Int8 ... UInt64, Boolean, Enumeration); set String and Binary values under `start`");
+  if (!v.dimensions.empty())
+    throw cfg::ConfigError(path + ": '" + v.name + "' is an array (" + std::to_string(v.dimensions.size()) +
+                           " <Dimension>); fmu_adapter maps scalar variables to ports, not arrays or their elements");
+}
+
 Component FmuModel::output_component(const YAML::Node& node, const std::string& path) const {
   Component c;
   double x = 0;
@@ -96,8 +110,7 @@ Component FmuModel::output_component(const YAML::Node& node, const std::string& 
   if (!node.IsScalar())
     throw cfg::ConfigError(path + ": expected an FMU variable name or a number");
   const Variable& v = variable(node.Scalar(), path);
-  if (v.type == VarType::String)
-    throw cfg::ConfigError(path + ": '" + v.name + "' is a String variable; ports carry numbers (Real, Integer, Boolean, Enumeration)");
+  check_port_variable(v, path);
   if (v.causality == Causality::Input)
     throw cfg::ConfigError(path + ": '" + v.name + "' has causality input; an output port reads variables with causality output (or local, parameter)");
   if (v.causality == Causality::Independent)
@@ -113,8 +126,7 @@ Component FmuModel::input_component(const YAML::Node& node, const std::string& p
   if (is_number(node, &x) || !node.IsScalar())
     throw cfg::ConfigError(path + ": an input port sets FMU variables: give a variable name, or null to leave this number out");
   const Variable& v = variable(node.Scalar(), path);
-  if (v.type == VarType::String)
-    throw cfg::ConfigError(path + ": '" + v.name + "' is a String variable; ports carry numbers (Real, Integer, Boolean, Enumeration)");
+  check_port_variable(v, path);
   if (v.causality != Causality::Input)
     throw cfg::ConfigError(path + ": '" + v.name + "' has causality " + causality_name(v.causality) +
                            "; an input port sets variables with causality input" +
@@ -232,7 +244,8 @@ PortMap FmuModel::parse_port(const YAML::Node& node, const std::string& path, bo
   return p;
 }
 
-void FmuModel::set_start_values(const YAML::Node& start, const std::string& path) {
+void FmuModel::check_start_values(const YAML::Node& start, const std::string& path) {
+  start_values_.clear();
   if (!start || start.IsNull()) return;
   if (!start.IsMap()) throw cfg::ConfigError(path + ": expected a map {variable name: value}");
   for (const auto& kv : start) {
@@ -254,64 +267,92 @@ void FmuModel::set_start_values(const YAML::Node& start, const std::string& path
       return cfg::ConfigError(k + ": '" + name + "' is an FMI " + type_name(v.type) + " variable; expected " +
                               expected + ", got " + got);
     };
+    if (!v.dimensions.empty())
+      throw cfg::ConfigError(k + ": '" + name + "' is an array (" + std::to_string(v.dimensions.size()) +
+                             " <Dimension>); fmu_adapter sets scalar start values only (the FMU's own array start applies)");
     if (!val.IsScalar()) throw wrong("a single value");
-    switch (v.type) {
-      case VarType::Real:
-        if (!is_number(val, &s.number)) throw wrong("a finite number");
-        break;
-      case VarType::Integer: {
-        long long n = 0;
-        try {
-          n = val.as<long long>();
-        } catch (const YAML::Exception&) {
-          throw wrong("an integer");
-        }
-        if (n < std::numeric_limits<int>::min() || n > std::numeric_limits<int>::max())
-          throw wrong("an integer in the 32-bit range");
-        s.number = static_cast<double>(n);
-        break;
+    if (is_float(v.type)) {
+      if (!is_number(val, &s.number)) throw wrong("a finite number");
+      if (v.type == VarType::Float32 && std::abs(s.number) > std::numeric_limits<float>::max())
+        throw wrong("a number within the Float32 range");
+    } else if (is_integer(v.type) && v.type != VarType::Enumeration) {
+      long double lo = 0, hi = 0;
+      integer_range(v.type, &lo, &hi);
+      const std::string text = val.Scalar();
+      // Digits only (a sign for signed types): "2.5", "1e3", "true" are not integers.
+      const std::size_t first = !text.empty() && (text[0] == '-' || text[0] == '+') ? 1 : 0;
+      if (text.size() == first || text.find_first_not_of("0123456789", first) != std::string::npos)
+        throw wrong(v.type == VarType::Integer ? std::string("an integer") : "an integer (" + std::string(type_name(v.type)) + ")");
+      errno = 0;
+      const long double n = std::strtold(text.c_str(), nullptr);
+      if (n < lo || n > hi) {
+        char range[96];
+        std::snprintf(range, sizeof range, "an integer from %.0Lf to %.0Lf", lo, hi);
+        throw wrong(v.type == VarType::Integer ? std::string("an integer in the 32-bit range") : std::string(range));
       }
-      case VarType::Boolean: {
-        bool b = false;
-        try {
-          b = val.as<bool>();
-        } catch (const YAML::Exception&) {
-          throw wrong("true or false");
-        }
-        s.number = b ? 1 : 0;
-        break;
-      }
-      case VarType::String:
-        s.text = val.Scalar();
-        break;
-      case VarType::Enumeration: {
-        const auto items = md_->enumerations.find(v.declared_type);
-        long long n = 0;
-        bool ok = false;
-        try {
-          n = val.as<long long>();
-          ok = true;
-        } catch (const YAML::Exception&) {
-        }
-        if (!ok && items != md_->enumerations.end()) {
-          const auto it = items->second.find(val.Scalar());
-          if (it != items->second.end()) {
-            n = it->second;
-            ok = true;
+      s.number = static_cast<double>(n);
+      if (v.type == VarType::UInt64) s.uint64 = std::strtoull(text.c_str() + (text[0] == '+'), nullptr, 10);
+      else if (v.type == VarType::Int64) s.int64 = std::strtoll(text.c_str(), nullptr, 10);
+    } else {
+      switch (v.type) {
+        case VarType::Boolean: {
+          bool b = false;
+          try {
+            b = val.as<bool>();
+          } catch (const YAML::Exception&) {
+            throw wrong("true or false");
           }
+          s.number = b ? 1 : 0;
+          break;
         }
-        if (!ok) {
-          std::vector<std::string> names;
-          if (items != md_->enumerations.end())
-            for (const auto& [item, value] : items->second) names.push_back(item + " (" + std::to_string(value) + ")");
-          throw wrong("an item of " + v.declared_type + ": " + allowed_list(names));
+        case VarType::String:
+          s.text = val.Scalar();
+          break;
+        case VarType::Binary: {
+          s.text = val.Scalar();
+          if (s.text.size() % 2 || s.text.find_first_not_of("0123456789abcdefABCDEF") != std::string::npos)
+            throw wrong("hex digits, two per byte (e.g. 666f6f)");
+          break;
         }
-        s.number = static_cast<double>(n);
-        break;
+        case VarType::Enumeration: {
+          const auto items = md_->enumerations.find(v.declared_type);
+          long long n = 0;
+          bool ok = false;
+          try {
+            n = val.as<long long>();
+            ok = val.Scalar().find_first_of(".eE") == std::string::npos;
+          } catch (const YAML::Exception&) {
+          }
+          if (!ok && items != md_->enumerations.end()) {
+            const auto it = items->second.find(val.Scalar());
+            if (it != items->second.end()) {
+              n = it->second;
+              ok = true;
+            }
+          }
+          if (!ok) {
+            std::vector<std::string> names;
+            if (items != md_->enumerations.end())
+              for (const auto& [item, value] : items->second) names.push_back(item + " (" + std::to_string(value) + ")");
+            throw wrong("an item of " + v.declared_type + ": " + allowed_list(names));
+          }
+          s.number = static_cast<double>(n);
+          s.int64 = n;
+          break;
+        }
+        default:
+          throw cfg::ConfigError(k + ": '" + name + "' is an FMI " + type_name(v.type) + " variable; fmu_adapter does not set " +
+                                 type_name(v.type) + " variables");
       }
     }
-    inst_->set(v, s, "(start value from " + k + ")");
+    start_values_.push_back({&v, s, k});
   }
+}
+
+void FmuModel::set_start_values() {
+  for (const auto& sv : start_values_)
+    if (sv.var->causality != Causality::StructuralParameter)  // set in Configuration Mode
+      inst_->set(*sv.var, sv.value, "(start value from " + sv.key + ")");
 }
 
 void FmuModel::parse_mapping(const YAML::Node& root, const std::string& path) {
@@ -337,11 +378,8 @@ void FmuModel::parse_mapping(const YAML::Node& root, const std::string& path) {
   start_ = root["start"] ? YAML::Clone(root["start"]) : YAML::Node();
   if (start_ && !start_.IsNull() && !start_.IsMap())
     throw cfg::ConfigError(key("start") + ": expected a map {variable name: value}");
-  if (start_ && start_.IsMap())
-    for (const auto& kv : start_) {  // names and kinds now, values once instantiated
-      const std::string k = key("start") + "." + kv.first.as<std::string>();
-      variable(kv.first.as<std::string>(), k);
-    }
+  // Names, kinds and values now (also at start-up, without a master); set once instantiated.
+  check_start_values(start_, key("start"));
   inputs_.clear();
   outputs_.clear();
   std::set<std::string> names;
@@ -404,6 +442,7 @@ void FmuModel::prepare(const YAML::Node& parameters, const std::string& particip
   if (md_ && text == prepared_yaml_) return;  // the same mapping: keep the loaded FMU
   inst_.reset();
   lib_.reset();
+  lib3_.reset();
   md_.reset();
   unpacked_.reset();
   const std::string given = cfg::get_string(root, path, "fmu");
@@ -416,9 +455,24 @@ void FmuModel::prepare(const YAML::Node& parameters, const std::string& particip
     throw FmuError("FMU '" + label_ + "': no modelDescription.xml at the top of the archive; not an FMU (or a folder was zipped around it)");
   md_ = std::make_unique<ModelDescription>(parse_model_description(xml, label_));
   label_ = fs::path(fmu_path_).filename().string() + " (model '" + md_->model_name + "')";
-  const std::string so = "binaries/linux64/" + md_->model_identifier + ".so";
+  // FMI 2.0: binaries/linux64; FMI 3.0: binaries/x86_64-linux (<architecture>-<os>).
+  const std::string platform = md_->fmi_major == 3 ? "x86_64-linux" : "linux64";
+  const std::string folder = "binaries/" + platform + "/";
+  const std::string so = folder + md_->model_identifier + ".so";
   const fs::path so_path = fs::path(unpacked_->dir()) / so;
   if (!fs::exists(so_path)) {
+    // The platform folder may hold a library of another name: then the modelIdentifier is wrong
+    // (or the FMU was renamed by hand), not the platform.
+    std::vector<std::string> here;
+    for (const auto& e : unpacked_->entries())
+      if (e.rfind(folder, 0) == 0 && e.size() > folder.size() && e.back() != '/') here.push_back(e.substr(folder.size()));
+    if (!here.empty())
+      throw FmuError("FMU '" + label_ + "': <CoSimulation modelIdentifier=\"" + md_->model_identifier +
+                     "\"> in modelDescription.xml names the binary " + so + ", which is not in the archive; " +
+                     folder + " holds " + allowed_list(here) +
+                     ". The modelIdentifier must be the binary's file name without .so: the FMU is "
+                     "inconsistent (renamed by hand?); export it again, or repack it with the binary named " +
+                     md_->model_identifier + ".so");
     std::set<std::string> platforms;
     for (const auto& e : unpacked_->entries())
       if (e.rfind("binaries/", 0) == 0) {
@@ -430,12 +484,20 @@ void FmuModel::prepare(const YAML::Node& parameters, const std::string& particip
     throw FmuError("FMU '" + label_ + "': no binary for this platform: " + so + " is not in the archive (" +
                    (list.empty() ? std::string("it has no binaries at all")
                                  : "it has binaries for: " + list) +
-                   "); export the FMU for linux64 (x86_64 Linux) from its tool");
+                   "); export the FMU for " + platform + " (x86_64 Linux) from its tool");
   }
   if (md_->needs_execution_tool)
     std::cerr << "fmu_adapter " << participant_ << ": FMU " << label_
               << " declares needsExecutionTool=\"true\": its tool must be installed and licensed on this host\n";
-  lib_ = std::make_unique<Fmi2Library>(so_path.string(), label_);
+  if (md_->fmi_major == 3) {
+    lib3_ = std::make_unique<Fmi3Library>(so_path.string(), label_);
+    lib_state_ = lib3_->has_state_functions();
+    lib_serialize_ = lib3_->has_serialize_functions();
+  } else {
+    lib_ = std::make_unique<Fmi2Library>(so_path.string(), label_);
+    lib_state_ = lib_->has_state_functions();
+    lib_serialize_ = lib_->has_serialize_functions();
+  }
   parse_mapping(root, path);
   prepared_yaml_ = text;
 }
@@ -448,6 +510,7 @@ void FmuModel::configure(const YAML::Node& parameters, const cosim::RunInfo& run
     // the session and may be killed rather than told to stop.
     inst_.reset();
     lib_.reset();
+    lib3_.reset();
     md_.reset();
     unpacked_.reset();
     prepared_yaml_.clear();
@@ -476,13 +539,29 @@ void FmuModel::configure_instance(const YAML::Node& parameters, const cosim::Run
     throw cfg::ConfigError(path + ".step_size: " + std::to_string(cosim::to_seconds(inner_step_)) +
                            " s does not divide the macro step " + std::to_string(cosim::to_seconds(run.macro_step)) +
                            " s; choose a step size that does, or substeps: N");
-  const std::string resources = "file://" + (fs::path(unpacked_->dir()) / "resources").string() + "/";
   const std::string who = "fmu_adapter " + participant_ + ": ";
-  inst_ = std::make_unique<Fmi2Instance>(*lib_, *md_, label_, instance_name_, resources, verbose_,
-                                         [who](const std::string& line) { std::cerr << who << line << "\n"; });
-  set_start_values(start_, path + ".start");
-  inst_->setup_experiment(cosim::to_seconds(run.t_start), tolerance_, cosim::to_seconds(run.t_end));
-  inst_->enter_initialization();
+  auto sink = [who](const std::string& line) { std::cerr << who << line << "\n"; };
+  const std::string resources_dir = (fs::path(unpacked_->dir()) / "resources").string() + "/";
+  if (md_->fmi_major == 3) {
+    // FMI 3.0 takes the resources folder as a native path. Structural parameters are set in
+    // Configuration Mode, the other start values after it (FMI 3.0, 2.3.2).
+    auto inst = std::make_unique<Fmi3Instance>(*lib3_, *md_, label_, instance_name_, resources_dir, verbose_, sink);
+    bool structural = false;
+    for (const auto& sv : start_values_) structural = structural || sv.var->causality == Causality::StructuralParameter;
+    if (structural) {
+      inst->enter_configuration();
+      for (const auto& sv : start_values_)
+        if (sv.var->causality == Causality::StructuralParameter)
+          inst->set(*sv.var, sv.value, "(start value from " + sv.key + ")");
+      inst->exit_configuration();
+    }
+    inst_ = std::move(inst);
+  } else {
+    // A URI (RFC 3986): the path percent-encoded, so a folder with a space or a '%' arrives intact.
+    inst_ = std::make_unique<Fmi2Instance>(*lib_, *md_, label_, instance_name_, file_uri(resources_dir), verbose_, sink);
+  }
+  set_start_values();
+  inst_->enter_initialization(cosim::to_seconds(run.t_start), tolerance_, cosim::to_seconds(run.t_end));
   inst_->exit_initialization();
 }
 
@@ -499,19 +578,78 @@ cosim::Ports FmuModel::outputs() const {
 }
 
 bool FmuModel::can_repeat() const {
-  return snapshots_ && md_ && md_->can_get_and_set_fmu_state && lib_ && lib_->has_state_functions();
+  return snapshots_ && md_ && md_->can_get_and_set_fmu_state && lib_state_;
 }
 
 std::string FmuModel::repeat_note() const {
   if (!md_) return "";
   if (!md_->can_get_and_set_fmu_state)
-    return "FMU " + label_ + " declares canGetAndSetFMUstate=\"false\" (or leaves it out): it cannot save and "
+    return "FMU " + label_ + " declares " + state_attribute() + "=\"false\" (or leaves it out): it cannot save and "
            "restore its state, so it cannot repeat a step";
-  if (!lib_ || !lib_->has_state_functions())
-    return "FMU " + label_ + " declares canGetAndSetFMUstate=\"true\" but its binary lacks fmi2GetFMUstate, "
-           "fmi2SetFMUstate or fmi2FreeFMUstate";
+  if (!lib_state_)
+    return "FMU " + label_ + " declares " + state_attribute() + "=\"true\" but its binary lacks " +
+           (md_->fmi_major == 3 ? "fmi3GetFMUState, fmi3SetFMUState or fmi3FreeFMUState"
+                                : "fmi2GetFMUstate, fmi2SetFMUstate or fmi2FreeFMUstate");
   if (!snapshots_) return "its mapping sets snapshots: false";
   return "";
+}
+
+bool FmuModel::can_checkpoint() const {
+  return md_ && md_->can_get_and_set_fmu_state && md_->can_serialize_fmu_state && lib_serialize_;
+}
+
+// A checkpoint file: a header line, the GUID (a state of another FMU is refused), the adapter's
+// highest input-derivative order so far, the size and the FMU's serialized state.
+namespace {
+constexpr const char* kCheckpointHeader = "fmu_adapter checkpoint 1";
+}
+
+void FmuModel::save_checkpoint(const std::string& path) {
+  if (!can_checkpoint())
+    throw FmuError("FMU " + label_ + " cannot serialize its state (" + serialize_attribute() + "=\"false\" or missing functions)");
+  const std::string bytes = inst_->serialize_state();
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  out << kCheckpointHeader << "\n" << md_->guid << "\n" << max_derivative_order_ << "\n" << bytes.size() << "\n";
+  out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+  out.flush();
+  if (!out) throw FmuError("cannot write checkpoint '" + path + "'");
+}
+
+void FmuModel::load_checkpoint(const std::string& path) {
+  if (!can_checkpoint())
+    throw FmuError("FMU " + label_ + " cannot deserialize a state (" + serialize_attribute() + "=\"false\" or missing functions)");
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw FmuError("cannot open checkpoint '" + path + "'");
+  std::string header, guid, order, size;
+  std::getline(in, header);
+  std::getline(in, guid);
+  std::getline(in, order);
+  std::getline(in, size);
+  if (header != kCheckpointHeader) throw FmuError("'" + path + "' is not a checkpoint of fmu_adapter");
+  if (guid != md_->guid)
+    throw FmuError("checkpoint '" + path + "' is of an FMU with GUID " + guid + ", but FMU " + label_ + " has " +
+                   md_->guid + ": resume with the FMU the run started with");
+  std::size_t n = 0;
+  try {
+    max_derivative_order_ = std::stoi(order);
+    n = static_cast<std::size_t>(std::stoull(size));
+  } catch (const std::exception&) {
+    throw FmuError("checkpoint '" + path + "' is damaged (bad header)");
+  }
+  std::string bytes(n, '\0');
+  in.read(bytes.data(), static_cast<std::streamsize>(n));
+  if (static_cast<std::size_t>(in.gcount()) != n) throw FmuError("checkpoint '" + path + "' is truncated");
+  inst_->deserialize_state(bytes);
+}
+
+std::string FmuModel::state_attribute() const {
+  return md_ && md_->fmi_major == 3 ? "canGetAndSetFMUState" : "canGetAndSetFMUstate";
+}
+
+std::string FmuModel::value_text(const std::string& name) {
+  const Variable* v = md_ ? md_->find(name) : nullptr;
+  if (!v || !inst_) throw FmuError("FMU " + label_ + ": no variable '" + name + "' (or not configured)");
+  return inst_->get_text(*v, "(read by name)");
 }
 
 void FmuModel::save_snapshot() { inst_->save_state(); }
@@ -526,11 +664,18 @@ void FmuModel::write(const Component& c, double value, const PortMap& p, const s
   const Variable& v = *c.var;
   Scalar s;
   s.number = value;
-  if (v.type == VarType::Integer || v.type == VarType::Enumeration) {
+  if (is_integer(v.type)) {
     const double r = std::nearbyint(value);
-    if (!(r >= std::numeric_limits<int>::min() && r <= std::numeric_limits<int>::max()))
+    const bool fmi2 = v.type == VarType::Integer || (v.type == VarType::Enumeration && md_->fmi_major == 2);
+    long double lo = 0, hi = 0;
+    integer_range(v.type == VarType::Enumeration && !fmi2 ? VarType::Int64 : v.type, &lo, &hi);
+    // The 64-bit bounds as doubles round up to 2^63 and 2^64, which do not fit: hence < there.
+    const bool wide = v.type == VarType::Int64 || v.type == VarType::UInt64 || (v.type == VarType::Enumeration && !fmi2);
+    const long double x = static_cast<long double>(r);
+    if (!(x >= lo && (wide ? x < hi : x <= hi)))
       throw cosim::InputError("input '" + p.name + "': " + std::to_string(value) + " does not fit FMU " +
-                              type_name(v.type) + " variable '" + v.name + "' (32-bit)");
+                              type_name(v.type) + " variable '" + v.name + "' (" +
+                              (fmi2 ? std::string("32-bit") : std::string(type_name(v.type)) + " range") + ")");
     s.number = r;  // the nearest integer
   } else if (v.type == VarType::Boolean) {
     s.number = value > 0.5 ? 1 : 0;
@@ -732,9 +877,28 @@ cosim::StepResult FmuModel::step(const cosim::StepInputs& in, bool /*want_averag
     for (const bool wrench : {false, true})
       for (const auto& p : inputs_)
         if ((p.kind == SignalKind::Wrench) == wrench) write_input(p, in.at(p.name, t), when);
-    if (input_derivatives_ && md_->can_interpolate_inputs && lib_->setRealInputDerivatives)
+    if (input_derivatives_ && md_->can_interpolate_inputs && inst_->can_set_input_derivatives())
       write_input_derivatives(in, t, when);
-    inst_->do_step(cosim::to_seconds(t), h);
+    if (const std::optional<double> reached = inst_->do_step(cosim::to_seconds(t), h)) {
+      // The FMU ended itself: the run ends at the time it reached (whole ns, within the
+      // sub-step), with its outputs there.
+      cosim::TimePoint at = t + cosim::Duration(static_cast<int64_t>(std::llround((*reached - cosim::to_seconds(t)) * 1e9)));
+      at = std::clamp(at, t, t + inner_step_);
+      char text[200];
+      std::snprintf(text, sizeof text, "at t = %.9g s", cosim::to_seconds(at));
+      received_.clear();
+      for (const auto& p : inputs_)
+        if (p.kind == SignalKind::Kinematics) received_[p.name] = cosim::Kinematics::from_value(in.at(p.name, at));
+      cosim::StepResult r;
+      r.outputs = read_outputs(text);
+      r.ended_at = at;
+      std::snprintf(text, sizeof text,
+                    "fmi2DoStep at t = %.9g s (step %.9g s) returned fmi2Discard with fmi2Terminated: the FMU "
+                    "ended the simulation at its last successful time %.9g s",
+                    cosim::to_seconds(t), h, *reached);
+      r.ended_reason = inst_->who() + " ended itself: " + text;
+      return r;
+    }
   }
   char when[64];
   std::snprintf(when, sizeof when, "at t = %.9g s", cosim::to_seconds(in.t_end()));
