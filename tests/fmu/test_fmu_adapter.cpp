@@ -12,6 +12,7 @@
 #include "euler.hpp"
 #include "fmu_model.hpp"
 #include "fmu_test_util.hpp"
+#include "ssp_import.hpp"
 
 namespace {
 
@@ -1124,6 +1125,241 @@ TEST(Fmi3State, RepeatedStepsAndSerializedCheckpointsAreBitIdentical) {
   } catch (const fmu::FmuError& e) {
     EXPECT_HAS(e.what(), "resume with the FMU the run started with");
   }
+}
+
+
+// ---------------------------------------------------------------------------------------------
+// SSP 1.0: a package of the project's two oscillator-half FMUs (build/fmu/) against its YAML
+// twin, and bad SSP files refused with the file, the line and the reason.
+
+namespace ssptest {
+
+const char* kUnits = R"(  <ssd:Units>
+    <ssc:Unit name="m"><ssc:BaseUnit m="1"/></ssc:Unit>
+    <ssc:Unit name="mm"><ssc:BaseUnit m="1" factor="0.001"/></ssc:Unit>
+    <ssc:Unit name="m/s"><ssc:BaseUnit m="1" s="-1"/></ssc:Unit>
+    <ssc:Unit name="N"><ssc:BaseUnit kg="1" m="1" s="-2"/></ssc:Unit>
+  </ssd:Units>
+)";
+
+// The oscillator as SSD: mass1's parameters from an SSV file, mass2's inline; x2 in `x_unit`.
+std::string ssd(const std::string& x_unit = "m", const std::string& extra_connection = "") {
+  return std::string(R"(<?xml version="1.0" encoding="UTF-8"?>
+<ssd:SystemStructureDescription version="1.0" name="oscillator"
+    xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription"
+    xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon"
+    xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues">
+  <ssd:System name="dual_mass">
+    <ssd:Elements>
+      <ssd:Component name="mass1" type="application/x-fmu-sharedlibrary" source="resources/oscillator_mass1.fmu">
+        <ssd:Connectors>
+          <ssd:Connector name="force" kind="input"><ssc:Real unit="N"/></ssd:Connector>
+          <ssd:Connector name="x" kind="output"><ssc:Real unit="m"/></ssd:Connector>
+          <ssd:Connector name="v" kind="output"><ssc:Real unit="m/s"/></ssd:Connector>
+        </ssd:Connectors>
+        <ssd:ParameterBindings>
+          <ssd:ParameterBinding source="resources/mass1.ssv"/>
+        </ssd:ParameterBindings>
+      </ssd:Component>
+      <ssd:Component name="mass2" type="application/x-fmu-sharedlibrary" source="resources/oscillator_mass2.fmu">
+        <ssd:Connectors>
+          <ssd:Connector name="x" kind="input"><ssc:Real unit=")") + x_unit + R"("/></ssd:Connector>
+          <ssd:Connector name="v" kind="input"><ssc:Real unit="m/s"/></ssd:Connector>
+          <ssd:Connector name="force" kind="output"><ssc:Real unit="N"/></ssd:Connector>
+        </ssd:Connectors>
+        <ssd:ParameterBindings>
+          <ssd:ParameterBinding>
+            <ssd:ParameterValues>
+              <ssv:ParameterSet version="1.0" name="mass2">
+                <ssv:Parameters>
+                  <ssv:Parameter name="mass"><ssv:Real value="1"/></ssv:Parameter>
+                  <ssv:Parameter name="stiffness"><ssv:Real value="10"/></ssv:Parameter>
+                  <ssv:Parameter name="damping"><ssv:Real value="0.2"/></ssv:Parameter>
+                  <ssv:Parameter name="coupling_stiffness"><ssv:Real value="1000"/></ssv:Parameter>
+                  <ssv:Parameter name="coupling_damping"><ssv:Real value="2"/></ssv:Parameter>
+                  <ssv:Parameter name="position"><ssv:Real value="0"/></ssv:Parameter>
+                  <ssv:Parameter name="velocity"><ssv:Real value="0"/></ssv:Parameter>
+                  <ssv:Parameter name="x"><ssv:Real value="0.1"/></ssv:Parameter>
+                  <ssv:Parameter name="v"><ssv:Real value="0"/></ssv:Parameter>
+                  <ssv:Parameter name="inner_step"><ssv:Real value="5e-6"/></ssv:Parameter>
+                </ssv:Parameters>
+              </ssv:ParameterSet>
+            </ssd:ParameterValues>
+          </ssd:ParameterBinding>
+        </ssd:ParameterBindings>
+      </ssd:Component>
+    </ssd:Elements>
+    <ssd:Connections>
+      <ssd:Connection startElement="mass1" startConnector="x" endElement="mass2" endConnector="x"/>
+      <ssd:Connection startElement="mass1" startConnector="v" endElement="mass2" endConnector="v"/>
+      <ssd:Connection startElement="mass2" startConnector="force" endElement="mass1" endConnector="force"/>
+)" + extra_connection + R"(    </ssd:Connections>
+  </ssd:System>
+)" + kUnits + R"(  <ssd:DefaultExperiment startTime="0" stopTime="0.05"/>
+</ssd:SystemStructureDescription>
+)";
+}
+
+const char* kMass1Ssv = R"(<?xml version="1.0" encoding="UTF-8"?>
+<ssv:ParameterSet version="1.0" name="mass1" xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues">
+  <ssv:Parameters>
+    <ssv:Parameter name="mass"><ssv:Real value="1"/></ssv:Parameter>
+    <ssv:Parameter name="stiffness"><ssv:Real value="10"/></ssv:Parameter>
+    <ssv:Parameter name="damping"><ssv:Real value="0.2"/></ssv:Parameter>
+    <ssv:Parameter name="position"><ssv:Real value="0.1"/></ssv:Parameter>
+    <ssv:Parameter name="velocity"><ssv:Real value="0"/></ssv:Parameter>
+    <ssv:Parameter name="inner_step"><ssv:Real value="5e-6"/></ssv:Parameter>
+  </ssv:Parameters>
+</ssv:ParameterSet>
+)";
+
+std::string fmu(int side) { return std::string(FMU_EXPORT_DIR) + "/oscillator_mass" + std::to_string(side) + ".fmu"; }
+
+// The system as a folder with SystemStructure.ssd (returns the .ssd's path).
+std::string folder(const std::string& name, const std::string& ssd_text) {
+  namespace fs = std::filesystem;
+  const fs::path dir = fmutest::temp_path("_" + name);
+  fs::remove_all(dir);
+  fs::create_directories(dir / "resources");
+  fs::copy_file(fmu(1), dir / "resources/oscillator_mass1.fmu");
+  fs::copy_file(fmu(2), dir / "resources/oscillator_mass2.fmu");
+  std::ofstream(dir / "resources/mass1.ssv") << kMass1Ssv;
+  std::ofstream(dir / "SystemStructure.ssd") << ssd_text;
+  return (dir / "SystemStructure.ssd").string();
+}
+
+// The YAML twin: configs/oscillator_fmu.yaml's system written out by hand.
+std::string twin(const std::string& predictor_lines, const std::string& connection_predictor) {
+  std::string p = connection_predictor.empty() ? "" : ", predictor: " + connection_predictor;
+  return "time: {start: 0, end: 0.05, macro_step: 5.0e-4}\n" + predictor_lines +
+         "participants:\n"
+         "  mass1:\n"
+         "    launch: [fmu_adapter]\n"
+         "    parameters:\n"
+         "      fmu: " + fmu(1) + "\n"
+         "      start: {mass: 1, stiffness: 10, damping: 0.2, position: 0.1, velocity: 0, inner_step: 5.0e-6}\n"
+         "      inputs: [{name: force, scalar: force}]\n"
+         "      outputs: [{name: x, scalar: x}, {name: v, scalar: v}]\n"
+         "  mass2:\n"
+         "    launch: [fmu_adapter]\n"
+         "    parameters:\n"
+         "      fmu: " + fmu(2) + "\n"
+         "      start: {mass: 1, stiffness: 10, damping: 0.2, coupling_stiffness: 1000, coupling_damping: 2,\n"
+         "              position: 0, velocity: 0, x: 0.1, v: 0, inner_step: 5.0e-6}\n"
+         "      inputs: [{name: x, scalar: x}, {name: v, scalar: v}]\n"
+         "      outputs: [{name: force, scalar: force}]\n"
+         "connections:\n"
+         "  - {from: mass1.x, to: mass2.x" + p + "}\n"
+         "  - {from: mass1.v, to: mass2.v" + p + "}\n"
+         "  - {from: mass2.force, to: mass1.force" + p + "}\n"
+         "output: {progress: off}\n";
+}
+
+int master(const std::string& config, const std::string& out, const std::vector<std::string>& sets) {
+  std::vector<std::string> a{harness::bin("cosim_master"), config, "--output", out, "--csv", out + ".csv"};
+  for (const auto& s : sets) a.insert(a.end(), {"--set", s});
+  a.insert(a.end(), {"--set", "bus.url=" + harness::bus_url(), "--set", "output.progress=off"});
+  auto p = harness::spawn(a, out + ".log");
+  return harness::wait_for(p, 120);
+}
+
+}  // namespace ssptest
+
+// `cosim_master system.ssp` (the package zipped: SystemStructure.ssd, the two FMUs, an SSV) and
+// `cosim_master twin.yaml` give the same CSV and the same outputs bit for bit; so do a YAML that
+// names the .ssd with a predictor for its connections (order 1, start-up iterations) and its
+// twin with that predictor on every connection.
+TEST(SspImport, ThePackageOfTheOscillatorHalvesRunsLikeItsYamlTwin) {
+  namespace fs = std::filesystem;
+  ASSERT_TRUE(fs::exists(ssptest::fmu(1)) && fs::exists(ssptest::fmu(2))) << "build the oscillator FMUs (build/fmu/)";
+  const std::string ssd = ssptest::folder("sys", ssptest::ssd());
+  const std::string package = fmutest::temp_path(".ssp");
+  fmutest::write_zip(package, {{"SystemStructure.ssd", fmutest::slurp(ssd)},
+                               {"resources/oscillator_mass1.fmu", fmutest::slurp(ssptest::fmu(1))},
+                               {"resources/oscillator_mass2.fmu", fmutest::slurp(ssptest::fmu(2))},
+                               {"resources/mass1.ssv", ssptest::kMass1Ssv}});
+  const std::string twin = fmutest::temp_path("_twin.yaml");
+  std::ofstream(twin) << ssptest::twin("", "");
+  const std::string a = fmutest::temp_path("_ssp.h5"), b = fmutest::temp_path("_twin.h5");
+  ASSERT_EQ(ssptest::master(package, a, {"time.macro_step=5.0e-4"}), 0) << harness::read_text(a + ".log");
+  ASSERT_EQ(ssptest::master(twin, b, {}), 0) << harness::read_text(b + ".log");
+  const std::string csv = harness::read_text(a + ".csv");
+  EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 102);  // header, t = 0 .. 0.05
+  EXPECT_TRUE(csv == harness::read_text(b + ".csv")) << "the SSP run's CSV differs from its YAML twin's";
+  for (const char* d : {"participants/mass1/outputs/x", "participants/mass1/outputs/v", "participants/mass2/outputs/force"}) {
+    const auto x = harness::read_dataset(a, d), y = harness::read_dataset(b, d);
+    ASSERT_EQ(x.size(), 101u) << d;
+    EXPECT_EQ(std::memcmp(x.data(), y.data(), x.size() * sizeof(double)), 0) << d;
+  }
+  EXPECT_GT(std::abs(harness::read_dataset(a, "participants/mass2/outputs/force").back()), 1e-3);  // something moved
+  EXPECT_HAS(harness::read_string(a, "config"), "# generated by cosim_master from " + package + " (SSP 1.0)");
+
+  // A YAML naming the .ssd, with a predictor: the same as the twin with that predictor.
+  const std::string with = fmutest::temp_path("_with.yaml"), twin1 = fmutest::temp_path("_twin1.yaml");
+  std::ofstream(with) << "ssp: {file: " << ssd << ", predictor: linear}\ntime: {macro_step: 5.0e-4}\n"
+                      << "startup_iterations: 2\npredictors: {linear: {order: 1}}\noutput: {progress: off}\n";
+  std::ofstream(twin1) << ssptest::twin("startup_iterations: 2\npredictors: {linear: {order: 1}}\n", "linear");
+  const std::string c = fmutest::temp_path("_with.h5"), d = fmutest::temp_path("_twin1.h5");
+  ASSERT_EQ(ssptest::master(with, c, {}), 0) << harness::read_text(c + ".log");
+  ASSERT_EQ(ssptest::master(twin1, d, {}), 0) << harness::read_text(d + ".log");
+  EXPECT_TRUE(harness::read_text(c + ".csv") == harness::read_text(d + ".csv")) << "the .ssd run differs from its YAML twin";
+  EXPECT_FALSE(harness::read_text(c + ".csv") == csv) << "the predictor made no difference";
+  EXPECT_EQ(harness::read_dataset(c, "timing/iterations").at(1), 3);
+}
+
+// Units: mass2.x declared in mm gets x in mm (factor 1000 on its input port); a linear
+// transformation on the connection is used as given.
+TEST(SspImport, UnitConversionGoesOnTheConsumersInputPort) {
+  const YAML::Node mm = ssp::system_config(ssptest::folder("mm", ssptest::ssd("mm")));
+  const YAML::Node port = mm["participants"]["mass2"]["parameters"]["inputs"][0];
+  EXPECT_EQ(port["name"].as<std::string>(), "x");
+  EXPECT_DOUBLE_EQ(port["factor"].as<double>(), 1000.0);
+  EXPECT_DOUBLE_EQ(port["offset"].as<double>(), 0.0);
+  EXPECT_FALSE(mm["participants"]["mass2"]["parameters"]["inputs"][1]["factor"]);  // m/s to m/s: none
+  EXPECT_EQ(mm["time"]["end"].as<double>(), 0.05);
+  EXPECT_EQ(mm["participants"]["mass1"]["parameters"]["start"]["position"].as<double>(), 0.1);  // from the SSV
+  // The port conversion itself, through fmu_adapter: the echo FMU gets 1000 x + 5.
+  Echo e("{inputs: [{name: u, scalar: u0, factor: 1000, offset: 5}], outputs: [{name: y, scalar: y0}]}");
+  EXPECT_EQ(e.step({{"u", {cosim::SignalKind::Scalar, {0.25}}}}).at("y").value[0], 255.0);
+}
+
+TEST(SspImport, BadFilesAreRefusedWithFileLineAndReason) {
+  auto error = [](const std::string& path) {
+    try {
+      ssp::system_config(path);
+    } catch (const ssp::SspError& e) {
+      return std::string(e.what());
+    }
+    return std::string("(no error)");
+  };
+  // Malformed XML: the line of the damage.
+  std::string text = ssptest::ssd();
+  text = fmutest::replace_all(text, "</ssd:Elements>", "</ssd:Element>");
+  std::string path = ssptest::folder("malformed", text);
+  EXPECT_HAS(error(path), path + ":45: malformed XML");
+  // A component whose FMU is not in the package.
+  path = ssptest::folder("missing", fmutest::replace_all(ssptest::ssd(), "resources/oscillator_mass2.fmu", "resources/nowhere.fmu"));
+  EXPECT_HAS(error(path), path + ":18: component 'mass2': its FMU resources/nowhere.fmu is missing");
+  // A connection to a component that is not there, and to a connector that is not there.
+  path = ssptest::folder("dangling", ssptest::ssd("m", "      <ssd:Connection startElement=\"mass1\" startConnector=\"x\" endElement=\"mass3\" endConnector=\"x\"/>\n"));
+  EXPECT_HAS(error(path), path + ":50: dangling connection: its endElement 'mass3' is not a component of the system");
+  path = ssptest::folder("dangling2", fmutest::replace_all(ssptest::ssd(), "startConnector=\"v\"", "startConnector=\"w\""));
+  EXPECT_HAS(error(path), path + ":48: dangling connection: component 'mass1' has no connector 'w'");
+  // A unit that <ssd:Units> does not define.
+  path = ssptest::folder("unit", ssptest::ssd("furlong"));
+  EXPECT_HAS(error(path), path + ":20: connector 'mass2.x' has unit 'furlong', which <ssd:Units> does not define");
+  // Units of different quantities.
+  path = ssptest::folder("dims", ssptest::ssd("N"));
+  EXPECT_HAS(error(path), path + ":47: connection mass1.x [m] -> mass2.x [N]: the units measure different quantities");
+  // A damaged SSV names its own file and line.
+  path = ssptest::folder("ssv", ssptest::ssd());
+  std::ofstream(std::filesystem::path(path).parent_path() / "resources/mass1.ssv") << "<ssv:ParameterSet>\n<ssv:Parameters>\n</ssv:ParameterSet>\n";
+  EXPECT_HAS(error(path), "resources/mass1.ssv:3: malformed XML");
+  // Through cosim_master: exit 2 with the same message.
+  const std::string out = fmutest::temp_path("_bad.h5");
+  EXPECT_EQ(ssptest::master(ssptest::folder("unit2", ssptest::ssd("furlong")), out, {"time.macro_step=5.0e-4"}), 2);
+  EXPECT_HAS(harness::read_text(out + ".log"), "cosim_master: config refused: ");
+  EXPECT_HAS(harness::read_text(out + ".log"), "has unit 'furlong', which <ssd:Units> does not define");
 }
 
 }  // namespace

@@ -139,7 +139,7 @@ PortMap FmuModel::parse_port(const YAML::Node& node, const std::string& path, bo
   PortMap p;
   p.input = input;
   p.path = path;
-  cfg::check_keys(node, path, {"name", "scalar", "kinematics", "wrench"});
+  cfg::check_keys(node, path, {"name", "scalar", "kinematics", "wrench", "factor", "offset"});
   p.name = cfg::get_string(node, path, "name");
   cosim::require_valid_name(p.name, path + ".name");
   const int kinds = (node["scalar"] ? 1 : 0) + (node["kinematics"] ? 1 : 0) + (node["wrench"] ? 1 : 0);
@@ -165,10 +165,17 @@ PortMap FmuModel::parse_port(const YAML::Node& node, const std::string& path, bo
     const auto v = vec(m, where, key, outputs_style);
     return Vec3Map{v[0], v[1], v[2]};
   };
+  if ((node["factor"] || node["offset"]) && !node["scalar"])
+    throw cfg::ConfigError(path + ": factor and offset convert the unit of a scalar port only (kinematics and wrenches are SI)");
   if (node["scalar"]) {
     p.kind = SignalKind::Scalar;
     if (node["scalar"].IsNull()) throw cfg::ConfigError(path + ".scalar: expected an FMU variable name");
     p.scalar = comp(node["scalar"], path + ".scalar");
+    if (node["factor"]) {
+      p.scalar.factor = cfg::get_double(node, path, "factor");
+      if (p.scalar.factor == 0) throw cfg::ConfigError(path + ".factor: must not be 0 (a unit conversion multiplies by it)");
+    }
+    if (node["offset"]) p.scalar.offset = cfg::get_double(node, path, "offset");
     if (!p.scalar.var && !input)
       throw cfg::ConfigError(path + ".scalar: expected an FMU variable name (a constant output says nothing)");
   } else if (node["kinematics"]) {
@@ -656,13 +663,16 @@ void FmuModel::save_snapshot() { inst_->save_state(); }
 void FmuModel::restore_snapshot() { inst_->restore_state(); }
 
 double FmuModel::read(const Component& c, const std::string& when) {
-  return c.var ? inst_->get_number(*c.var, when) : c.constant;
+  if (!c.var) return c.constant;
+  const double x = inst_->get_number(*c.var, when);
+  return c.factor == 1 && c.offset == 0 ? x : c.factor * x + c.offset;  // untouched bits without a conversion
 }
 
 void FmuModel::write(const Component& c, double value, const PortMap& p, const std::string& when) {
   if (!c.var) return;
   const Variable& v = *c.var;
   Scalar s;
+  if (c.factor != 1 || c.offset != 0) value = c.factor * value + c.offset;
   s.number = value;
   if (is_integer(v.type)) {
     const double r = std::nearbyint(value);
@@ -859,7 +869,7 @@ void FmuModel::write_input_derivatives(const cosim::StepInputs& in, cosim::TimeP
           d += poly.coefficients[i * n + index] * falling * sk;
           sk *= s;
         }
-        inst_->set_input_derivative(*component->var, j, d / Lj, when);
+        inst_->set_input_derivative(*component->var, j, component->factor * d / Lj, when);
       }
     }
   }

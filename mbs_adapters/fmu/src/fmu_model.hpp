@@ -23,6 +23,9 @@ namespace fmu {
 struct Component {
   const Variable* var = nullptr;
   double constant = 0;
+  // A scalar port's unit conversion (SSP connections, or the mapping's factor/offset): an input
+  // sets factor * received + offset, an output sends factor * FMU value + offset.
+  double factor = 1, offset = 0;
 };
 using Vec3Map = std::array<Component, 3>;
 
