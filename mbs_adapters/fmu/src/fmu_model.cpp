@@ -546,6 +546,17 @@ void FmuModel::configure_instance(const YAML::Node& parameters, const cosim::Run
     throw cfg::ConfigError(path + ".step_size: " + std::to_string(cosim::to_seconds(inner_step_)) +
                            " s does not divide the macro step " + std::to_string(cosim::to_seconds(run.macro_step)) +
                            " s; choose a step size that does, or substeps: N");
+  // FMI 3.0 fixedInternalStepSize: the FMU integrates with that step; a doStep that is not a
+  // whole number of them makes it end the step with a shorter one (or interpolate). Said, not
+  // refused: it is the FMU's business, and the result may still be what the user wants.
+  if (md_->fixed_internal_step_size && *md_->fixed_internal_step_size > 0) {
+    const double h = cosim::to_seconds(inner_step_), n = h / *md_->fixed_internal_step_size;
+    if (std::abs(n - std::nearbyint(n)) > 1e-9 * std::max(1.0, n) || std::nearbyint(n) < 1)
+      std::cerr << "fmu_adapter " << participant_ << ": note: FMU " << label_ << " integrates with a fixed internal step of "
+                << *md_->fixed_internal_step_size << " s (fixedInternalStepSize); its doStep of " << h
+                << " s is not a whole number of them, so each step ends with a shorter one: choose a macro step or "
+                   "step_size that is a multiple of it\n";
+  }
   const std::string who = "fmu_adapter " + participant_ + ": ";
   auto sink = [who](const std::string& line) { std::cerr << who << line << "\n"; };
   const std::string resources_dir = (fs::path(unpacked_->dir()) / "resources").string() + "/";
