@@ -98,6 +98,12 @@ inline Entries counter_fmu_entries(const std::string& rate = "2.5") {
           {"resources/rate.txt", rate + "\n"}};
 }
 
+// The test-only FMI 3.0 FMU with arrays (tests/fmu/array_fmu3).
+inline Entries array_fmu3_entries() {
+  return {{"modelDescription.xml", slurp(std::string(SOURCE_DIR) + "/tests/fmu/array_fmu3/modelDescription.xml")},
+          {"binaries/x86_64-linux/array_fmu3.so", slurp(ARRAY_FMU3_SO)}};
+}
+
 inline std::string pack(const Entries& e, const std::string& suffix = ".fmu") {
   const std::string path = temp_path(suffix);
   write_zip(path, e);

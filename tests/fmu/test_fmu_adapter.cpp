@@ -1362,4 +1362,44 @@ TEST(SspImport, BadFilesAreRefusedWithFileLineAndReason) {
   EXPECT_HAS(harness::read_text(out + ".log"), "has unit 'furlong', which <ssd:Units> does not define");
 }
 
+
+// FMI 3.0 arrays and a structural parameter (the test-only array_fmu3, runs everywhere): n = 4
+// set in Configuration Mode resizes u and y; array start values as lists; ports on elements
+// (1-based, row-major); y = scale u, total = sum(u) + offsets, read back exactly.
+TEST(Fmi3Arrays, ElementsInPortsAndArrayStartValuesWithAStructuralSize) {
+  const std::string fmu = fmutest::pack(fmutest::array_fmu3_entries());
+  fmu::FmuModel m(YAML::Node(YAML::NodeType::Map), "");
+  YAML::Node p = yaml("{start: {n: 4, u: [1, 2, 3, 4], offsets: [10, 20], scale: 3}, inputs: [{name: u2, scalar: 'u[2]'}], "
+                      "outputs: [{name: y1, scalar: 'y[1]'}, {name: y2, scalar: 'y[2]'}, {name: y4, scalar: 'y[4]'}, {name: total, scalar: total}]}");
+  p["fmu"] = fmu;
+  m.configure(p, run_info(1.0, 0.1));
+  const auto initial = m.initial_outputs();
+  EXPECT_EQ(initial.at("y4").value[0], 12.0);
+  EXPECT_EQ(initial.at("total").value[0], 40.0);  // 1 + 2 + 3 + 4 + 10 + 20
+  cosim::Polynomials in{{"u2", cosim::InputPolynomial::constant(cosim::SignalKind::Scalar, {7.0})}};
+  const auto r = m.step(cosim::StepInputs(cosim::TimePoint{}, cosim::seconds_to_time_point(0.1, "t"), in), false).outputs;
+  EXPECT_EQ(r.at("y1").value[0], 3.0);
+  EXPECT_EQ(r.at("y2").value[0], 21.0);  // the element the port set, the others kept
+  EXPECT_EQ(r.at("y4").value[0], 12.0);
+  EXPECT_EQ(r.at("total").value[0], 45.0);
+  for (const auto& [mapping, expect] : std::vector<std::pair<std::string, std::string>>{
+           {"{outputs: [{name: y, scalar: y}]}", "outputs.0.scalar: 'y' is an array (1 <Dimension>); a port carries one number: name an element, e.g. y[1] (1-based)"},
+           {"{start: {n: 4}, outputs: [{name: y, scalar: 'y[5]'}]}", "outputs.0.scalar: 'y[5]': index 5 is beyond the size 4 of dimension 1"},
+           {"{outputs: [{name: y, scalar: 'y[1,1]'}]}", "'y' has 1 dimension(s), so give 1 index(es)"},
+           {"{outputs: [{name: y, scalar: 'total[1]'}]}", "'total' is not an array"},
+           {"{start: {n: 4, u: [1, 2, 3]}, outputs: [{name: t, scalar: total}]}", "start.u: 'u' has 4 values, the list 3"},
+           {"{start: {offsets: [1.5, 2]}, outputs: [{name: t, scalar: total}]}", "start.offsets.0: expected an integer in the Int32 range, got 1.5"},
+           {"{start: {u: 1}, outputs: [{name: t, scalar: total}]}", "'u' is an FMI Float64 variable; expected a list of its values (it is an array)"}}) {
+    try {
+      fmu::FmuModel bad(YAML::Node(YAML::NodeType::Map), "");
+      YAML::Node q = yaml(mapping);
+      q["fmu"] = fmu;
+      bad.configure(q, run_info(1.0, 0.1));
+      ADD_FAILURE() << mapping << " was accepted";
+    } catch (const std::exception& e) {
+      EXPECT_HAS(e.what(), expect);
+    }
+  }
+}
+
 }  // namespace

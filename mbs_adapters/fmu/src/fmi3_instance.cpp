@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <memory>
 #include <vector>
 
 namespace fmu {
@@ -325,6 +326,74 @@ std::string Fmi3Instance::get_text(const Variable& v, const std::string& when) {
       std::snprintf(buf, sizeof buf, "%.17g", get_number(v, when));
       return buf;
   }
+}
+
+namespace {
+
+template <typename T, typename Get>
+std::vector<double> get_all(Get* get, fmi3Instance c, fmi3ValueReference vr, std::size_t n, fmi3Status* status) {
+  std::unique_ptr<T[]> raw(new T[n]());  // not std::vector: vector<bool> has no data()
+  *status = get(c, &vr, 1, raw.get(), n);
+  return std::vector<double>(raw.get(), raw.get() + n);
+}
+
+template <typename T, typename Set>
+fmi3Status set_all(Set* set, fmi3Instance c, fmi3ValueReference vr, const std::vector<double>& values) {
+  std::unique_ptr<T[]> raw(new T[values.size()]());
+  for (std::size_t i = 0; i < values.size(); ++i) raw[i] = static_cast<T>(values[i]);
+  return set(c, &vr, 1, raw.get(), values.size());
+}
+
+}  // namespace
+
+std::vector<double> Fmi3Instance::get_array(const Variable& v, std::size_t n, const std::string& when) {
+  const fmi3ValueReference vr = v.value_reference;
+  fmi3Status st = fmi3OK;
+  std::vector<double> out;
+  const char* fn = "";
+  switch (v.type) {
+    case VarType::Float32: out = get_all<fmi3Float32>(lib_.getFloat32, c_, vr, n, &st); fn = "fmi3GetFloat32"; break;
+    case VarType::Real:
+    case VarType::Float64: out = get_all<fmi3Float64>(lib_.getFloat64, c_, vr, n, &st); fn = "fmi3GetFloat64"; break;
+    case VarType::Int8: out = get_all<fmi3Int8>(lib_.getInt8, c_, vr, n, &st); fn = "fmi3GetInt8"; break;
+    case VarType::UInt8: out = get_all<fmi3UInt8>(lib_.getUInt8, c_, vr, n, &st); fn = "fmi3GetUInt8"; break;
+    case VarType::Int16: out = get_all<fmi3Int16>(lib_.getInt16, c_, vr, n, &st); fn = "fmi3GetInt16"; break;
+    case VarType::UInt16: out = get_all<fmi3UInt16>(lib_.getUInt16, c_, vr, n, &st); fn = "fmi3GetUInt16"; break;
+    case VarType::Integer:
+    case VarType::Int32: out = get_all<fmi3Int32>(lib_.getInt32, c_, vr, n, &st); fn = "fmi3GetInt32"; break;
+    case VarType::UInt32: out = get_all<fmi3UInt32>(lib_.getUInt32, c_, vr, n, &st); fn = "fmi3GetUInt32"; break;
+    case VarType::Enumeration:
+    case VarType::Int64: out = get_all<fmi3Int64>(lib_.getInt64, c_, vr, n, &st); fn = "fmi3GetInt64"; break;
+    case VarType::UInt64: out = get_all<fmi3UInt64>(lib_.getUInt64, c_, vr, n, &st); fn = "fmi3GetUInt64"; break;
+    case VarType::Boolean: out = get_all<fmi3Boolean>(lib_.getBoolean, c_, vr, n, &st); fn = "fmi3GetBoolean"; break;
+    default: throw FmuError(who() + ": '" + v.name + "' is a " + type_name(v.type) + " array; only numeric arrays are read");
+  }
+  check(st, fn, "of '" + v.name + "' (" + std::to_string(n) + " values) " + when);
+  return out;
+}
+
+void Fmi3Instance::set_array(const Variable& v, const std::vector<double>& values, const std::string& when) {
+  const fmi3ValueReference vr = v.value_reference;
+  fmi3Status st = fmi3OK;
+  const char* fn = "";
+  switch (v.type) {
+    case VarType::Float32: st = set_all<fmi3Float32>(lib_.setFloat32, c_, vr, values); fn = "fmi3SetFloat32"; break;
+    case VarType::Real:
+    case VarType::Float64: st = set_all<fmi3Float64>(lib_.setFloat64, c_, vr, values); fn = "fmi3SetFloat64"; break;
+    case VarType::Int8: st = set_all<fmi3Int8>(lib_.setInt8, c_, vr, values); fn = "fmi3SetInt8"; break;
+    case VarType::UInt8: st = set_all<fmi3UInt8>(lib_.setUInt8, c_, vr, values); fn = "fmi3SetUInt8"; break;
+    case VarType::Int16: st = set_all<fmi3Int16>(lib_.setInt16, c_, vr, values); fn = "fmi3SetInt16"; break;
+    case VarType::UInt16: st = set_all<fmi3UInt16>(lib_.setUInt16, c_, vr, values); fn = "fmi3SetUInt16"; break;
+    case VarType::Integer:
+    case VarType::Int32: st = set_all<fmi3Int32>(lib_.setInt32, c_, vr, values); fn = "fmi3SetInt32"; break;
+    case VarType::UInt32: st = set_all<fmi3UInt32>(lib_.setUInt32, c_, vr, values); fn = "fmi3SetUInt32"; break;
+    case VarType::Enumeration:
+    case VarType::Int64: st = set_all<fmi3Int64>(lib_.setInt64, c_, vr, values); fn = "fmi3SetInt64"; break;
+    case VarType::UInt64: st = set_all<fmi3UInt64>(lib_.setUInt64, c_, vr, values); fn = "fmi3SetUInt64"; break;
+    case VarType::Boolean: st = set_all<fmi3Boolean>(lib_.setBoolean, c_, vr, values); fn = "fmi3SetBoolean"; break;
+    default: throw FmuError(who() + ": '" + v.name + "' is a " + type_name(v.type) + " array; only numeric arrays are set");
+  }
+  check(st, fn, "of '" + v.name + "' (" + std::to_string(values.size()) + " values) " + when);
 }
 
 void Fmi3Instance::set_input_derivative(const Variable& v, int, double, const std::string&) {

@@ -94,6 +94,8 @@ class Fmi3Instance final : public FmuInstance {
   void set(const Variable& v, const Scalar& value, const std::string& when) override;
   double get_number(const Variable& v, const std::string& when) override;
   std::string get_text(const Variable& v, const std::string& when) override;
+  std::vector<double> get_array(const Variable& v, std::size_t n, const std::string& when) override;
+  void set_array(const Variable& v, const std::vector<double>& values, const std::string& when) override;
   bool can_set_input_derivatives() const override { return false; }
   void set_input_derivative(const Variable& v, int order, double value, const std::string& when) override;
   bool has_state_functions() const override { return lib_.has_state_functions(); }

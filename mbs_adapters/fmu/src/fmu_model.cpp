@@ -9,6 +9,7 @@
 #include <iostream>
 #include <limits>
 #include <set>
+#include <sstream>
 
 #include "cosim/paths.hpp"
 #include "cosim/yaml_config.hpp"
@@ -89,16 +90,78 @@ const Variable& FmuModel::variable(const std::string& name, const std::string& p
   return *v;
 }
 
-// Ports carry numbers, one per variable.
-void check_port_variable(const Variable& v, const std::string& path) {
+// Ports carry numbers, one per variable or array element.
+void check_port_variable(const Variable& v, const std::string& path, long long element) {
   if (!is_numeric(v.type))
     throw cfg::ConfigError(path + ": '" + v.name + "' is a " + type_name(v.type) +
                            " variable; ports carry numbers (Real, Integer, Boolean, Enumeration; FMI 3.0: Float32/64, "
                            "Int8 ... UInt64, Boolean, Enumeration); set String and Binary values under `start`");
-  if (!v.dimensions.empty())
+  if (!v.dimensions.empty() && element < 0)
     throw cfg::ConfigError(path + ": '" + v.name + "' is an array (" + std::to_string(v.dimensions.size()) +
-                           " <Dimension>); fmu_adapter maps scalar variables to ports, not arrays or their elements");
+                           " <Dimension>); a port carries one number: name an element, e.g. " + v.name + "[1]" +
+                           (v.dimensions.size() > 1 ? std::string(" ... [1,1]") : std::string()) + " (1-based)");
 }
+
+const Variable& FmuModel::element_variable(const std::string& name, const std::string& path, long long* element) const {
+  *element = -1;
+  const auto open = name.find('[');
+  if (open == std::string::npos || name.back() != ']' || md_->find(name)) return variable(name, path);
+  const Variable& v = variable(name.substr(0, open), path);
+  if (v.dimensions.empty())
+    throw cfg::ConfigError(path + ": '" + v.name + "' is not an array; name it without [...]");
+  std::vector<long long> index;
+  std::stringstream list(name.substr(open + 1, name.size() - open - 2));
+  std::string part;
+  while (std::getline(list, part, ',')) {
+    char* end = nullptr;
+    const long long i = std::strtoll(part.c_str(), &end, 10);
+    if (part.empty() || *end || i < 1)
+      throw cfg::ConfigError(path + ": '" + name + "': indices are whole numbers from 1, e.g. " + v.name + "[1]");
+    index.push_back(i);
+  }
+  if (index.size() != v.dimensions.size())
+    throw cfg::ConfigError(path + ": '" + name + "': '" + v.name + "' has " + std::to_string(v.dimensions.size()) +
+                           " dimension(s), so give " + std::to_string(v.dimensions.size()) + " index(es)");
+  const std::vector<std::size_t> dims = array_dims(v);
+  long long flat = 0;
+  for (std::size_t d = 0; d < dims.size(); ++d) {
+    if (index[d] > static_cast<long long>(dims[d]))
+      throw cfg::ConfigError(path + ": '" + name + "': index " + std::to_string(index[d]) + " is beyond the size " +
+                             std::to_string(dims[d]) + " of dimension " + std::to_string(d + 1));
+    flat = flat * static_cast<long long>(dims[d]) + (index[d] - 1);
+  }
+  *element = flat;
+  return v;
+}
+
+std::vector<std::size_t> FmuModel::array_dims(const Variable& v) const {
+  std::vector<std::size_t> dims;
+  for (const auto& d : v.dimensions) {
+    if (d.start) {
+      dims.push_back(static_cast<std::size_t>(*d.start));
+      continue;
+    }
+    const Variable* param = md_->find_by_reference(*d.value_reference);
+    double n = -1;
+    if (inst_) {
+      n = inst_->get_number(*param, "(the size of '" + v.name + "')");
+    } else {
+      for (const auto& sv : start_values_)
+        if (sv.var == param) n = sv.value.number;
+      if (n < 0 && param->start) n = std::strtod(param->start->c_str(), nullptr);
+    }
+    if (!(n >= 0)) throw FmuError("FMU " + label_ + ": the size of array '" + v.name + "' (structural parameter '" + param->name + "') is not known");
+    dims.push_back(static_cast<std::size_t>(n));
+  }
+  return dims;
+}
+
+std::size_t FmuModel::array_size(const Variable& v) const {
+  std::size_t n = 1;
+  for (const std::size_t d : array_dims(v)) n *= d;
+  return n;
+}
+
 
 Component FmuModel::output_component(const YAML::Node& node, const std::string& path) const {
   Component c;
@@ -109,8 +172,10 @@ Component FmuModel::output_component(const YAML::Node& node, const std::string& 
   }
   if (!node.IsScalar())
     throw cfg::ConfigError(path + ": expected an FMU variable name or a number");
-  const Variable& v = variable(node.Scalar(), path);
-  check_port_variable(v, path);
+  long long element = -1;
+  const Variable& v = element_variable(node.Scalar(), path, &element);
+  c.element = element;
+  check_port_variable(v, path, element);
   if (v.causality == Causality::Input)
     throw cfg::ConfigError(path + ": '" + v.name + "' has causality input; an output port reads variables with causality output (or local, parameter)");
   if (v.causality == Causality::Independent)
@@ -125,8 +190,10 @@ Component FmuModel::input_component(const YAML::Node& node, const std::string& p
   double x = 0;
   if (is_number(node, &x) || !node.IsScalar())
     throw cfg::ConfigError(path + ": an input port sets FMU variables: give a variable name, or null to leave this number out");
-  const Variable& v = variable(node.Scalar(), path);
-  check_port_variable(v, path);
+  long long element = -1;
+  const Variable& v = element_variable(node.Scalar(), path, &element);
+  c.element = element;
+  check_port_variable(v, path, element);
   if (v.causality != Causality::Input)
     throw cfg::ConfigError(path + ": '" + v.name + "' has causality " + causality_name(v.causality) +
                            "; an input port sets variables with causality input" +
@@ -274,9 +341,34 @@ void FmuModel::check_start_values(const YAML::Node& start, const std::string& pa
       return cfg::ConfigError(k + ": '" + name + "' is an FMI " + type_name(v.type) + " variable; expected " +
                               expected + ", got " + got);
     };
-    if (!v.dimensions.empty())
-      throw cfg::ConfigError(k + ": '" + name + "' is an array (" + std::to_string(v.dimensions.size()) +
-                             " <Dimension>); fmu_adapter sets scalar start values only (the FMU's own array start applies)");
+    if (!v.dimensions.empty()) {
+      // An array: a list of its values, row-major, each checked as the type's scalar; the size
+      // is checked below, once a structural parameter in the same map is known.
+      if (!val.IsSequence()) throw wrong("a list of its values (it is an array)");
+      if (!is_numeric(v.type)) throw wrong("numbers: fmu_adapter sets numeric arrays only");
+      StartValue sv{&v, s, k, {}};
+      for (std::size_t i = 0; i < val.size(); ++i) {
+        const std::string ek = k + "." + std::to_string(i);
+        double x = 0;
+        if (v.type == VarType::Boolean) {
+          try {
+            x = val[i].as<bool>() ? 1 : 0;
+          } catch (const YAML::Exception&) {
+            throw cfg::ConfigError(ek + ": expected true or false");
+          }
+        } else if (!is_number(val[i], &x)) {
+          throw cfg::ConfigError(ek + ": expected a finite number");
+        } else if (is_integer(v.type)) {
+          long double lo = 0, hi = 0;
+          integer_range(v.type == VarType::Enumeration ? VarType::Int64 : v.type, &lo, &hi);
+          if (x != std::nearbyint(x) || x < lo || x > hi)
+            throw cfg::ConfigError(ek + ": expected an integer in the " + type_name(v.type) + " range, got " + val[i].Scalar());
+        }
+        sv.array.push_back(x);
+      }
+      start_values_.push_back(std::move(sv));
+      continue;
+    }
     if (!val.IsScalar()) throw wrong("a single value");
     if (is_float(v.type)) {
       if (!is_number(val, &s.number)) throw wrong("a finite number");
@@ -352,14 +444,21 @@ void FmuModel::check_start_values(const YAML::Node& start, const std::string& pa
                                  type_name(v.type) + " variables");
       }
     }
-    start_values_.push_back({&v, s, k});
+    start_values_.push_back({&v, s, k, {}});
   }
+  for (const auto& sv : start_values_)
+    if (!sv.var->dimensions.empty() && sv.array.size() != array_size(*sv.var))
+      throw cfg::ConfigError(sv.key + ": '" + sv.var->name + "' has " + std::to_string(array_size(*sv.var)) +
+                             " values, the list " + std::to_string(sv.array.size()));
 }
 
 void FmuModel::set_start_values() {
   for (const auto& sv : start_values_)
     if (sv.var->causality != Causality::StructuralParameter)  // set in Configuration Mode
-      inst_->set(*sv.var, sv.value, "(start value from " + sv.key + ")");
+    {
+      if (sv.var->dimensions.empty()) inst_->set(*sv.var, sv.value, "(start value from " + sv.key + ")");
+      else inst_->set_array(*sv.var, sv.array, "(start value from " + sv.key + ")");
+    }
 }
 
 void FmuModel::parse_mapping(const YAML::Node& root, const std::string& path) {
@@ -416,7 +515,7 @@ void FmuModel::parse_mapping(const YAML::Node& root, const std::string& path) {
     throw cfg::ConfigError(where + ": '" + name + "' is neither ground nor a kinematics port of this mapping");
   };
   // One input variable set by two ports would take whichever comes last.
-  std::map<const Variable*, std::string> set_by;
+  std::map<std::pair<const Variable*, long long>, std::string> set_by;
   for (auto* list : {&inputs_, &outputs_})
     for (auto& p : *list) {
       if (p.kind == SignalKind::Wrench) {
@@ -432,8 +531,8 @@ void FmuModel::parse_mapping(const YAML::Node& root, const std::string& path) {
       for (auto& c : p.quaternion) comps.push_back(&c);
       for (auto& c : p.angles) comps.push_back(&c);
       for (const auto* c : comps)
-        if (c->var && !set_by.emplace(c->var, p.name).second)
-          throw cfg::ConfigError(p.path + ": FMU input '" + c->var->name + "' is set by port '" + set_by[c->var] +
+        if (c->var && !set_by.emplace(std::make_pair(c->var, c->element), p.name).second)
+          throw cfg::ConfigError(p.path + ": FMU input '" + c->var->name + "' is set by port '" + set_by[{c->var, c->element}] +
                                  "' already");
     }
 }
@@ -673,9 +772,17 @@ std::string FmuModel::value_text(const std::string& name) {
 void FmuModel::save_snapshot() { inst_->save_state(); }
 void FmuModel::restore_snapshot() { inst_->restore_state(); }
 
+double FmuModel::array_element(const Component& c, const std::string& when) {
+  const std::vector<double> all = inst_->get_array(*c.var, array_size(*c.var), when);
+  if (c.element >= static_cast<long long>(all.size()))
+    throw FmuError("FMU " + label_ + ": element " + std::to_string(c.element + 1) + " of '" + c.var->name + "' " + when +
+                   " is beyond its " + std::to_string(all.size()) + " values");
+  return all[static_cast<std::size_t>(c.element)];
+}
+
 double FmuModel::read(const Component& c, const std::string& when) {
   if (!c.var) return c.constant;
-  const double x = inst_->get_number(*c.var, when);
+  const double x = c.element < 0 ? inst_->get_number(*c.var, when) : array_element(c, when);
   return c.factor == 1 && c.offset == 0 ? x : c.factor * x + c.offset;  // untouched bits without a conversion
 }
 
@@ -700,6 +807,15 @@ void FmuModel::write(const Component& c, double value, const PortMap& p, const s
     s.number = r;  // the nearest integer
   } else if (v.type == VarType::Boolean) {
     s.number = value > 0.5 ? 1 : 0;
+  }
+  if (c.element >= 0) {  // an array element: read the array, change one value, set it all
+    std::vector<double> all = inst_->get_array(v, array_size(v), when);
+    if (c.element >= static_cast<long long>(all.size()))
+      throw FmuError("FMU " + label_ + ": input port '" + p.name + "': element " + std::to_string(c.element + 1) + " of '" +
+                     v.name + "' is beyond its " + std::to_string(all.size()) + " values");
+    all[static_cast<std::size_t>(c.element)] = s.number;
+    inst_->set_array(v, all, when);
+    return;
   }
   inst_->set(v, s, when);
 }

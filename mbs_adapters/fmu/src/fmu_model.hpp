@@ -26,6 +26,8 @@ struct Component {
   // A scalar port's unit conversion (SSP connections, or the mapping's factor/offset): an input
   // sets factor * received + offset, an output sends factor * FMU value + offset.
   double factor = 1, offset = 0;
+  // FMI 3.0 arrays: the element (row-major, from 0) of `var` this component is; -1: a scalar.
+  long long element = -1;
 };
 using Vec3Map = std::array<Component, 3>;
 
@@ -110,6 +112,7 @@ class FmuModel final : public cosim::Model {
   void write_input(const PortMap& p, const cosim::Value& v, const std::string& when);
   void write_input_derivatives(const cosim::StepInputs& in, cosim::TimePoint t, const std::string& when);
   double read(const Component& c, const std::string& when);
+  double array_element(const Component& c, const std::string& when);
   void write(const Component& c, double value, const PortMap& p, const std::string& when);
   cosim::Signals read_outputs(const std::string& when);
 
@@ -139,7 +142,15 @@ class FmuModel final : public cosim::Model {
     const Variable* var;
     Scalar value;
     std::string key;
+    std::vector<double> array;  // an array's values, row-major (FMI 3.0)
   };
+  // A variable by name, or an array element "name[i]" / "name[i,j]" (1-based, as written);
+  // element: its row-major index from 0, -1 for a whole variable.
+  const Variable& element_variable(const std::string& name, const std::string& path, long long* element) const;
+  // The number of values of an FMI 3.0 array now: fixed dimensions, or the structural
+  // parameter's value (from the instance once it exists, else its start value).
+  std::size_t array_size(const Variable& v) const;
+  std::vector<std::size_t> array_dims(const Variable& v) const;
   std::vector<StartValue> start_values_;
   std::vector<PortMap> inputs_, outputs_;
   cosim::Duration inner_step_{};

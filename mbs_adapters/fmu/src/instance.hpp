@@ -6,6 +6,7 @@
 
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "model_description.hpp"
 
@@ -34,6 +35,15 @@ class FmuInstance {
   virtual double get_number(const Variable& v, const std::string& when) = 0;
   // String as text, Binary as lower-case hex digits, numbers as printed with full precision.
   virtual std::string get_text(const Variable& v, const std::string& when) = 0;
+  // FMI 3.0 arrays (numeric types): all n values, row-major. FMI 2.0 has none.
+  virtual std::vector<double> get_array(const Variable& v, std::size_t n, const std::string& when) {
+    (void)n; (void)when;
+    throw FmuError(who() + ": '" + v.name + "' is an array; arrays are FMI 3.0");
+  }
+  virtual void set_array(const Variable& v, const std::vector<double>& values, const std::string& when) {
+    (void)values; (void)when;
+    throw FmuError(who() + ": '" + v.name + "' is an array; arrays are FMI 3.0");
+  }
   virtual bool can_set_input_derivatives() const = 0;
   virtual void set_input_derivative(const Variable& v, int order, double value, const std::string& when) = 0;
   virtual bool has_state_functions() const = 0;
