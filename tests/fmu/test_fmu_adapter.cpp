@@ -873,27 +873,31 @@ TEST(FmuBroken, AModelIdentifierThatNamesNoBinaryIsNamed) {
 // run, and the record and the CSV equal an uninterrupted run's bit for bit. The counter's state
 // (its time and count) comes back from the serialized FMU state: a fresh instance would refuse
 // the first step (it is at t = 0) and count from 0.
-TEST(FmuResume, AKilledFmuAdapterResumesFromItsSerializedState) {
+// One participant `name` from `cfg` started by hand (fmu_adapter with everything from the
+// master's parameters), 20000 steps with a checkpoint every 100; killed (kill -9) after the
+// checkpoint after 3000 steps, resumed with a new fmu_adapter: returns the datasets `outputs`
+// of the uninterrupted and the resumed record, and checks the CSV and /status.
+std::vector<std::pair<std::vector<double>, std::vector<double>>> kill_and_resume(
+    const std::string& cfg, const std::string& name, const std::vector<std::string>& sets, const std::vector<std::string>& outputs) {
   namespace fs = std::filesystem;
+  std::vector<std::pair<std::vector<double>, std::vector<double>>> out;
   const std::string url = harness::bus_url();
-  const std::string fmu = fmutest::pack(fmutest::counter_fmu_entries("1.5"));
   const std::string full = fmutest::temp_path("_full.h5"), h5 = fmutest::temp_path(".h5");
   fs::remove_all(h5 + ".checkpoints");
-  auto master_args = [&](const std::string& out) {
-    std::vector<std::string> a{harness::bin("cosim_master"), harness::source(config("counter.yaml")), "--output", out, "--csv", out + ".csv"};
-    for (const std::string& s : {"bus.url=" + url, std::string("participants.counter.launch=null"), std::string("participants.counter.timeout=0.5"),
-                                 std::string("time.end=20"), std::string("time.macro_step=0.001"), std::string("checkpoints.every=0.1"),
-                                 "participants.counter.parameters.fmu=" + fmu, std::string("participants.counter.parameters.start.stop_at=1e300")})
-      a.insert(a.end(), {"--set", s});
+  auto master_args = [&](const std::string& file) {
+    std::vector<std::string> a{harness::bin("cosim_master"), harness::source(config(cfg)), "--output", file, "--csv", file + ".csv",
+                               "--set", "bus.url=" + url, "--set", "participants." + name + ".launch=null",
+                               "--set", "participants." + name + ".timeout=0.5", "--set", "output.progress=off"};
+    for (const auto& s : sets) a.insert(a.end(), {"--set", s});
     return a;
   };
   auto adapter = [&](const std::string& log) {
-    return harness::spawn({harness::bin("fmu_adapter"), "--name", "counter", "--bus", url, "--wait", "60"}, log);
+    return harness::spawn({harness::bin("fmu_adapter"), "--name", name, "--bus", url, "--wait", "60"}, log);
   };
   {
     auto a = adapter(full + ".adapter.log");
     auto m = harness::spawn(master_args(full), full + ".log");
-    ASSERT_EQ(harness::wait_for(m, 180), 0) << harness::read_text(full + ".log");
+    EXPECT_EQ(harness::wait_for(m, 180), 0) << harness::read_text(full + ".log");
     EXPECT_EQ(harness::wait_for(a, 10), 0);
   }
   auto a = adapter(h5 + ".adapter.log");
@@ -903,37 +907,68 @@ TEST(FmuResume, AKilledFmuAdapterResumesFromItsSerializedState) {
   for (int i = 0; i < 60000 && !checkpointed; ++i) {
     std::error_code ec;
     for (const auto& f : fs::directory_iterator(folder, ec)) {
-      const std::string name = f.path().filename().string();
-      const auto us = name.rfind('_');
-      if (name.size() > 5 && name.substr(name.size() - 5) == ".ckpt" && us != std::string::npos &&
-          std::stoll(name.substr(us + 1)) >= 3000)
+      const std::string file = f.path().filename().string();
+      const auto us = file.rfind('_');
+      if (file.size() > 5 && file.substr(file.size() - 5) == ".ckpt" && us != std::string::npos && std::stoll(file.substr(us + 1)) >= 3000)
         checkpointed = true;
     }
     std::this_thread::sleep_for(std::chrono::milliseconds(2));
   }
-  ASSERT_TRUE(checkpointed) << harness::read_text(h5 + ".log");
+  EXPECT_TRUE(checkpointed) << harness::read_text(h5 + ".log");
   kill(a.pid, SIGKILL);
   harness::wait_for(a, 5);
   EXPECT_EQ(harness::wait_for(m, 30), 1) << harness::read_text(h5 + ".log");
   const std::size_t rows = harness::read_dataset(h5, "time").size();
-  ASSERT_LT(rows, 20001u) << "the run was not interrupted";
+  EXPECT_LT(rows, 20001u) << "the run was not interrupted";
   const double at = harness::read_dataset(h5, "checkpoint/steps_done").at(0);
   EXPECT_GE(at, 2900);
   std::printf("fmu_adapter killed after %zu of 20000 steps; resuming after %.0f\n", rows - 1, at);
   auto b = adapter(h5 + ".adapter2.log");
   auto r = harness::spawn({harness::bin("cosim_master"), "--resume", h5}, h5 + ".resume.log");
-  ASSERT_EQ(harness::wait_for(r, 180), 0) << harness::read_text(h5 + ".resume.log") << harness::read_text(h5 + ".adapter2.log");
+  EXPECT_EQ(harness::wait_for(r, 180), 0) << harness::read_text(h5 + ".resume.log") << harness::read_text(h5 + ".adapter2.log");
   EXPECT_EQ(harness::wait_for(b, 10), 0);
-  const auto x_full = harness::read_dataset(full, "participants/counter/outputs/count");
-  const auto x = harness::read_dataset(h5, "participants/counter/outputs/count");
-  ASSERT_EQ(x_full.size(), 20001u);
-  ASSERT_EQ(x.size(), x_full.size());
-  EXPECT_EQ(std::memcmp(x.data(), x_full.data(), x.size() * sizeof(double)), 0);
+  for (const auto& d : outputs)
+    out.push_back({harness::read_dataset(full, "participants/" + name + "/outputs/" + d), harness::read_dataset(h5, "participants/" + name + "/outputs/" + d)});
   EXPECT_EQ(harness::read_dataset(h5, "time"), harness::read_dataset(full, "time"));
-  EXPECT_NEAR(x.back(), 1.5 * 20, 1e-9);
   EXPECT_TRUE(harness::read_text(h5 + ".csv") == harness::read_text(full + ".csv")) << "the resumed CSV differs";
   EXPECT_EQ(harness::read_string(h5, "status"), "finished");
   EXPECT_FALSE(fs::exists(folder)) << "the finished run's checkpoints were not deleted";
+  return out;
+}
+
+// --resume with an FMU (FMI 2.0, canSerializeFMUstate): the counter run by a hand-started
+// fmu_adapter is killed (kill -9) after a checkpoint; a new fmu_adapter and cosim_master --resume
+// finish the run, and the record and the CSV equal an uninterrupted run's bit for bit. The
+// counter's state (its time and count) comes back from the serialized FMU state: a fresh
+// instance would refuse the first step (it is at t = 0) and count from 0.
+TEST(FmuResume, AKilledFmuAdapterResumesFromItsSerializedState) {
+  const std::string fmu = fmutest::pack(fmutest::counter_fmu_entries("1.5"));
+  const auto d = kill_and_resume("counter.yaml", "counter",
+                                 {"time.end=20", "time.macro_step=0.001", "checkpoints.every=0.1",
+                                  "participants.counter.parameters.fmu=" + fmu, "participants.counter.parameters.start.stop_at=1e300"},
+                                 {"count"});
+  ASSERT_EQ(d.size(), 1u);
+  const auto& [x_full, x] = d[0];
+  ASSERT_EQ(x_full.size(), 20001u);
+  ASSERT_EQ(x.size(), x_full.size());
+  EXPECT_EQ(std::memcmp(x.data(), x_full.data(), x.size() * sizeof(double)), 0);
+  EXPECT_NEAR(x.back(), 1.5 * 20, 1e-9);
+}
+
+// The same with an FMI 3.0 FMU (canSerializeFMUState): VanDerPol from the Reference FMUs, 200 s
+// in steps of its fixed internal step (0.01 s).
+TEST(FmuResume, AKilledFmuAdapterWithAnFmi3FmuResumes) {
+  REQUIRE_FMI3_REFERENCE_FMUS();
+  const auto d = kill_and_resume("van_der_pol.yaml", "vdp",
+                                 {"time.end=200", "time.macro_step=0.01", "checkpoints.every=1",
+                                  "participants.vdp.parameters.fmu=" + fmutest::fmus3_dir() + "/VanDerPol.fmu"},
+                                 {"x0", "x1"});
+  for (const auto& [full, resumed] : d) {
+    ASSERT_EQ(full.size(), 20001u);
+    ASSERT_EQ(resumed.size(), full.size());
+    EXPECT_EQ(std::memcmp(full.data(), resumed.data(), full.size() * sizeof(double)), 0);
+  }
+  EXPECT_GT(std::abs(d[0].first.back()), 0.01);  // the oscillator still oscillates at 200 s
 }
 
 
