@@ -1398,6 +1398,23 @@ TEST(SspImport, BadFilesAreRefusedWithFileLineAndReason) {
 }
 
 
+// An FMI 3.0 FMU that ends itself (terminateSimulation with fmi3Discard at stop_at = 0.25 inside
+// the step [0.2, 0.3]): the step ends there, with the outputs there, and says so.
+TEST(FmuEnds, AnFmi3FmuThatSetsTerminateSimulationEndsTheStep) {
+  fmu::FmuModel m(YAML::Node(YAML::NodeType::Map), "");
+  YAML::Node p = yaml("{instance: a3, start: {stop_at: 0.25}, outputs: [{name: total, scalar: total}]}");
+  p["fmu"] = fmutest::pack(fmutest::array_fmu3_entries());
+  m.configure(p, run_info(1.0, 0.1));
+  cosim::Polynomials none;
+  for (int i = 0; i < 2; ++i)
+    EXPECT_FALSE(m.step(cosim::StepInputs(cosim::seconds_to_time_point(0.1 * i, "t"), cosim::seconds_to_time_point(0.1 * (i + 1), "t"), none), false).ended_at);
+  const auto r = m.step(cosim::StepInputs(cosim::seconds_to_time_point(0.2, "t"), cosim::seconds_to_time_point(0.3, "t"), none), false);
+  ASSERT_TRUE(r.ended_at);
+  EXPECT_EQ(*r.ended_at, cosim::seconds_to_time_point(0.25, "t"));
+  EXPECT_HAS(r.ended_reason, "(instance 'a3') ended itself: fmi3DoStep at t = 0.2 s (step 0.1 s) set terminateSimulation: the FMU "
+                             "ended the simulation at its last successful time 0.25 s");
+}
+
 // FMI 3.0 arrays and a structural parameter (the test-only array_fmu3, runs everywhere): n = 4
 // set in Configuration Mode resizes u and y; array start values as lists; ports on elements
 // (1-based, row-major); y = scale u, total = sum(u) + offsets, read back exactly.

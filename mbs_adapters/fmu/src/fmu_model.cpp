@@ -1030,8 +1030,10 @@ cosim::StepResult FmuModel::step(const cosim::StepInputs& in, bool /*want_averag
       r.outputs = read_outputs(text);
       r.ended_at = at;
       std::snprintf(text, sizeof text,
-                    "fmi2DoStep at t = %.9g s (step %.9g s) returned fmi2Discard with fmi2Terminated: the FMU "
-                    "ended the simulation at its last successful time %.9g s",
+                    md_->fmi_major == 3 ? "fmi3DoStep at t = %.9g s (step %.9g s) set terminateSimulation: the FMU "
+                                          "ended the simulation at its last successful time %.9g s"
+                                        : "fmi2DoStep at t = %.9g s (step %.9g s) returned fmi2Discard with fmi2Terminated: the FMU "
+                                          "ended the simulation at its last successful time %.9g s",
                     cosim::to_seconds(t), h, *reached);
       r.ended_reason = inst_->who() + " ended itself: " + text;
       return r;

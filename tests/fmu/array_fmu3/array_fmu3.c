@@ -3,7 +3,8 @@
  * Value references: 0 time; 1 n (UInt64 structural parameter, the length of u and y, 1..8);
  * 2 u (Float64 input [n]); 3 y (Float64 output [n], y = scale * u at each step's start);
  * 4 scale (Float64 tunable parameter); 5 offsets (Int32 fixed parameter [2]);
- * 6 total (Float64 output: sum(u) + offsets[0] + offsets[1]). */
+ * 6 total (Float64 output: sum(u) + offsets[0] + offsets[1]); 7 stop_at (Float64 fixed parameter:
+ * the doStep that would pass it stops there and returns fmi3Discard with terminateSimulation). */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -17,7 +18,7 @@ typedef struct {
   fmi3InstanceEnvironment env;
   fmi3LogMessageCallback log;
   int configuring;
-  double time, u[NMAX], y[NMAX], scale, total;
+  double time, u[NMAX], y[NMAX], scale, total, stop_at;
   uint64_t n;
   int32_t offsets[2];
 } Instance;
@@ -41,6 +42,7 @@ EXPORT fmi3Instance fmi3InstantiateCoSimulation(fmi3String name, fmi3String toke
   in->log = log;
   in->n = 3;
   in->scale = 2;
+  in->stop_at = 1e300;
   return in;
 }
 EXPORT void fmi3FreeInstance(fmi3Instance c) { free(c); }
@@ -67,10 +69,16 @@ EXPORT fmi3Status fmi3DoStep(fmi3Instance c, fmi3Float64 t, fmi3Float64 h, fmi3B
   Instance* in = (Instance*)c;
   if (t < in->time - 1e-9 || t > in->time + 1e-9) return fail(in, "doStep at the wrong time");
   outputs(in);
-  in->time = t + h;
   *event = 0;
-  *terminate = 0;
   *early = 0;
+  if (t + h > in->stop_at + 1e-12) {
+    in->time = in->stop_at > t ? in->stop_at : t;
+    *terminate = 1;
+    *last = in->time;
+    return fmi3Discard;
+  }
+  in->time = t + h;
+  *terminate = 0;
   *last = in->time;
   return fmi3OK;
 }
@@ -86,6 +94,7 @@ EXPORT fmi3Status fmi3GetFloat64(fmi3Instance c, const fmi3ValueReference vr[], 
     else if (vr[i] == 3) { src = in->y; m = in->n; }
     else if (vr[i] == 4) src = &in->scale;
     else if (vr[i] == 6) src = &in->total;
+    else if (vr[i] == 7) src = &in->stop_at;
     else return fail(in, "fmi3GetFloat64: unknown value reference");
     if (k + m > nv) return fail(in, "fmi3GetFloat64: nValues too small for the arrays");
     memcpy(v + k, src, m * sizeof(double));
@@ -103,6 +112,8 @@ EXPORT fmi3Status fmi3SetFloat64(fmi3Instance c, const fmi3ValueReference vr[], 
       k += in->n;
     } else if (vr[i] == 4) {
       in->scale = v[k++];
+    } else if (vr[i] == 7) {
+      in->stop_at = v[k++];
     } else {
       return fail(in, "fmi3SetFloat64: not an input or parameter");
     }
