@@ -1,5 +1,7 @@
 #include "config.hpp"
 
+#include "ssp_import.hpp"
+
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -324,10 +326,8 @@ void substitute_config_dir(YAML::Node node, const std::string& dir) {
 }  // namespace
 
 Config load_config(const std::string& path, const std::vector<std::string>& overrides) {
-  YAML::Node root = cfg::load_file(path);  // refuses folders, scalars, duplicate keys
-  std::ifstream in(path, std::ios::binary);
-  std::stringstream text;
-  text << in.rdbuf();
+  std::string text;  // an SSP system (.ssp, .ssd, or a YAML with ssp:) becomes the generated YAML
+  YAML::Node root = ssp::load_root(path, &text);  // refuses folders, scalars, duplicate keys
   for (const auto& o : overrides) cfg::apply_override(root, o);
   if (YAML::Node parts = root["participants"]; parts && parts.IsMap()) {
     const std::string dir = std::filesystem::absolute(path).parent_path().lexically_normal().string();
@@ -337,7 +337,7 @@ Config load_config(const std::string& path, const std::vector<std::string>& over
         if (YAML::Node p = it->second["parameters"]) substitute_config_dir(p, dir);
       }
   }
-  return parse_config(root, text.str());
+  return parse_config(root, text);
 }
 
 void check_wiring(const Config& c, const std::map<std::string, cosim::ParticipantInfo>& parts) {

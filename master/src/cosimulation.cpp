@@ -1,6 +1,7 @@
 #include "cosimulation.hpp"
 
 #include <cmath>
+#include <cstdio>
 
 #include <cosim/bus.hpp>
 #include <cosim/quantities.hpp>
@@ -205,6 +206,7 @@ void CoSimulation::exchange(const std::vector<std::string>& group, int iteration
     rec.compute_seconds[name] = answers[g].compute_seconds;
     rec.round_trip_seconds[name] = answers[g].round_trip_seconds;
     if (answers[g].average) s.averages[name] = *answers[g].average;
+    if (answers[g].ended_at) note_end(name, answers[g], t0, t1);
     for (std::size_t i = 0; i < config_.connections.size(); ++i) {
       const auto& k = config_.connections[i];
       if (k.from.participant != name) continue;
@@ -214,6 +216,20 @@ void CoSimulation::exchange(const std::vector<std::string>& group, int iteration
         predictors_[i].record(t1, answers[g].outputs.at(k.from.signal).value);
     }
   }
+}
+
+// A participant ended itself (step_reply_t::ENDED, an FMU's terminate) at `answer.ended_at`:
+// the run ends with this step; when the end lies before t1 the step is not recorded (the
+// others' outputs are at t1, this one's earlier).
+void CoSimulation::note_end(const std::string& name, const cosim::StepAnswer& answer, TimePoint t0, TimePoint t1) {
+  char text[96];
+  std::snprintf(text, sizeof text, "participant '%s' ended the run at t = %.9g s: ", name.c_str(),
+                cosim::to_seconds(*answer.ended_at));
+  ended_ = text + answer.ended_reason;
+  ended_inside_ = *answer.ended_at < t1;
+  char tail[96];
+  std::snprintf(tail, sizeof tail, "; recorded up to t = %.9g s", cosim::to_seconds(ended_inside_ ? t0 : t1));
+  *ended_ += tail;
 }
 
 void CoSimulation::record_connections(OpenStep& s) const {
@@ -258,8 +274,12 @@ void CoSimulation::record_power(StepRecord& rec, bool any_connection) const {
 void CoSimulation::close_step(int iterations, bool checkpoint) {
   if (!open_) throw std::logic_error("close_step outside a macro step");
   OpenStep& s = *open_;
+  if (ended_inside_) {  // a participant ended before t1: not a row
+    open_.reset();
+    return;
+  }
   s.rec.iterations = iterations;
-  s.rec.checkpoint = checkpoint;  // every reply confirmed it, or exchange() raised
+  s.rec.checkpoint = checkpoint && !ended_;  // every reply confirmed it, or exchange() raised
   record_connections(s);
   record_power(s.rec, !s.sent.empty());
   s.rec.wall_seconds = s.wall.seconds();
@@ -279,8 +299,9 @@ void CoSimulation::run() {
     for (auto* o : observers_) o->on_finish(false, e.what());
     throw;
   }
-  transport_.terminate(false, "finished");
-  for (auto* o : observers_) o->on_finish(true, "");
+  if (ended_) std::fprintf(stderr, "cosim_master: %s\n", ended_->c_str());
+  transport_.terminate(false, ended_ ? *ended_ : "finished");
+  for (auto* o : observers_) o->on_finish(true, ended_.value_or(""));
 }
 
 }  // namespace master

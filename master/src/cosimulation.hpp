@@ -124,6 +124,8 @@ class CoSimulation final : private Coupling {
   void exchange(const std::vector<std::string>& group, int iteration, bool checkpoint) override;
   void close_step(int iterations, bool checkpoint) override;
   bool checkpoint_due(int64_t step) const override;
+  bool ended() const override { return ended_.has_value(); }
+  void note_end(const std::string& name, const cosim::StepAnswer& answer, TimePoint t0, TimePoint t1);
 
   std::vector<cosim::step_request_t> requests(const std::vector<std::string>& group, int64_t step,
                                        int iteration, TimePoint t0, TimePoint t1, bool checkpoint);
@@ -134,6 +136,9 @@ class CoSimulation final : private Coupling {
   void record_connections(OpenStep& s) const;
   void record_power(StepRecord& rec, bool any_connection) const;
 
+  // A participant ended itself (step_reply_t::ENDED): the run ends with this step; the message.
+  std::optional<std::string> ended_;
+  bool ended_inside_ = false;  // ... before the step's end: the step is not recorded
   const Config& config_;
   cosim::Transport& transport_;
   std::unique_ptr<CouplingAlgorithm> algorithm_;

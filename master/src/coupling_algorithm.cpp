@@ -3,7 +3,7 @@
 namespace master {
 
 void CouplingAlgorithm::run(Coupling& coupling, int64_t first_step, TimePoint t, TimePoint t_end) {
-  for (int64_t step = first_step; t < t_end; ++step) {
+  for (int64_t step = first_step; t < t_end && !coupling.ended(); ++step) {
     const Duration taken = do_step(coupling, step, t);
     if (taken <= Duration::zero())
       throw std::logic_error(name() + ": a macro step of zero length at step " + std::to_string(step));
@@ -53,11 +53,14 @@ Duration FixedStepAlgorithm::do_step(Coupling& coupling, int64_t step, TimePoint
   const int iterations = iterate ? 1 + startup_iterations_ : 1;
   const bool checkpoint = coupling.checkpoint_due(step);
   coupling.open_step(step, t, t + macro_step_);
-  for (int it = 0; it < iterations; ++it)
-    for (const auto& group : groups_)
+  int done = 0;
+  for (int it = 0; it < iterations && !coupling.ended(); ++it, ++done)
+    for (const auto& group : groups_) {
+      if (coupling.ended()) break;
       // The checkpoint goes with the last iteration: the state after it is the step's result.
       coupling.exchange(group, it, it + 1 == iterations && checkpoint);
-  coupling.close_step(iterations, checkpoint);
+    }
+  coupling.close_step(done, checkpoint);
   return macro_step_;
 }
 

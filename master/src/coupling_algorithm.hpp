@@ -37,6 +37,9 @@ class Coupling {
   virtual void close_step(int iterations, bool checkpoint) = 0;
   // Whether the participants save a checkpoint after step `step` (checkpoints.every).
   virtual bool checkpoint_due(int64_t step) const = 0;
+  // A participant ended the run itself (an FMU's terminate) in the open step: no further
+  // exchange in it and no further step.
+  virtual bool ended() const = 0;
 };
 
 // What the handshake told the master, for CouplingAlgorithm::initialize.

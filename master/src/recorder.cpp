@@ -486,6 +486,7 @@ void H5Recorder::on_finish(bool ok, const std::string& message) {
       if (I.time) {
         I.flush_all();
         cosim::h5::write_string(I.file, "status", ok ? "finished" : "stopped: " + message);
+        if (ok && !message.empty()) cosim::h5::write_string(I.file, "ended", message);  // a participant ended the run
         if (I.setup && I.setup->bus) write_bus_stats(I.file, *I.setup);
         cosim::h5::set_int_attribute(I.file, "complete", ok ? 1 : 0);
         cosim::h5::flush(I.file, I.path);

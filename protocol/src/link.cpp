@@ -34,12 +34,18 @@ StepAnswer Transport::accept(const step_request_t& q, const step_reply_t& r,
                            std::to_string(to_seconds(time_point_ns(q.t_start_ns))) + " s)";
   if (r.status == step_reply_t::REJECTED)
     throw LinkError(q.participant, what + " refused the request: " + r.message);
-  if (r.status != step_reply_t::OK)
+  const bool ended = r.status == step_reply_t::ENDED;
+  if (r.status != step_reply_t::OK && !ended)
     throw LinkError(q.participant, what + " failed: " + r.message);
   StepAnswer a;
   try {
-    if (r.t_start_ns != q.t_start_ns || r.t_end_ns != q.t_end_ns)
+    if (r.t_start_ns != q.t_start_ns || (ended ? r.t_end_ns < q.t_start_ns || r.t_end_ns > q.t_end_ns
+                                               : r.t_end_ns != q.t_end_ns))
       throw ProtocolError("reply times do not match the request");
+    if (ended) {
+      a.ended_at = time_point_ns(r.t_end_ns);
+      a.ended_reason = r.message;
+    }
     a.outputs = from_message(r.outputs, "outputs");
     check_against_ports(a.outputs, info.outputs, "outputs");
     if (q.want_average) {

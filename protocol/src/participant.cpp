@@ -247,6 +247,10 @@ std::optional<step_reply_t> ParticipantCore::handle(const step_request_t& q) {
     r.attempt = q.attempt;
     return r;
   }
+  if (cached_ && cached_->status == step_reply_t::ENDED)
+    return refuse(q, step_reply_t::REJECTED,
+                  "the model ended itself at t = " + std::to_string(to_seconds(t_now_)) +
+                      " s (" + cached_->message + "); it takes no further step");
   const bool next = q.step_index == last_step_ + 1;
   const bool redo = q.step_index == last_step_ && q.iteration > last_iteration_;
   if (q.step_index < last_step_ || (q.step_index == last_step_ && q.iteration < last_iteration_)) {
@@ -305,6 +309,9 @@ step_reply_t ParticipantCore::run_step(const step_request_t& q) {
     }
     for (const auto& [n, v] : result.diagnostics)
       if (!valid_name(n)) throw ProtocolError("diagnostic name '" + n + "' is not valid");
+    if (result.ended_at && (*result.ended_at < in.t_start() || *result.ended_at > in.t_end()))
+      throw ProtocolError("the model says it ended at " + std::to_string(to_ns(*result.ended_at)) +
+                          " ns, outside the step");
   } catch (const InputError& e) {
     busy_step_ = -1;
     if (model_.can_repeat()) model_.restore_snapshot();
@@ -323,6 +330,12 @@ step_reply_t ParticipantCore::run_step(const step_request_t& q) {
   r.compute_seconds = seconds;
   if (!redo) t_before_last_ = time_point_ns(q.t_start_ns);
   t_now_ = time_point_ns(q.t_end_ns);
+  if (result.ended_at) {  // the model ended itself: the reply says where, and no step follows
+    r.status = step_reply_t::ENDED;
+    r.message = result.ended_reason;
+    r.t_end_ns = to_ns(*result.ended_at);
+    t_now_ = *result.ended_at;
+  }
   last_step_ = q.step_index;
   last_iteration_ = q.iteration;
   if (q.checkpoint) {

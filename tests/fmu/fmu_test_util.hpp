@@ -90,6 +90,20 @@ inline Entries echo_fmu_entries() {
           {"binaries/linux64/echo_fmu.so", slurp(ECHO_FMU_SO)}};
 }
 
+// The test-only counter FMU (tests/fmu/counter_fmu): ends itself at stop_at, reads its rate
+// from resources/rate.txt, serializes its state.
+inline Entries counter_fmu_entries(const std::string& rate = "2.5") {
+  return {{"modelDescription.xml", slurp(std::string(SOURCE_DIR) + "/tests/fmu/counter_fmu/modelDescription.xml")},
+          {"binaries/linux64/counter_fmu.so", slurp(COUNTER_FMU_SO)},
+          {"resources/rate.txt", rate + "\n"}};
+}
+
+// The test-only FMI 3.0 FMU with arrays (tests/fmu/array_fmu3).
+inline Entries array_fmu3_entries() {
+  return {{"modelDescription.xml", slurp(std::string(SOURCE_DIR) + "/tests/fmu/array_fmu3/modelDescription.xml")},
+          {"binaries/x86_64-linux/array_fmu3.so", slurp(ARRAY_FMU3_SO)}};
+}
+
 inline std::string pack(const Entries& e, const std::string& suffix = ".fmu") {
   const std::string path = temp_path(suffix);
   write_zip(path, e);
@@ -106,6 +120,17 @@ inline bool have_fmus() { return std::filesystem::exists(fmus_dir() + "/Bouncing
     if (!fmutest::have_fmus())                                                                    \
       GTEST_SKIP() << "Reference FMUs not found in " << fmutest::fmus_dir()                        \
                    << " (set -DCOSIM_FMUS_DIR=<folder with fmi2/*.fmu>); this test needs them";   \
+  } while (0)
+
+inline std::string fmus3_dir() { return std::string(FMUS_DIR) + "/fmi3"; }
+inline bool have_fmus3() { return std::filesystem::exists(fmus3_dir() + "/Dahlquist.fmu") && have_fmus(); }
+
+// The FMI 3.0 Reference FMUs (compared against the CSVs in fmi2/, the same models).
+#define REQUIRE_FMI3_REFERENCE_FMUS()                                                             \
+  do {                                                                                            \
+    if (!fmutest::have_fmus3())                                                                   \
+      GTEST_SKIP() << "FMI 3.0 Reference FMUs not found in " << fmutest::fmus3_dir()               \
+                   << " (or their CSVs in " << fmutest::fmus_dir() << "); this test needs them";  \
   } while (0)
 
 struct Table {

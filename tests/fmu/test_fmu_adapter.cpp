@@ -12,6 +12,7 @@
 #include "euler.hpp"
 #include "fmu_model.hpp"
 #include "fmu_test_util.hpp"
+#include "ssp_import.hpp"
 
 namespace {
 
@@ -119,7 +120,9 @@ TEST(FmuBroken, ModelDescriptionProblems) {
   EXPECT_HAS(msg, "at line");
   EXPECT_HAS(msg, "_malformed.fmu");
   msg = with_xml("fmiVersion=\"2.0\"", "fmiVersion=\"3.0\"", "_fmi3.fmu");
-  EXPECT_HAS(msg, "fmiVersion is \"3.0\"; fmu_adapter imports FMI 2.0 only");
+  EXPECT_HAS(msg, "no instantiationToken attribute (required by FMI 3.0)");  // read as 3.0
+  msg = with_xml("fmiVersion=\"2.0\"", "fmiVersion=\"4.0\"", "_fmi4.fmu");
+  EXPECT_HAS(msg, "fmiVersion is \"4.0\"; fmu_adapter imports FMI 2.0 and 3.0");
   msg = with_xml("fmiVersion=\"2.0\"", "fmiVersion=\"1.0\"", "_fmi1.fmu");
   EXPECT_HAS(msg, "fmiVersion is \"1.0\"");
   msg = with_xml("<CoSimulation modelIdentifier", "<ModelExchange modelIdentifier", "_me.fmu");
@@ -730,6 +733,727 @@ TEST(FmuBroken, RunsStopWithTheFmuNamedOverLcm) {
   EXPECT_HAS(log, "fmu_adapter failing: FMU 'FmuBroken_RunsStopWithTheFmuNamedOverLcm_good.fmu (model 'FailFmu')' (instance 'failing') [fmi2Error, logStatusError]: deliberate failure");
   EXPECT_EQ(harness::read_dataset(csv2 + ".h5", "participants/failing/outputs/x").size(), 6u);  // t = 0 .. 0.5
   EXPECT_LT(wall.seconds(), 60.0);
+}
+
+
+// ---------------------------------------------------------------------------------------------
+// FMI 2.0 fixes (issue 47): an FMU that ends itself, a resource folder with a space and a '%',
+// start values of the wrong type found at start, a modelIdentifier that names no binary.
+
+// The counter FMU reaches stop_at inside a doStep: fmi2Discard with fmi2Terminated. The step
+// ends at the time the FMU reached, with its outputs there, and says so; no further step.
+TEST(FmuEnds, TheStepEndsWhereTheFmuEndedItself) {
+  fmu::FmuModel m(YAML::Node(YAML::NodeType::Map), "");
+  YAML::Node p = yaml("{instance: c, substeps: 4, start: {stop_at: 0.35}, outputs: [{name: count, scalar: count}]}");
+  p["fmu"] = fmutest::pack(fmutest::counter_fmu_entries("2.5"));
+  m.configure(p, run_info(1.0, 0.2));
+  cosim::Polynomials none;
+  auto r = m.step(cosim::StepInputs(cosim::TimePoint{}, cosim::seconds_to_time_point(0.2, "t"), none), false);
+  EXPECT_FALSE(r.ended_at);
+  EXPECT_NEAR(r.outputs.at("count").value[0], 0.5, 1e-15);
+  // Sub-steps of 0.05 s: [0.3, 0.35] completes, [0.35, 0.4] passes stop_at = 0.35 and ends.
+  r = m.step(cosim::StepInputs(cosim::seconds_to_time_point(0.2, "t"), cosim::seconds_to_time_point(0.4, "t"), none), false);
+  ASSERT_TRUE(r.ended_at);
+  EXPECT_EQ(*r.ended_at, cosim::seconds_to_time_point(0.35, "t"));
+  EXPECT_NEAR(r.outputs.at("count").value[0], 2.5 * 0.35, 1e-14);  // the outputs where it ended
+  EXPECT_HAS(r.ended_reason, "(instance 'c') ended itself: fmi2DoStep at t = 0.35 s (step 0.05 s) returned fmi2Discard "
+                             "with fmi2Terminated: the FMU ended the simulation at its last successful time 0.35 s");
+  EXPECT_THROW(m.step(cosim::StepInputs(cosim::seconds_to_time_point(0.4, "t"), cosim::seconds_to_time_point(0.6, "t"), none), false),
+               fmu::FmuError);
+  // A discard without fmi2Terminated is a failure that says what the FMU did and did not say.
+  fmu::FmuModel d(YAML::Node(YAML::NodeType::Map), "");
+  YAML::Node q = yaml("{start: {stop_at: 0.15, terminate: false}, outputs: [{name: count, scalar: count}]}");
+  q["fmu"] = fmutest::pack(fmutest::counter_fmu_entries(), "_discard.fmu");
+  d.configure(q, run_info(1.0, 0.2));
+  try {
+    d.step(cosim::StepInputs(cosim::TimePoint{}, cosim::seconds_to_time_point(0.2, "t"), none), false);
+    ADD_FAILURE() << "a plain discard was accepted";
+  } catch (const fmu::FmuError& e) {
+    EXPECT_HAS(e.what(), "fmi2DoStep at t = 0 s (step 0.2 s) returned fmi2Discard: the FMU could not complete the step and "
+                         "did not ask to end the simulation (fmi2GetBooleanStatus(fmi2Terminated) is false)");
+  }
+}
+
+// Under cosim_master over LCM: the counter ends itself at t = 9 s of a 10 s run (the doStep
+// from 9 s is refused at once: ended at the step's start) and at 9.05 s (inside a step). The
+// run ends cleanly (exit 0, /status finished, /ended says why), recorded up to 9 s, the count
+// exact there; without fmi2Terminated it is a failed run (exit 1) with the reason.
+TEST(FmuEnds, AnFmuThatEndsItselfEndsTheRunCleanlyOverLcm) {
+  const std::string fmu = fmutest::pack(fmutest::counter_fmu_entries("2.5"));
+  for (const std::string stop : {"9", "9.05"}) {
+    const std::string csv = fmutest::temp_path("_" + stop + ".csv");
+    ASSERT_EQ(run("counter.yaml", {"participants.counter.parameters.fmu=" + fmu,
+                                   "participants.counter.parameters.start.stop_at=" + stop}, csv), 0)
+        << harness::read_text(csv + ".h5.log");
+    const std::string log = harness::read_text(csv + ".h5.log");
+    EXPECT_HAS(log, "cosim_master: participant 'counter' ended the run at t = " + stop + " s: FMU '");
+    EXPECT_HAS(log, "(instance 'counter') ended itself: fmi2DoStep at t = 9 s (step 0.1 s) returned fmi2Discard with "
+                    "fmi2Terminated: the FMU ended the simulation at its last successful time " + stop + " s; recorded up to t = 9 s");
+    const auto t = fmutest::read_csv(csv);
+    ASSERT_EQ(t.rows.size(), 91u) << stop;  // t = 0, 0.1, ..., 9
+    EXPECT_NEAR(t.number(90, "time"), 9.0, 1e-12);
+    EXPECT_NEAR(t.number(90, "counter.count"), 22.5, 1e-12);
+    EXPECT_EQ(harness::read_dataset(csv + ".h5", "time").size(), 91u);
+    EXPECT_EQ(harness::read_string(csv + ".h5", "status"), "finished");
+    EXPECT_HAS(harness::read_string(csv + ".h5", "ended"), "participant 'counter' ended the run at t = " + stop + " s");
+  }
+  const std::string csv = fmutest::temp_path("_discard.csv");
+  ASSERT_EQ(run("counter.yaml", {"participants.counter.parameters.fmu=" + fmu, "participants.counter.parameters.start.terminate=false"}, csv), 1);
+  EXPECT_HAS(harness::read_text(csv + ".h5.log"), "returned fmi2Discard: the FMU could not complete the step and did not ask to end the simulation");
+}
+
+TEST(FmuResources, TheResourceLocationIsAPercentEncodedFileUri) {
+  EXPECT_EQ(fmu::file_uri("/tmp/a b%c/resources/"), "file:///tmp/a%20b%25c/resources/");
+  EXPECT_EQ(fmu::file_uri("/x/Ab-9._~/"), "file:///x/Ab-9._~/");
+  EXPECT_EQ(fmu::file_uri("/\xc3\xa4#?"), "file:///%C3%A4%23%3F");
+  // The counter FMU decodes the URI and reads resources/rate.txt; unpacked below a folder whose
+  // name has a space and a '%' (and "%41", which a decoder would turn into "A" if it were not
+  // encoded), it must find it.
+  namespace fs = std::filesystem;
+  const fs::path odd = fmutest::temp_path("_dir with space%41%");
+  fs::remove_all(odd);
+  fs::create_directories(odd);
+  setenv("TMPDIR", odd.c_str(), 1);
+  {
+    fmu::FmuModel m(YAML::Node(YAML::NodeType::Map), "");
+    YAML::Node p = yaml("{outputs: [{name: count, scalar: count}, {name: rate, scalar: rate_out}]}");
+    p["fmu"] = fmutest::pack(fmutest::counter_fmu_entries("4.25"));
+    try {
+      m.configure(p, run_info(1.0, 0.5));
+      const auto r = m.step(cosim::StepInputs(cosim::TimePoint{}, cosim::seconds_to_time_point(0.5, "t"), cosim::Polynomials{}), false);
+      EXPECT_EQ(r.outputs.at("rate").value[0], 4.25);
+      EXPECT_EQ(r.outputs.at("count").value[0], 4.25 * 0.5);
+    } catch (const std::exception& e) {
+      ADD_FAILURE() << e.what();
+    }
+  }
+  unsetenv("TMPDIR");
+  EXPECT_TRUE(fs::is_empty(odd));
+}
+
+// A start value of the wrong type is refused when the adapter starts with the FMU and the
+// mapping, without a master (exit 2 at once, not 3 after waiting for one).
+TEST(FmuCommandLine, AStartValueOfTheWrongTypeIsRefusedAtStart) {
+  namespace fs = std::filesystem;
+  const fs::path dir = fmutest::temp_path("_dir");
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  fmutest::write_zip((dir / "echo.fmu").string(), fmutest::echo_fmu_entries());
+  std::ofstream(dir / "int.yaml") << "start: {n: 2.5}\noutputs: [{name: y, scalar: y0}]\n";
+  std::ofstream(dir / "bool.yaml") << "start: {b: 1.5}\noutputs: [{name: y, scalar: y0}]\n";
+  std::ofstream(dir / "real.yaml") << "start: {u0: yes please}\noutputs: [{name: y, scalar: y0}]\n";
+  const std::string url = harness::bus_url();
+  for (const auto& [file, expect] : std::vector<std::pair<std::string, std::string>>{
+           {"int.yaml", "start.n: 'n' is an FMI Integer variable; expected an integer, got '2.5'"},
+           {"bool.yaml", "start.b: 'b' is an FMI Boolean variable; expected true or false, got '1.5'"},
+           {"real.yaml", "start.u0: 'u0' is an FMI Real variable; expected a finite number, got 'yes please'"}}) {
+    auto p = harness::spawn({harness::bin("fmu_adapter"), (dir / "echo.fmu").string(), "--mapping", (dir / file).string(),
+                             "--wait", "20", "--bus", url},
+                            (dir / (file + ".log")).string());
+    EXPECT_EQ(harness::wait_for(p, 15), 2) << file;
+    const std::string log = harness::read_text((dir / (file + ".log")).string());
+    EXPECT_HAS(log, "fmu_adapter: config error in " + (dir / file).string() + ": " + expect);
+  }
+}
+
+// binaries/linux64/ holds a library, but not the one the modelIdentifier names: the message
+// says so (not "no binary for this platform ... it has binaries for: linux64").
+TEST(FmuBroken, AModelIdentifierThatNamesNoBinaryIsNamed) {
+  Entries e = fmutest::fail_fmu_entries();
+  e.back().first = "binaries/linux64/FailFmu.so";
+  const std::string msg = configure_error(fmutest::pack(e, "_renamed.fmu"));
+  EXPECT_HAS(msg, "<CoSimulation modelIdentifier=\"fail_fmu\"> in modelDescription.xml names the binary "
+                  "binaries/linux64/fail_fmu.so, which is not in the archive; binaries/linux64/ holds FailFmu.so");
+  EXPECT_HAS(msg, "repack it with the binary named fail_fmu.so");
+  EXPECT_EQ(msg.find("no binary for this platform"), std::string::npos) << msg;
+}
+
+// --resume with an FMU (canSerializeFMUstate): the counter run by a hand-started fmu_adapter is
+// killed (kill -9) after a checkpoint; a new fmu_adapter and cosim_master --resume finish the
+// run, and the record and the CSV equal an uninterrupted run's bit for bit. The counter's state
+// (its time and count) comes back from the serialized FMU state: a fresh instance would refuse
+// the first step (it is at t = 0) and count from 0.
+// One participant `name` from `cfg` started by hand (fmu_adapter with everything from the
+// master's parameters), 20000 steps with a checkpoint every 100; killed (kill -9) after the
+// checkpoint after 3000 steps, resumed with a new fmu_adapter: returns the datasets `outputs`
+// of the uninterrupted and the resumed record, and checks the CSV and /status.
+std::vector<std::pair<std::vector<double>, std::vector<double>>> kill_and_resume(
+    const std::string& cfg, const std::string& name, const std::vector<std::string>& sets, const std::vector<std::string>& outputs) {
+  namespace fs = std::filesystem;
+  std::vector<std::pair<std::vector<double>, std::vector<double>>> out;
+  const std::string url = harness::bus_url();
+  const std::string full = fmutest::temp_path("_full.h5"), h5 = fmutest::temp_path(".h5");
+  fs::remove_all(h5 + ".checkpoints");
+  auto master_args = [&](const std::string& file) {
+    std::vector<std::string> a{harness::bin("cosim_master"), harness::source(config(cfg)), "--output", file, "--csv", file + ".csv",
+                               "--set", "bus.url=" + url, "--set", "participants." + name + ".launch=null",
+                               "--set", "participants." + name + ".timeout=0.5", "--set", "output.progress=off",
+                               // started by hand without a key: unkeyed by choice
+                               "--set", "bus.authenticate=false"};
+    for (const auto& s : sets) a.insert(a.end(), {"--set", s});
+    return a;
+  };
+  auto adapter = [&](const std::string& log) {
+    return harness::spawn({harness::bin("fmu_adapter"), "--name", name, "--bus", url, "--wait", "60"}, log);
+  };
+  {
+    auto a = adapter(full + ".adapter.log");
+    auto m = harness::spawn(master_args(full), full + ".log");
+    EXPECT_EQ(harness::wait_for(m, 180), 0) << harness::read_text(full + ".log");
+    EXPECT_EQ(harness::wait_for(a, 10), 0);
+  }
+  auto a = adapter(h5 + ".adapter.log");
+  auto m = harness::spawn(master_args(h5), h5 + ".log");
+  const std::string folder = h5 + ".checkpoints";
+  bool checkpointed = false;
+  for (int i = 0; i < 60000 && !checkpointed; ++i) {
+    std::error_code ec;
+    for (const auto& f : fs::directory_iterator(folder, ec)) {
+      const std::string file = f.path().filename().string();
+      const auto us = file.rfind('_');
+      if (file.size() > 5 && file.substr(file.size() - 5) == ".ckpt" && us != std::string::npos && std::stoll(file.substr(us + 1)) >= 3000)
+        checkpointed = true;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  EXPECT_TRUE(checkpointed) << harness::read_text(h5 + ".log");
+  kill(a.pid, SIGKILL);
+  harness::wait_for(a, 5);
+  EXPECT_EQ(harness::wait_for(m, 30), 1) << harness::read_text(h5 + ".log");
+  const std::size_t rows = harness::read_dataset(h5, "time").size();
+  EXPECT_LT(rows, 20001u) << "the run was not interrupted";
+  const double at = harness::read_dataset(h5, "checkpoint/steps_done").at(0);
+  EXPECT_GE(at, 2900);
+  std::printf("fmu_adapter killed after %zu of 20000 steps; resuming after %.0f\n", rows - 1, at);
+  auto b = adapter(h5 + ".adapter2.log");
+  auto r = harness::spawn({harness::bin("cosim_master"), "--resume", h5}, h5 + ".resume.log");
+  EXPECT_EQ(harness::wait_for(r, 180), 0) << harness::read_text(h5 + ".resume.log") << harness::read_text(h5 + ".adapter2.log");
+  EXPECT_EQ(harness::wait_for(b, 10), 0);
+  for (const auto& d : outputs)
+    out.push_back({harness::read_dataset(full, "participants/" + name + "/outputs/" + d), harness::read_dataset(h5, "participants/" + name + "/outputs/" + d)});
+  EXPECT_EQ(harness::read_dataset(h5, "time"), harness::read_dataset(full, "time"));
+  EXPECT_TRUE(harness::read_text(h5 + ".csv") == harness::read_text(full + ".csv")) << "the resumed CSV differs";
+  EXPECT_EQ(harness::read_string(h5, "status"), "finished");
+  EXPECT_FALSE(fs::exists(folder)) << "the finished run's checkpoints were not deleted";
+  return out;
+}
+
+// --resume with an FMU (FMI 2.0, canSerializeFMUstate): the counter run by a hand-started
+// fmu_adapter is killed (kill -9) after a checkpoint; a new fmu_adapter and cosim_master --resume
+// finish the run, and the record and the CSV equal an uninterrupted run's bit for bit. The
+// counter's state (its time and count) comes back from the serialized FMU state: a fresh
+// instance would refuse the first step (it is at t = 0) and count from 0.
+TEST(FmuResume, AKilledFmuAdapterResumesFromItsSerializedState) {
+  const std::string fmu = fmutest::pack(fmutest::counter_fmu_entries("1.5"));
+  const auto d = kill_and_resume("counter.yaml", "counter",
+                                 {"time.end=20", "time.macro_step=0.001", "checkpoints.every=0.1",
+                                  "participants.counter.parameters.fmu=" + fmu, "participants.counter.parameters.start.stop_at=1e300"},
+                                 {"count"});
+  ASSERT_EQ(d.size(), 1u);
+  const auto& [x_full, x] = d[0];
+  ASSERT_EQ(x_full.size(), 20001u);
+  ASSERT_EQ(x.size(), x_full.size());
+  EXPECT_EQ(std::memcmp(x.data(), x_full.data(), x.size() * sizeof(double)), 0);
+  EXPECT_NEAR(x.back(), 1.5 * 20, 1e-9);
+}
+
+// The same with an FMI 3.0 FMU (canSerializeFMUState): VanDerPol from the Reference FMUs, 200 s
+// in steps of its fixed internal step (0.01 s).
+TEST(FmuResume, AKilledFmuAdapterWithAnFmi3FmuResumes) {
+  REQUIRE_FMI3_REFERENCE_FMUS();
+  const auto d = kill_and_resume("van_der_pol.yaml", "vdp",
+                                 {"time.end=200", "time.macro_step=0.01", "checkpoints.every=1",
+                                  "participants.vdp.parameters.fmu=" + fmutest::fmus3_dir() + "/VanDerPol.fmu"},
+                                 {"x0", "x1"});
+  for (const auto& [full, resumed] : d) {
+    ASSERT_EQ(full.size(), 20001u);
+    ASSERT_EQ(resumed.size(), full.size());
+    EXPECT_EQ(std::memcmp(full.data(), resumed.data(), full.size() * sizeof(double)), 0);
+  }
+  EXPECT_GT(std::abs(d[0].first.back()), 0.01);  // the oscillator still oscillates at 200 s
+}
+
+
+// ---------------------------------------------------------------------------------------------
+// FMI 3.0 (the Reference FMUs in fmi3/, skipped when absent) against the reference CSVs in fmi2/:
+// the same model sources with the same fixed-step solver inside doStep.
+
+// Tolerance for the FMI 3.0 builds against the CSVs of the FMI 2.0 builds: the same C model
+// and the same forward Euler with the same internal step (BouncingBall 1 ms, Dahlquist 0.1 s,
+// VanDerPol 0.1 s), but another binary: the arithmetic order may differ in the last bits
+// (measured: see the test output). 1e-9 still catches one step of the wrong length or a wrong
+// start value (1e-4 and more, as for FMI 2.0 above).
+constexpr double kFmi3Tolerance = 1e-9;
+
+TEST(Fmi3Reference, BouncingBallDahlquistVanDerPolMatchTheirReferencesOverLcm) {
+  REQUIRE_FMI3_REFERENCE_FMUS();
+  struct Case {
+    std::string config, participant, fmu;
+    std::vector<std::pair<std::string, std::string>> columns;
+  };
+  for (const Case& c : std::vector<Case>{{"bouncing_ball.yaml", "ball", "BouncingBall", {{"h", "h"}, {"v", "v"}}},
+                                         {"dahlquist.yaml", "dahlquist", "Dahlquist", {{"x", "x"}}},
+                                         {"van_der_pol.yaml", "vdp", "VanDerPol", {{"x0", "x0"}, {"x1", "x1"}}}}) {
+    const std::string csv = fmutest::temp_path("_" + c.fmu + ".csv");
+    ASSERT_EQ(run(c.config, {"participants." + c.participant + ".parameters.fmu=" + fmutest::fmus3_dir() + "/" + c.fmu + ".fmu"}, csv), 0)
+        << harness::read_text(csv + ".h5.log");
+    std::cerr << c.fmu << " (FMI 3.0): ";
+    compare(fmutest::read_csv(csv), fmutest::read_csv(fmutest::fmus_dir() + "/" + c.fmu + "_out.csv"), c.participant + ".",
+            c.columns, kFmi3Tolerance);
+  }
+  // A start value reaches the 3.0 FMU: Dahlquist with k = 1.01 is 1 - 0.101 after one step.
+  const std::string k = fmutest::temp_path("_k.csv");
+  ASSERT_EQ(run("dahlquist.yaml", {"participants.dahlquist.parameters.fmu=" + fmutest::fmus3_dir() + "/Dahlquist.fmu",
+                                   "participants.dahlquist.parameters.start={k: 1.01}"}, k), 0)
+      << harness::read_text(k + ".h5.log");
+  EXPECT_NEAR(fmutest::read_csv(k).number(1, "dahlquist.x"), 0.899, 1e-12);
+}
+
+// Feedthrough 3.0 alone, inputs at their start values: every numeric column of the reference
+// CSV exactly (a copy does no arithmetic), Boolean as 0/1; String and Binary, which ports do not
+// carry, read from the instance: "Set me!" and 666f6f as in the CSV.
+TEST(Fmi3Reference, FeedthroughEveryTypeMatchesItsReferenceOverLcm) {
+  REQUIRE_FMI3_REFERENCE_FMUS();
+  const std::string csv = fmutest::temp_path(".csv");
+  ASSERT_EQ(run("feedthrough3_alone.yaml", {"participants.ft.parameters.fmu=" + fmutest::fmus3_dir() + "/Feedthrough.fmu"}, csv), 0)
+      << harness::read_text(csv + ".h5.log");
+  const auto ref = fmutest::read_csv(fmutest::fmus_dir() + "/Feedthrough_out.csv");
+  const auto ours = fmutest::read_csv(csv);
+  std::vector<std::pair<std::string, std::string>> numeric;
+  for (const char* n : {"Float32_continuous_output", "Float32_discrete_output", "Float64_continuous_output",
+                        "Float64_discrete_output", "Int8_output", "UInt8_output", "Int16_output", "UInt16_output",
+                        "Int32_output", "UInt32_output", "Int64_output", "UInt64_output", "Enumeration_output"})
+    numeric.push_back({n, n});
+  compare(ours, ref, "ft.", numeric, 0.0);
+  for (std::size_t i = 0; i < ours.rows.size(); ++i)
+    EXPECT_EQ(ours.number(i, "ft.Boolean_output"), ref.rows[i][ref.column("Boolean_output")] == "true" ? 1.0 : 0.0) << i;
+  fmu::FmuModel m(YAML::Node(YAML::NodeType::Map), "");
+  YAML::Node p = yaml("outputs: [{name: y, scalar: Int8_output}]");
+  p["fmu"] = fmutest::fmus3_dir() + "/Feedthrough.fmu";
+  m.configure(p, run_info(2.0, 0.1));
+  m.step(cosim::StepInputs(cosim::TimePoint{}, cosim::seconds_to_time_point(0.1, "t"), cosim::Polynomials{}), false);
+  EXPECT_EQ(m.value_text("String_output"), ref.rows[1][ref.column("String_output")]);
+  EXPECT_EQ(m.value_text("Binary_output"), ref.rows[1][ref.column("Binary_output")]);
+}
+
+// Every FMI 3.0 type through ports and start values: each input set, copied by the FMU, read
+// back exactly; the ends of each integer range pass, one beyond is refused with the type named;
+// String and Binary start values reach the FMU; wrong start values are refused at configure.
+TEST(Fmi3Types, EveryTypeRoundTripsAndRangesAreChecked) {
+  REQUIRE_FMI3_REFERENCE_FMUS();
+  const std::vector<std::string> types{"Float32_continuous", "Float64_continuous", "Int8", "UInt8", "Int16", "UInt16",
+                                       "Int32", "UInt32", "Int64", "UInt64", "Boolean", "Enumeration"};
+  std::string in, out;
+  for (const auto& t : types) {
+    in += (in.empty() ? "" : ", ") + std::string("{name: i_") + t + ", scalar: " + t + "_input}";
+    out += (out.empty() ? "" : ", ") + std::string("{name: o_") + t + ", scalar: " + t + "_output}";
+  }
+  fmu::FmuModel m(YAML::Node(YAML::NodeType::Map), "");
+  YAML::Node p = yaml("{start: {String_input: 'hello, FMI 3', Binary_input: 00ff10, Int64_input: -9223372036854775808, "
+                      "UInt64_input: 18446744073709551615, Float64_tunable_parameter: 2.5, Float64_fixed_parameter: 1.5}, "
+                      "inputs: [" + in + "], outputs: [" + out + "]}");
+  p["fmu"] = fmutest::fmus3_dir() + "/Feedthrough.fmu";
+  m.configure(p, run_info(2.0, 0.1));
+  EXPECT_EQ(m.value_text("String_output"), "hello, FMI 3");
+  EXPECT_EQ(m.value_text("Binary_output"), "00ff10");
+  EXPECT_EQ(m.value_text("Int64_output"), "-9223372036854775808");  // exact, beyond 2^53
+  EXPECT_EQ(m.value_text("UInt64_output"), "18446744073709551615");
+  EXPECT_EQ(m.value_text("Float64_fixed_parameter"), "1.5");
+  const std::map<std::string, double> values{
+      {"Float32_continuous", 0.1}, {"Float64_continuous", 0.1}, {"Int8", -128}, {"UInt8", 255}, {"Int16", -32768},
+      {"UInt16", 65535}, {"Int32", 2147483647}, {"UInt32", 4294967295.0}, {"Int64", -9007199254740992.0},
+      {"UInt64", 9007199254740992.0}, {"Boolean", 1}, {"Enumeration", 2}};
+  cosim::Polynomials polys;
+  for (const auto& [t, v] : values) polys["i_" + t] = cosim::InputPolynomial::constant(cosim::SignalKind::Scalar, {v});
+  const auto r = m.step(cosim::StepInputs(cosim::TimePoint{}, cosim::seconds_to_time_point(0.1, "t"), polys), false);
+  for (const auto& [t, v] : values) {
+    const double expect = t == "Float32_continuous" ? static_cast<double>(0.1f) : v;  // rounded to float
+    EXPECT_EQ(r.outputs.at("o_" + t).value[0], expect) << t;
+  }
+  EXPECT_EQ(m.value_text("Int8_output"), "-128");
+  // One beyond each range: refused (the step is rejected, state kept), naming the type.
+  for (const auto& [t, v] : std::vector<std::pair<std::string, double>>{
+           {"Int8", 128}, {"UInt8", -1}, {"Int16", 32768}, {"UInt16", 65536}, {"Int32", 2147483648.0},
+           {"UInt32", 4294967296.0}, {"Int64", 9223372036854775808.0}, {"UInt64", 18446744073709551616.0}}) {
+    cosim::Polynomials bad = polys;
+    bad["i_" + t] = cosim::InputPolynomial::constant(cosim::SignalKind::Scalar, {v});
+    try {
+      m.step(cosim::StepInputs(cosim::seconds_to_time_point(0.1, "t"), cosim::seconds_to_time_point(0.2, "t"), bad), false);
+      ADD_FAILURE() << t << " took " << v;
+    } catch (const cosim::InputError& e) {
+      EXPECT_HAS(e.what(), "does not fit FMU " + t + " variable '" + t + "_input' (" + t + " range)");
+    }
+  }
+  // Start values of the wrong type or out of range, refused at configure with the key.
+  for (const auto& [start, expect] : std::vector<std::pair<std::string, std::string>>{
+           {"{Int8_input: 200}", "start.Int8_input: 'Int8_input' is an FMI Int8 variable; expected an integer from -128 to 127, got '200'"},
+           {"{UInt16_input: 2.5}", "start.UInt16_input: 'UInt16_input' is an FMI UInt16 variable; expected an integer (UInt16), got '2.5'"},
+           {"{UInt64_input: -1}", "expected an integer from 0 to 18446744073709551615, got '-1'"},
+           {"{Float32_continuous_input: 1e39}", "expected a number within the Float32 range"},
+           {"{Binary_input: xyz}", "'Binary_input' is an FMI Binary variable; expected hex digits, two per byte (e.g. 666f6f), got 'xyz'"},
+           {"{Enumeration_input: Option 3}", "expected an item of Option: Option 1 (1), Option 2 (2), got 'Option 3'"},
+           {"{Float64_continuous_output: 1}", "'Float64_continuous_output' is calculated by the FMU"}}) {
+    fmu::FmuModel bad(YAML::Node(YAML::NodeType::Map), "");
+    YAML::Node q = yaml("{start: " + start + ", outputs: [{name: y, scalar: Int8_output}]}");
+    q["fmu"] = fmutest::fmus3_dir() + "/Feedthrough.fmu";
+    try {
+      bad.configure(q, run_info());
+      ADD_FAILURE() << start << " was accepted";
+    } catch (const std::exception& e) {
+      EXPECT_HAS(e.what(), expect);
+    }
+  }
+  // String and Binary are not port types.
+  EXPECT_HAS(configure_error(fmutest::fmus3_dir() + "/Feedthrough.fmu", "outputs: [{name: s, scalar: String_output}]"),
+             "'String_output' is a String variable; ports carry numbers");
+  EXPECT_HAS(configure_error(fmutest::fmus3_dir() + "/Feedthrough.fmu", "outputs: [{name: s, scalar: Binary_output}]"),
+             "'Binary_output' is a Binary variable; ports carry numbers");
+}
+
+// Repeated steps through fmi3GetFMUState/SetFMUState are bit-identical, and a checkpoint
+// (fmi3SerializeFMUState) loaded into a new instance continues bit for bit: VanDerPol 3.0.
+TEST(Fmi3State, RepeatedStepsAndSerializedCheckpointsAreBitIdentical) {
+  REQUIRE_FMI3_REFERENCE_FMUS();
+  const std::string mapping = "outputs: [{name: x0, scalar: x0}, {name: x1, scalar: x1}]";
+  auto make = [&](fmu::FmuModel& m) {
+    YAML::Node p = yaml(mapping);
+    p["fmu"] = fmutest::fmus3_dir() + "/VanDerPol.fmu";
+    m.configure(p, run_info(20.0, 0.01));
+  };
+  auto step = [](fmu::FmuModel& m, int i) {  // [0.01 i, 0.01 (i + 1)], the reference CSV's rows
+    const cosim::Duration h(10'000'000);
+    const auto r = m.step(cosim::StepInputs(cosim::TimePoint{} + h * i, cosim::TimePoint{} + h * (i + 1), cosim::Polynomials{}), false);
+    return std::array<double, 2>{r.outputs.at("x0").value[0], r.outputs.at("x1").value[0]};
+  };
+  fmu::FmuModel a(YAML::Node(YAML::NodeType::Map), "");
+  make(a);
+  EXPECT_TRUE(a.can_repeat());
+  EXPECT_TRUE(a.can_checkpoint());
+  std::vector<std::array<double, 2>> once;
+  for (int i = 0; i < 100; ++i) {
+    a.save_snapshot();
+    const auto first = step(a, i);
+    a.restore_snapshot();
+    const auto again = step(a, i);
+    EXPECT_EQ(std::memcmp(first.data(), again.data(), sizeof first), 0) << i;
+    once.push_back(again);
+  }
+  const std::string ckpt = fmutest::temp_path(".ckpt");
+  a.save_checkpoint(ckpt);
+  std::vector<std::array<double, 2>> rest;
+  for (int i = 100; i < 150; ++i) rest.push_back(step(a, i));
+  fmu::FmuModel b(YAML::Node(YAML::NodeType::Map), "");
+  make(b);
+  b.load_checkpoint(ckpt);
+  for (int i = 100; i < 150; ++i) {
+    const auto r = step(b, i);
+    EXPECT_EQ(std::memcmp(r.data(), rest[i - 100].data(), sizeof r), 0) << i;
+  }
+  const auto ref = fmutest::read_csv(fmutest::fmus_dir() + "/VanDerPol_out.csv");
+  for (std::size_t i = 0; i < 100; ++i) EXPECT_NEAR(once[i][0], ref.number(i + 1, "x0"), kFmi3Tolerance) << i;
+  // A checkpoint of another FMU is refused by its GUID (instantiation token).
+  fmu::FmuModel c(YAML::Node(YAML::NodeType::Map), "");
+  YAML::Node p = yaml("outputs: [{name: x, scalar: x}]");
+  p["fmu"] = fmutest::fmus3_dir() + "/Dahlquist.fmu";
+  c.configure(p, run_info(20.0, 0.01));
+  try {
+    c.load_checkpoint(ckpt);
+    ADD_FAILURE() << "a VanDerPol checkpoint was loaded into Dahlquist";
+  } catch (const fmu::FmuError& e) {
+    EXPECT_HAS(e.what(), "resume with the FMU the run started with");
+  }
+}
+
+
+// ---------------------------------------------------------------------------------------------
+// SSP 1.0: a package of the project's two oscillator-half FMUs (build/fmu/) against its YAML
+// twin, and bad SSP files refused with the file, the line and the reason.
+
+namespace ssptest {
+
+const char* kUnits = R"(  <ssd:Units>
+    <ssc:Unit name="m"><ssc:BaseUnit m="1"/></ssc:Unit>
+    <ssc:Unit name="mm"><ssc:BaseUnit m="1" factor="0.001"/></ssc:Unit>
+    <ssc:Unit name="m/s"><ssc:BaseUnit m="1" s="-1"/></ssc:Unit>
+    <ssc:Unit name="N"><ssc:BaseUnit kg="1" m="1" s="-2"/></ssc:Unit>
+  </ssd:Units>
+)";
+
+// The oscillator as SSD: mass1's parameters from an SSV file, mass2's inline; x2 in `x_unit`.
+std::string ssd(const std::string& x_unit = "m", const std::string& extra_connection = "") {
+  return std::string(R"(<?xml version="1.0" encoding="UTF-8"?>
+<ssd:SystemStructureDescription version="1.0" name="oscillator"
+    xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription"
+    xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon"
+    xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues">
+  <ssd:System name="dual_mass">
+    <ssd:Elements>
+      <ssd:Component name="mass1" type="application/x-fmu-sharedlibrary" source="resources/oscillator_mass1.fmu">
+        <ssd:Connectors>
+          <ssd:Connector name="force" kind="input"><ssc:Real unit="N"/></ssd:Connector>
+          <ssd:Connector name="x" kind="output"><ssc:Real unit="m"/></ssd:Connector>
+          <ssd:Connector name="v" kind="output"><ssc:Real unit="m/s"/></ssd:Connector>
+        </ssd:Connectors>
+        <ssd:ParameterBindings>
+          <ssd:ParameterBinding source="resources/mass1.ssv"/>
+        </ssd:ParameterBindings>
+      </ssd:Component>
+      <ssd:Component name="mass2" type="application/x-fmu-sharedlibrary" source="resources/oscillator_mass2.fmu">
+        <ssd:Connectors>
+          <ssd:Connector name="x" kind="input"><ssc:Real unit=")") + x_unit + R"("/></ssd:Connector>
+          <ssd:Connector name="v" kind="input"><ssc:Real unit="m/s"/></ssd:Connector>
+          <ssd:Connector name="force" kind="output"><ssc:Real unit="N"/></ssd:Connector>
+        </ssd:Connectors>
+        <ssd:ParameterBindings>
+          <ssd:ParameterBinding>
+            <ssd:ParameterValues>
+              <ssv:ParameterSet version="1.0" name="mass2">
+                <ssv:Parameters>
+                  <ssv:Parameter name="mass"><ssv:Real value="1"/></ssv:Parameter>
+                  <ssv:Parameter name="stiffness"><ssv:Real value="10"/></ssv:Parameter>
+                  <ssv:Parameter name="damping"><ssv:Real value="0.2"/></ssv:Parameter>
+                  <ssv:Parameter name="coupling_stiffness"><ssv:Real value="1000"/></ssv:Parameter>
+                  <ssv:Parameter name="coupling_damping"><ssv:Real value="2"/></ssv:Parameter>
+                  <ssv:Parameter name="position"><ssv:Real value="0"/></ssv:Parameter>
+                  <ssv:Parameter name="velocity"><ssv:Real value="0"/></ssv:Parameter>
+                  <ssv:Parameter name="x"><ssv:Real value="0.1"/></ssv:Parameter>
+                  <ssv:Parameter name="v"><ssv:Real value="0"/></ssv:Parameter>
+                  <ssv:Parameter name="inner_step"><ssv:Real value="5e-6"/></ssv:Parameter>
+                </ssv:Parameters>
+              </ssv:ParameterSet>
+            </ssd:ParameterValues>
+          </ssd:ParameterBinding>
+        </ssd:ParameterBindings>
+      </ssd:Component>
+    </ssd:Elements>
+    <ssd:Connections>
+      <ssd:Connection startElement="mass1" startConnector="x" endElement="mass2" endConnector="x"/>
+      <ssd:Connection startElement="mass1" startConnector="v" endElement="mass2" endConnector="v"/>
+      <ssd:Connection startElement="mass2" startConnector="force" endElement="mass1" endConnector="force"/>
+)" + extra_connection + R"(    </ssd:Connections>
+  </ssd:System>
+)" + kUnits + R"(  <ssd:DefaultExperiment startTime="0" stopTime="0.05"/>
+</ssd:SystemStructureDescription>
+)";
+}
+
+const char* kMass1Ssv = R"(<?xml version="1.0" encoding="UTF-8"?>
+<ssv:ParameterSet version="1.0" name="mass1" xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues">
+  <ssv:Parameters>
+    <ssv:Parameter name="mass"><ssv:Real value="1"/></ssv:Parameter>
+    <ssv:Parameter name="stiffness"><ssv:Real value="10"/></ssv:Parameter>
+    <ssv:Parameter name="damping"><ssv:Real value="0.2"/></ssv:Parameter>
+    <ssv:Parameter name="position"><ssv:Real value="0.1"/></ssv:Parameter>
+    <ssv:Parameter name="velocity"><ssv:Real value="0"/></ssv:Parameter>
+    <ssv:Parameter name="inner_step"><ssv:Real value="5e-6"/></ssv:Parameter>
+  </ssv:Parameters>
+</ssv:ParameterSet>
+)";
+
+std::string fmu(int side) { return std::string(FMU_EXPORT_DIR) + "/oscillator_mass" + std::to_string(side) + ".fmu"; }
+
+// The system as a folder with SystemStructure.ssd (returns the .ssd's path).
+std::string folder(const std::string& name, const std::string& ssd_text) {
+  namespace fs = std::filesystem;
+  const fs::path dir = fmutest::temp_path("_" + name);
+  fs::remove_all(dir);
+  fs::create_directories(dir / "resources");
+  fs::copy_file(fmu(1), dir / "resources/oscillator_mass1.fmu");
+  fs::copy_file(fmu(2), dir / "resources/oscillator_mass2.fmu");
+  std::ofstream(dir / "resources/mass1.ssv") << kMass1Ssv;
+  std::ofstream(dir / "SystemStructure.ssd") << ssd_text;
+  return (dir / "SystemStructure.ssd").string();
+}
+
+// The YAML twin: configs/oscillator_fmu.yaml's system written out by hand.
+std::string twin(const std::string& predictor_lines, const std::string& connection_predictor) {
+  std::string p = connection_predictor.empty() ? "" : ", predictor: " + connection_predictor;
+  return "time: {start: 0, end: 0.05, macro_step: 5.0e-4}\n" + predictor_lines +
+         "participants:\n"
+         "  mass1:\n"
+         "    launch: [fmu_adapter]\n"
+         "    parameters:\n"
+         "      fmu: " + fmu(1) + "\n"
+         "      start: {mass: 1, stiffness: 10, damping: 0.2, position: 0.1, velocity: 0, inner_step: 5.0e-6}\n"
+         "      inputs: [{name: force, scalar: force}]\n"
+         "      outputs: [{name: x, scalar: x}, {name: v, scalar: v}]\n"
+         "  mass2:\n"
+         "    launch: [fmu_adapter]\n"
+         "    parameters:\n"
+         "      fmu: " + fmu(2) + "\n"
+         "      start: {mass: 1, stiffness: 10, damping: 0.2, coupling_stiffness: 1000, coupling_damping: 2,\n"
+         "              position: 0, velocity: 0, x: 0.1, v: 0, inner_step: 5.0e-6}\n"
+         "      inputs: [{name: x, scalar: x}, {name: v, scalar: v}]\n"
+         "      outputs: [{name: force, scalar: force}]\n"
+         "connections:\n"
+         "  - {from: mass1.x, to: mass2.x" + p + "}\n"
+         "  - {from: mass1.v, to: mass2.v" + p + "}\n"
+         "  - {from: mass2.force, to: mass1.force" + p + "}\n"
+         "output: {progress: off}\n";
+}
+
+int master(const std::string& config, const std::string& out, const std::vector<std::string>& sets) {
+  std::vector<std::string> a{harness::bin("cosim_master"), config, "--output", out, "--csv", out + ".csv"};
+  for (const auto& s : sets) a.insert(a.end(), {"--set", s});
+  a.insert(a.end(), {"--set", "bus.url=" + harness::bus_url(), "--set", "output.progress=off"});
+  auto p = harness::spawn(a, out + ".log");
+  return harness::wait_for(p, 120);
+}
+
+}  // namespace ssptest
+
+// `cosim_master system.ssp` (the package zipped: SystemStructure.ssd, the two FMUs, an SSV) and
+// `cosim_master twin.yaml` give the same CSV and the same outputs bit for bit; so do a YAML that
+// names the .ssd with a predictor for its connections (order 1, start-up iterations) and its
+// twin with that predictor on every connection.
+TEST(SspImport, ThePackageOfTheOscillatorHalvesRunsLikeItsYamlTwin) {
+  namespace fs = std::filesystem;
+  ASSERT_TRUE(fs::exists(ssptest::fmu(1)) && fs::exists(ssptest::fmu(2))) << "build the oscillator FMUs (build/fmu/)";
+  const std::string ssd = ssptest::folder("sys", ssptest::ssd());
+  const std::string package = fmutest::temp_path(".ssp");
+  fmutest::write_zip(package, {{"SystemStructure.ssd", fmutest::slurp(ssd)},
+                               {"resources/oscillator_mass1.fmu", fmutest::slurp(ssptest::fmu(1))},
+                               {"resources/oscillator_mass2.fmu", fmutest::slurp(ssptest::fmu(2))},
+                               {"resources/mass1.ssv", ssptest::kMass1Ssv}});
+  const std::string twin = fmutest::temp_path("_twin.yaml");
+  std::ofstream(twin) << ssptest::twin("", "");
+  const std::string a = fmutest::temp_path("_ssp.h5"), b = fmutest::temp_path("_twin.h5");
+  ASSERT_EQ(ssptest::master(package, a, {"time.macro_step=5.0e-4"}), 0) << harness::read_text(a + ".log");
+  ASSERT_EQ(ssptest::master(twin, b, {}), 0) << harness::read_text(b + ".log");
+  const std::string csv = harness::read_text(a + ".csv");
+  EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 102);  // header, t = 0 .. 0.05
+  EXPECT_TRUE(csv == harness::read_text(b + ".csv")) << "the SSP run's CSV differs from its YAML twin's";
+  for (const char* d : {"participants/mass1/outputs/x", "participants/mass1/outputs/v", "participants/mass2/outputs/force"}) {
+    const auto x = harness::read_dataset(a, d), y = harness::read_dataset(b, d);
+    ASSERT_EQ(x.size(), 101u) << d;
+    EXPECT_EQ(std::memcmp(x.data(), y.data(), x.size() * sizeof(double)), 0) << d;
+  }
+  EXPECT_GT(std::abs(harness::read_dataset(a, "participants/mass2/outputs/force").back()), 1e-3);  // something moved
+  EXPECT_HAS(harness::read_string(a, "config"), "# generated by cosim_master from " + package + " (SSP 1.0)");
+
+  // A YAML naming the .ssd, with a predictor: the same as the twin with that predictor.
+  const std::string with = fmutest::temp_path("_with.yaml"), twin1 = fmutest::temp_path("_twin1.yaml");
+  std::ofstream(with) << "ssp: {file: " << ssd << ", predictor: linear}\ntime: {macro_step: 5.0e-4}\n"
+                      << "startup_iterations: 2\npredictors: {linear: {order: 1}}\noutput: {progress: off}\n";
+  std::ofstream(twin1) << ssptest::twin("startup_iterations: 2\npredictors: {linear: {order: 1}}\n", "linear");
+  const std::string c = fmutest::temp_path("_with.h5"), d = fmutest::temp_path("_twin1.h5");
+  ASSERT_EQ(ssptest::master(with, c, {}), 0) << harness::read_text(c + ".log");
+  ASSERT_EQ(ssptest::master(twin1, d, {}), 0) << harness::read_text(d + ".log");
+  EXPECT_TRUE(harness::read_text(c + ".csv") == harness::read_text(d + ".csv")) << "the .ssd run differs from its YAML twin";
+  EXPECT_FALSE(harness::read_text(c + ".csv") == csv) << "the predictor made no difference";
+  EXPECT_EQ(harness::read_dataset(c, "timing/iterations").at(1), 3);
+}
+
+// Units: mass2.x declared in mm gets x in mm (factor 1000 on its input port); a linear
+// transformation on the connection is used as given.
+TEST(SspImport, UnitConversionGoesOnTheConsumersInputPort) {
+  const YAML::Node mm = ssp::system_config(ssptest::folder("mm", ssptest::ssd("mm")));
+  const YAML::Node port = mm["participants"]["mass2"]["parameters"]["inputs"][0];
+  EXPECT_EQ(port["name"].as<std::string>(), "x");
+  EXPECT_DOUBLE_EQ(port["factor"].as<double>(), 1000.0);
+  EXPECT_DOUBLE_EQ(port["offset"].as<double>(), 0.0);
+  EXPECT_FALSE(mm["participants"]["mass2"]["parameters"]["inputs"][1]["factor"]);  // m/s to m/s: none
+  EXPECT_EQ(mm["time"]["end"].as<double>(), 0.05);
+  EXPECT_EQ(mm["participants"]["mass1"]["parameters"]["start"]["position"].as<double>(), 0.1);  // from the SSV
+  // The port conversion itself, through fmu_adapter: the echo FMU gets 1000 x + 5.
+  Echo e("{inputs: [{name: u, scalar: u0, factor: 1000, offset: 5}], outputs: [{name: y, scalar: y0}]}");
+  EXPECT_EQ(e.step({{"u", {cosim::SignalKind::Scalar, {0.25}}}}).at("y").value[0], 255.0);
+}
+
+TEST(SspImport, BadFilesAreRefusedWithFileLineAndReason) {
+  auto error = [](const std::string& path) {
+    try {
+      ssp::system_config(path);
+    } catch (const ssp::SspError& e) {
+      return std::string(e.what());
+    }
+    return std::string("(no error)");
+  };
+  // Malformed XML: the line of the damage.
+  std::string text = ssptest::ssd();
+  text = fmutest::replace_all(text, "</ssd:Elements>", "</ssd:Element>");
+  std::string path = ssptest::folder("malformed", text);
+  EXPECT_HAS(error(path), path + ":45: malformed XML");
+  // A component whose FMU is not in the package.
+  path = ssptest::folder("missing", fmutest::replace_all(ssptest::ssd(), "resources/oscillator_mass2.fmu", "resources/nowhere.fmu"));
+  EXPECT_HAS(error(path), path + ":18: component 'mass2': its FMU resources/nowhere.fmu is missing");
+  // A connection to a component that is not there, and to a connector that is not there.
+  path = ssptest::folder("dangling", ssptest::ssd("m", "      <ssd:Connection startElement=\"mass1\" startConnector=\"x\" endElement=\"mass3\" endConnector=\"x\"/>\n"));
+  EXPECT_HAS(error(path), path + ":50: dangling connection: its endElement 'mass3' is not a component of the system");
+  path = ssptest::folder("dangling2", fmutest::replace_all(ssptest::ssd(), "startConnector=\"v\"", "startConnector=\"w\""));
+  EXPECT_HAS(error(path), path + ":48: dangling connection: component 'mass1' has no connector 'w'");
+  // A unit that <ssd:Units> does not define.
+  path = ssptest::folder("unit", ssptest::ssd("furlong"));
+  EXPECT_HAS(error(path), path + ":20: connector 'mass2.x' has unit 'furlong', which <ssd:Units> does not define");
+  // Units of different quantities.
+  path = ssptest::folder("dims", ssptest::ssd("N"));
+  EXPECT_HAS(error(path), path + ":47: connection mass1.x [m] -> mass2.x [N]: the units measure different quantities");
+  // A damaged SSV names its own file and line.
+  path = ssptest::folder("ssv", ssptest::ssd());
+  std::ofstream(std::filesystem::path(path).parent_path() / "resources/mass1.ssv") << "<ssv:ParameterSet>\n<ssv:Parameters>\n</ssv:ParameterSet>\n";
+  EXPECT_HAS(error(path), "resources/mass1.ssv:3: malformed XML");
+  // Through cosim_master: exit 2 with the same message.
+  const std::string out = fmutest::temp_path("_bad.h5");
+  EXPECT_EQ(ssptest::master(ssptest::folder("unit2", ssptest::ssd("furlong")), out, {"time.macro_step=5.0e-4"}), 2);
+  EXPECT_HAS(harness::read_text(out + ".log"), "cosim_master: config refused: ");
+  EXPECT_HAS(harness::read_text(out + ".log"), "has unit 'furlong', which <ssd:Units> does not define");
+}
+
+
+// An FMI 3.0 FMU that ends itself (terminateSimulation with fmi3Discard at stop_at = 0.25 inside
+// the step [0.2, 0.3]): the step ends there, with the outputs there, and says so.
+TEST(FmuEnds, AnFmi3FmuThatSetsTerminateSimulationEndsTheStep) {
+  fmu::FmuModel m(YAML::Node(YAML::NodeType::Map), "");
+  YAML::Node p = yaml("{instance: a3, start: {stop_at: 0.25}, outputs: [{name: total, scalar: total}]}");
+  p["fmu"] = fmutest::pack(fmutest::array_fmu3_entries());
+  m.configure(p, run_info(1.0, 0.1));
+  cosim::Polynomials none;
+  for (int i = 0; i < 2; ++i)
+    EXPECT_FALSE(m.step(cosim::StepInputs(cosim::seconds_to_time_point(0.1 * i, "t"), cosim::seconds_to_time_point(0.1 * (i + 1), "t"), none), false).ended_at);
+  const auto r = m.step(cosim::StepInputs(cosim::seconds_to_time_point(0.2, "t"), cosim::seconds_to_time_point(0.3, "t"), none), false);
+  ASSERT_TRUE(r.ended_at);
+  EXPECT_EQ(*r.ended_at, cosim::seconds_to_time_point(0.25, "t"));
+  EXPECT_HAS(r.ended_reason, "(instance 'a3') ended itself: fmi3DoStep at t = 0.2 s (step 0.1 s) set terminateSimulation: the FMU "
+                             "ended the simulation at its last successful time 0.25 s");
+}
+
+// FMI 3.0 arrays and a structural parameter (the test-only array_fmu3, runs everywhere): n = 4
+// set in Configuration Mode resizes u and y; array start values as lists; ports on elements
+// (1-based, row-major); y = scale u, total = sum(u) + offsets, read back exactly.
+TEST(Fmi3Arrays, ElementsInPortsAndArrayStartValuesWithAStructuralSize) {
+  const std::string fmu = fmutest::pack(fmutest::array_fmu3_entries());
+  fmu::FmuModel m(YAML::Node(YAML::NodeType::Map), "");
+  YAML::Node p = yaml("{start: {n: 4, u: [1, 2, 3, 4], offsets: [10, 20], scale: 3}, inputs: [{name: u2, scalar: 'u[2]'}], "
+                      "outputs: [{name: y1, scalar: 'y[1]'}, {name: y2, scalar: 'y[2]'}, {name: y4, scalar: 'y[4]'}, {name: total, scalar: total}]}");
+  p["fmu"] = fmu;
+  m.configure(p, run_info(1.0, 0.1));
+  const auto initial = m.initial_outputs();
+  EXPECT_EQ(initial.at("y4").value[0], 12.0);
+  EXPECT_EQ(initial.at("total").value[0], 40.0);  // 1 + 2 + 3 + 4 + 10 + 20
+  cosim::Polynomials in{{"u2", cosim::InputPolynomial::constant(cosim::SignalKind::Scalar, {7.0})}};
+  const auto r = m.step(cosim::StepInputs(cosim::TimePoint{}, cosim::seconds_to_time_point(0.1, "t"), in), false).outputs;
+  EXPECT_EQ(r.at("y1").value[0], 3.0);
+  EXPECT_EQ(r.at("y2").value[0], 21.0);  // the element the port set, the others kept
+  EXPECT_EQ(r.at("y4").value[0], 12.0);
+  EXPECT_EQ(r.at("total").value[0], 45.0);
+  for (const auto& [mapping, expect] : std::vector<std::pair<std::string, std::string>>{
+           {"{outputs: [{name: y, scalar: y}]}", "outputs.0.scalar: 'y' is an array (1 <Dimension>); a port carries one number: name an element, e.g. y[1] (1-based)"},
+           {"{start: {n: 4}, outputs: [{name: y, scalar: 'y[5]'}]}", "outputs.0.scalar: 'y[5]': index 5 is beyond the size 4 of dimension 1"},
+           {"{outputs: [{name: y, scalar: 'y[1,1]'}]}", "'y' has 1 dimension(s), so give 1 index(es)"},
+           {"{outputs: [{name: y, scalar: 'total[1]'}]}", "'total' is not an array"},
+           {"{start: {n: 4, u: [1, 2, 3]}, outputs: [{name: t, scalar: total}]}", "start.u: 'u' has 4 values, the list 3"},
+           {"{start: {offsets: [1.5, 2]}, outputs: [{name: t, scalar: total}]}", "start.offsets.0: expected an integer in the Int32 range, got 1.5"},
+           {"{start: {u: 1}, outputs: [{name: t, scalar: total}]}", "'u' is an FMI Float64 variable; expected a list of its values (it is an array)"}}) {
+    try {
+      fmu::FmuModel bad(YAML::Node(YAML::NodeType::Map), "");
+      YAML::Node q = yaml(mapping);
+      q["fmu"] = fmu;
+      bad.configure(q, run_info(1.0, 0.1));
+      ADD_FAILURE() << mapping << " was accepted";
+    } catch (const std::exception& e) {
+      EXPECT_HAS(e.what(), expect);
+    }
+  }
 }
 
 }  // namespace

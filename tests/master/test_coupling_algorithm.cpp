@@ -42,6 +42,7 @@ class Script final : public master::Coupling {
   bool checkpoint_due(int64_t step) const override {
     return checkpoint_every > 0 && (step + 1) % checkpoint_every == 0;
   }
+  bool ended() const override { return false; }
 };
 
 std::map<std::string, cosim::ParticipantInfo> participants(bool can_repeat) {

@@ -29,6 +29,10 @@ class UnpackedFmu {
   std::vector<std::string> entries_;
 };
 
+// The file URI of an absolute path (RFC 8089 "file:///..."), every byte outside RFC 3986's
+// unreserved characters and '/' percent-encoded: "/tmp/a b%/" -> "file:///tmp/a%20b%25/".
+std::string file_uri(const std::string& absolute_path);
+
 // Removes a folder and everything below it; errors are ignored.
 void remove_tree(const std::string& dir);
 

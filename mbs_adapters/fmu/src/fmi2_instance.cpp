@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <algorithm>
 #include <sstream>
 
 namespace fmu {
@@ -63,6 +64,10 @@ Fmi2Library::Fmi2Library(const std::string& so_path, const std::string& fmu) {
   need(getStatus, "fmi2GetStatus", false);
   need(getRealStatus, "fmi2GetRealStatus", false);
   need(setRealInputDerivatives, "fmi2SetRealInputDerivatives", false);
+  need(getBooleanStatus, "fmi2GetBooleanStatus", false);
+  need(serializedFMUstateSize, "fmi2SerializedFMUstateSize", false);
+  need(serializeFMUstate, "fmi2SerializeFMUstate", false);
+  need(deSerializeFMUstate, "fmi2DeSerializeFMUstate", false);
   if (!missing.empty()) {
     dlclose(handle_);
     handle_ = nullptr;
@@ -157,15 +162,24 @@ void Fmi2Instance::check(fmi2Status status, const char* function, const std::str
   throw FmuError(text);
 }
 
-void Fmi2Instance::setup_experiment(double start, std::optional<double> tolerance,
-                                    std::optional<double> stop) {
+void Fmi2Instance::enter_initialization(double start, std::optional<double> tolerance,
+                                        std::optional<double> stop) {
   check(lib_.setupExperiment(c_, tolerance ? fmi2True : fmi2False, tolerance.value_or(0.0), start,
                              stop ? fmi2True : fmi2False, stop.value_or(0.0)),
         "fmi2SetupExperiment", "");
+  check(lib_.enterInitializationMode(c_), "fmi2EnterInitializationMode", "");
 }
 
-void Fmi2Instance::enter_initialization() {
-  check(lib_.enterInitializationMode(c_), "fmi2EnterInitializationMode", "");
+std::string Fmi2Instance::get_text(const Variable& v, const std::string& when) {
+  if (v.type != VarType::String) {
+    char buf[40];
+    std::snprintf(buf, sizeof buf, "%.17g", get_number(v, when));
+    return buf;
+  }
+  const fmi2ValueReference vr = v.value_reference;
+  fmi2String x = nullptr;
+  check(lib_.getString(c_, &vr, 1, &x), "fmi2GetString", "of '" + v.name + "' " + when);
+  return x ? x : "";
 }
 
 void Fmi2Instance::exit_initialization() {
@@ -173,11 +187,78 @@ void Fmi2Instance::exit_initialization() {
   initialized_ = true;
 }
 
-void Fmi2Instance::do_step(double t, double h) {
+std::optional<double> Fmi2Instance::do_step(double t, double h) {
   if (failed_ || fatal_) throw FmuError(who() + ": failed earlier; it cannot step again");
+  if (terminated_) throw FmuError(who() + ": ended itself (fmi2Terminated) earlier; it takes no further step");
   char when[96];
   std::snprintf(when, sizeof when, "at t = %.9g s (step %.9g s)", t, h);
-  check(lib_.doStep(c_, t, h, fmi2False), "fmi2DoStep", when);
+  const fmi2Status status = lib_.doStep(c_, t, h, fmi2False);
+  if (status == fmi2Discard) {
+    // FMI 2.0, 4.2.3: the FMU could not complete the step. If it asks to end the simulation
+    // (a Modelica terminate(), a stop condition), fmi2Terminated is true and the run ends at
+    // fmi2LastSuccessfulTime; otherwise it is a failure (no retry with a smaller step).
+    fmi2Boolean ended = fmi2False;
+    std::string why;
+    if (!lib_.getBooleanStatus) why = "its binary has no fmi2GetBooleanStatus to ask whether it ended itself";
+    else if (const fmi2Status s = lib_.getBooleanStatus(c_, fmi2Terminated, &ended); s != fmi2OK && s != fmi2Warning)
+      why = std::string("fmi2GetBooleanStatus(fmi2Terminated) returned ") + status_name(s);
+    if (why.empty() && ended) {
+      fmi2Real last = t;
+      if (!lib_.getRealStatus)
+        throw FmuError(who() + ": fmi2DoStep " + when + " returned fmi2Discard with fmi2Terminated, but its "
+                       "binary has no fmi2GetRealStatus to say the time it reached");
+      if (const fmi2Status s = lib_.getRealStatus(c_, fmi2LastSuccessfulTime, &last); s != fmi2OK && s != fmi2Warning)
+        throw FmuError(who() + ": fmi2DoStep " + when + " returned fmi2Discard with fmi2Terminated, but "
+                       "fmi2GetRealStatus(fmi2LastSuccessfulTime) returned " + status_name(s));
+      if (!(last >= t - 1e-9 * std::max(1.0, std::abs(t)) && last <= t + h + 1e-9 * std::max(1.0, std::abs(t + h)))) {
+        char text[160];
+        std::snprintf(text, sizeof text, "fmi2GetRealStatus(fmi2LastSuccessfulTime) = %.17g s, outside the step [%.17g, %.17g] s",
+                      last, t, t + h);
+        throw FmuError(who() + ": fmi2DoStep " + when + " returned fmi2Discard with fmi2Terminated, but " + text);
+      }
+      terminated_ = true;
+      return std::min(std::max(last, t), t + h);
+    }
+    failed_ = true;
+    std::string said;
+    for (const auto& m : recent_) said += "\n  " + m;
+    throw FmuError(who() + ": fmi2DoStep " + when + " returned fmi2Discard: the FMU could not complete the step " +
+                   "and did not ask to end the simulation (" +
+                   (why.empty() ? std::string("fmi2GetBooleanStatus(fmi2Terminated) is false") : why) +
+                   "); fmu_adapter does not retry with a smaller step" +
+                   (said.empty() ? std::string("; the FMU logged nothing") : "; the FMU's last messages:" + said));
+  }
+  check(status, "fmi2DoStep", when);
+  return std::nullopt;
+}
+
+std::string Fmi2Instance::serialize_state() {
+  if (!lib_.has_serialize_functions()) throw FmuError(who() + ": its binary cannot serialize its state");
+  fmi2FMUstate s = nullptr;
+  check(lib_.getFMUstate(c_, &s), "fmi2GetFMUstate", "(for a checkpoint)");
+  if (!s) throw FmuError(who() + ": fmi2GetFMUstate returned fmi2OK but no state");
+  std::string bytes;
+  try {
+    size_t size = 0;
+    check(lib_.serializedFMUstateSize(c_, s, &size), "fmi2SerializedFMUstateSize", "");
+    bytes.assign(size, '\0');
+    check(lib_.serializeFMUstate(c_, s, bytes.data(), size), "fmi2SerializeFMUstate", "");
+  } catch (...) {
+    if (!failed_ && !fatal_) lib_.freeFMUstate(c_, &s);
+    throw;
+  }
+  check(lib_.freeFMUstate(c_, &s), "fmi2FreeFMUstate", "");
+  return bytes;
+}
+
+void Fmi2Instance::deserialize_state(const std::string& bytes) {
+  if (!lib_.has_serialize_functions()) throw FmuError(who() + ": its binary cannot deserialize a state");
+  fmi2FMUstate s = nullptr;
+  check(lib_.deSerializeFMUstate(c_, bytes.data(), bytes.size(), &s), "fmi2DeSerializeFMUstate", "");
+  if (!s) throw FmuError(who() + ": fmi2DeSerializeFMUstate returned fmi2OK but no state");
+  const fmi2Status set = lib_.setFMUstate(c_, s);
+  lib_.freeFMUstate(c_, &s);
+  check(set, "fmi2SetFMUstate", "(from a checkpoint)");
 }
 
 void Fmi2Instance::set(const Variable& v, const Scalar& value, const std::string& when) {
@@ -205,6 +286,8 @@ void Fmi2Instance::set(const Variable& v, const Scalar& value, const std::string
       check(lib_.setString(c_, &vr, 1, &x), "fmi2SetString", w);
       break;
     }
+    default:
+      throw FmuError(who() + ": '" + v.name + "' has FMI 3.0 type " + type_name(v.type) + " in an FMI 2.0 FMU");
   }
 }
 
@@ -228,10 +311,10 @@ double Fmi2Instance::get_number(const Variable& v, const std::string& when) {
       check(lib_.getBoolean(c_, &vr, 1, &x), "fmi2GetBoolean", w);
       return x ? 1.0 : 0.0;
     }
-    case VarType::String:
+    default:
       break;
   }
-  throw FmuError(who() + ": '" + v.name + "' is a String variable; it cannot be a number");
+  throw FmuError(who() + ": '" + v.name + "' is a " + type_name(v.type) + " variable; it cannot be a number");
 }
 
 void Fmi2Instance::get_numbers(const std::vector<const Variable*>& vars, std::vector<double>& out,

@@ -1,12 +1,15 @@
 #include "fmu_model.hpp"
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <iostream>
 #include <limits>
 #include <set>
+#include <sstream>
 
 #include "cosim/paths.hpp"
 #include "cosim/yaml_config.hpp"
@@ -47,7 +50,7 @@ std::string variables_with(const ModelDescription& md, std::initializer_list<Cau
   std::vector<std::string> names;
   for (const auto& v : md.variables)
     for (Causality c : cs)
-      if (v.causality == c && v.type != VarType::String) names.push_back(v.name);
+      if (v.causality == c && is_numeric(v.type) && v.dimensions.empty()) names.push_back(v.name);
   if (names.size() > 12) {
     names.resize(12);
     names.push_back("...");
@@ -68,6 +71,7 @@ FmuModel::FmuModel(YAML::Node root, std::string base_dir)
 FmuModel::~FmuModel() {
   inst_.reset();
   lib_.reset();
+  lib3_.reset();
   unpacked_.reset();
 }
 
@@ -86,6 +90,79 @@ const Variable& FmuModel::variable(const std::string& name, const std::string& p
   return *v;
 }
 
+// Ports carry numbers, one per variable or array element.
+void check_port_variable(const Variable& v, const std::string& path, long long element) {
+  if (!is_numeric(v.type))
+    throw cfg::ConfigError(path + ": '" + v.name + "' is a " + type_name(v.type) +
+                           " variable; ports carry numbers (Real, Integer, Boolean, Enumeration; FMI 3.0: Float32/64, "
+                           "Int8 ... UInt64, Boolean, Enumeration); set String and Binary values under `start`");
+  if (!v.dimensions.empty() && element < 0)
+    throw cfg::ConfigError(path + ": '" + v.name + "' is an array (" + std::to_string(v.dimensions.size()) +
+                           " <Dimension>); a port carries one number: name an element, e.g. " + v.name + "[1]" +
+                           (v.dimensions.size() > 1 ? std::string(" ... [1,1]") : std::string()) + " (1-based)");
+}
+
+const Variable& FmuModel::element_variable(const std::string& name, const std::string& path, long long* element) const {
+  *element = -1;
+  const auto open = name.find('[');
+  if (open == std::string::npos || name.back() != ']' || md_->find(name)) return variable(name, path);
+  const Variable& v = variable(name.substr(0, open), path);
+  if (v.dimensions.empty())
+    throw cfg::ConfigError(path + ": '" + v.name + "' is not an array; name it without [...]");
+  std::vector<long long> index;
+  std::stringstream list(name.substr(open + 1, name.size() - open - 2));
+  std::string part;
+  while (std::getline(list, part, ',')) {
+    char* end = nullptr;
+    const long long i = std::strtoll(part.c_str(), &end, 10);
+    if (part.empty() || *end || i < 1)
+      throw cfg::ConfigError(path + ": '" + name + "': indices are whole numbers from 1, e.g. " + v.name + "[1]");
+    index.push_back(i);
+  }
+  if (index.size() != v.dimensions.size())
+    throw cfg::ConfigError(path + ": '" + name + "': '" + v.name + "' has " + std::to_string(v.dimensions.size()) +
+                           " dimension(s), so give " + std::to_string(v.dimensions.size()) + " index(es)");
+  const std::vector<std::size_t> dims = array_dims(v);
+  long long flat = 0;
+  for (std::size_t d = 0; d < dims.size(); ++d) {
+    if (index[d] > static_cast<long long>(dims[d]))
+      throw cfg::ConfigError(path + ": '" + name + "': index " + std::to_string(index[d]) + " is beyond the size " +
+                             std::to_string(dims[d]) + " of dimension " + std::to_string(d + 1));
+    flat = flat * static_cast<long long>(dims[d]) + (index[d] - 1);
+  }
+  *element = flat;
+  return v;
+}
+
+std::vector<std::size_t> FmuModel::array_dims(const Variable& v) const {
+  std::vector<std::size_t> dims;
+  for (const auto& d : v.dimensions) {
+    if (d.start) {
+      dims.push_back(static_cast<std::size_t>(*d.start));
+      continue;
+    }
+    const Variable* param = md_->find_by_reference(*d.value_reference);
+    double n = -1;
+    if (inst_) {
+      n = inst_->get_number(*param, "(the size of '" + v.name + "')");
+    } else {
+      for (const auto& sv : start_values_)
+        if (sv.var == param) n = sv.value.number;
+      if (n < 0 && param->start) n = std::strtod(param->start->c_str(), nullptr);
+    }
+    if (!(n >= 0)) throw FmuError("FMU " + label_ + ": the size of array '" + v.name + "' (structural parameter '" + param->name + "') is not known");
+    dims.push_back(static_cast<std::size_t>(n));
+  }
+  return dims;
+}
+
+std::size_t FmuModel::array_size(const Variable& v) const {
+  std::size_t n = 1;
+  for (const std::size_t d : array_dims(v)) n *= d;
+  return n;
+}
+
+
 Component FmuModel::output_component(const YAML::Node& node, const std::string& path) const {
   Component c;
   double x = 0;
@@ -95,9 +172,10 @@ Component FmuModel::output_component(const YAML::Node& node, const std::string& 
   }
   if (!node.IsScalar())
     throw cfg::ConfigError(path + ": expected an FMU variable name or a number");
-  const Variable& v = variable(node.Scalar(), path);
-  if (v.type == VarType::String)
-    throw cfg::ConfigError(path + ": '" + v.name + "' is a String variable; ports carry numbers (Real, Integer, Boolean, Enumeration)");
+  long long element = -1;
+  const Variable& v = element_variable(node.Scalar(), path, &element);
+  c.element = element;
+  check_port_variable(v, path, element);
   if (v.causality == Causality::Input)
     throw cfg::ConfigError(path + ": '" + v.name + "' has causality input; an output port reads variables with causality output (or local, parameter)");
   if (v.causality == Causality::Independent)
@@ -112,9 +190,10 @@ Component FmuModel::input_component(const YAML::Node& node, const std::string& p
   double x = 0;
   if (is_number(node, &x) || !node.IsScalar())
     throw cfg::ConfigError(path + ": an input port sets FMU variables: give a variable name, or null to leave this number out");
-  const Variable& v = variable(node.Scalar(), path);
-  if (v.type == VarType::String)
-    throw cfg::ConfigError(path + ": '" + v.name + "' is a String variable; ports carry numbers (Real, Integer, Boolean, Enumeration)");
+  long long element = -1;
+  const Variable& v = element_variable(node.Scalar(), path, &element);
+  c.element = element;
+  check_port_variable(v, path, element);
   if (v.causality != Causality::Input)
     throw cfg::ConfigError(path + ": '" + v.name + "' has causality " + causality_name(v.causality) +
                            "; an input port sets variables with causality input" +
@@ -127,7 +206,7 @@ PortMap FmuModel::parse_port(const YAML::Node& node, const std::string& path, bo
   PortMap p;
   p.input = input;
   p.path = path;
-  cfg::check_keys(node, path, {"name", "scalar", "kinematics", "wrench"});
+  cfg::check_keys(node, path, {"name", "scalar", "kinematics", "wrench", "factor", "offset"});
   p.name = cfg::get_string(node, path, "name");
   cosim::require_valid_name(p.name, path + ".name");
   const int kinds = (node["scalar"] ? 1 : 0) + (node["kinematics"] ? 1 : 0) + (node["wrench"] ? 1 : 0);
@@ -153,10 +232,17 @@ PortMap FmuModel::parse_port(const YAML::Node& node, const std::string& path, bo
     const auto v = vec(m, where, key, outputs_style);
     return Vec3Map{v[0], v[1], v[2]};
   };
+  if ((node["factor"] || node["offset"]) && !node["scalar"])
+    throw cfg::ConfigError(path + ": factor and offset convert the unit of a scalar port only (kinematics and wrenches are SI)");
   if (node["scalar"]) {
     p.kind = SignalKind::Scalar;
     if (node["scalar"].IsNull()) throw cfg::ConfigError(path + ".scalar: expected an FMU variable name");
     p.scalar = comp(node["scalar"], path + ".scalar");
+    if (node["factor"]) {
+      p.scalar.factor = cfg::get_double(node, path, "factor");
+      if (p.scalar.factor == 0) throw cfg::ConfigError(path + ".factor: must not be 0 (a unit conversion multiplies by it)");
+    }
+    if (node["offset"]) p.scalar.offset = cfg::get_double(node, path, "offset");
     if (!p.scalar.var && !input)
       throw cfg::ConfigError(path + ".scalar: expected an FMU variable name (a constant output says nothing)");
   } else if (node["kinematics"]) {
@@ -232,7 +318,8 @@ PortMap FmuModel::parse_port(const YAML::Node& node, const std::string& path, bo
   return p;
 }
 
-void FmuModel::set_start_values(const YAML::Node& start, const std::string& path) {
+void FmuModel::check_start_values(const YAML::Node& start, const std::string& path) {
+  start_values_.clear();
   if (!start || start.IsNull()) return;
   if (!start.IsMap()) throw cfg::ConfigError(path + ": expected a map {variable name: value}");
   for (const auto& kv : start) {
@@ -254,64 +341,124 @@ void FmuModel::set_start_values(const YAML::Node& start, const std::string& path
       return cfg::ConfigError(k + ": '" + name + "' is an FMI " + type_name(v.type) + " variable; expected " +
                               expected + ", got " + got);
     };
-    if (!val.IsScalar()) throw wrong("a single value");
-    switch (v.type) {
-      case VarType::Real:
-        if (!is_number(val, &s.number)) throw wrong("a finite number");
-        break;
-      case VarType::Integer: {
-        long long n = 0;
-        try {
-          n = val.as<long long>();
-        } catch (const YAML::Exception&) {
-          throw wrong("an integer");
-        }
-        if (n < std::numeric_limits<int>::min() || n > std::numeric_limits<int>::max())
-          throw wrong("an integer in the 32-bit range");
-        s.number = static_cast<double>(n);
-        break;
-      }
-      case VarType::Boolean: {
-        bool b = false;
-        try {
-          b = val.as<bool>();
-        } catch (const YAML::Exception&) {
-          throw wrong("true or false");
-        }
-        s.number = b ? 1 : 0;
-        break;
-      }
-      case VarType::String:
-        s.text = val.Scalar();
-        break;
-      case VarType::Enumeration: {
-        const auto items = md_->enumerations.find(v.declared_type);
-        long long n = 0;
-        bool ok = false;
-        try {
-          n = val.as<long long>();
-          ok = true;
-        } catch (const YAML::Exception&) {
-        }
-        if (!ok && items != md_->enumerations.end()) {
-          const auto it = items->second.find(val.Scalar());
-          if (it != items->second.end()) {
-            n = it->second;
-            ok = true;
+    if (!v.dimensions.empty()) {
+      // An array: a list of its values, row-major, each checked as the type's scalar; the size
+      // is checked below, once a structural parameter in the same map is known.
+      if (!val.IsSequence()) throw wrong("a list of its values (it is an array)");
+      if (!is_numeric(v.type)) throw wrong("numbers: fmu_adapter sets numeric arrays only");
+      StartValue sv{&v, s, k, {}};
+      for (std::size_t i = 0; i < val.size(); ++i) {
+        const std::string ek = k + "." + std::to_string(i);
+        double x = 0;
+        if (v.type == VarType::Boolean) {
+          try {
+            x = val[i].as<bool>() ? 1 : 0;
+          } catch (const YAML::Exception&) {
+            throw cfg::ConfigError(ek + ": expected true or false");
           }
+        } else if (!is_number(val[i], &x)) {
+          throw cfg::ConfigError(ek + ": expected a finite number");
+        } else if (is_integer(v.type)) {
+          long double lo = 0, hi = 0;
+          integer_range(v.type == VarType::Enumeration ? VarType::Int64 : v.type, &lo, &hi);
+          if (x != std::nearbyint(x) || x < lo || x > hi)
+            throw cfg::ConfigError(ek + ": expected an integer in the " + type_name(v.type) + " range, got " + val[i].Scalar());
         }
-        if (!ok) {
-          std::vector<std::string> names;
-          if (items != md_->enumerations.end())
-            for (const auto& [item, value] : items->second) names.push_back(item + " (" + std::to_string(value) + ")");
-          throw wrong("an item of " + v.declared_type + ": " + allowed_list(names));
+        sv.array.push_back(x);
+      }
+      start_values_.push_back(std::move(sv));
+      continue;
+    }
+    if (!val.IsScalar()) throw wrong("a single value");
+    if (is_float(v.type)) {
+      if (!is_number(val, &s.number)) throw wrong("a finite number");
+      if (v.type == VarType::Float32 && std::abs(s.number) > std::numeric_limits<float>::max())
+        throw wrong("a number within the Float32 range");
+    } else if (is_integer(v.type) && v.type != VarType::Enumeration) {
+      long double lo = 0, hi = 0;
+      integer_range(v.type, &lo, &hi);
+      const std::string text = val.Scalar();
+      // Digits only (a sign for signed types): "2.5", "1e3", "true" are not integers.
+      const std::size_t first = !text.empty() && (text[0] == '-' || text[0] == '+') ? 1 : 0;
+      if (text.size() == first || text.find_first_not_of("0123456789", first) != std::string::npos)
+        throw wrong(v.type == VarType::Integer ? std::string("an integer") : "an integer (" + std::string(type_name(v.type)) + ")");
+      errno = 0;
+      const long double n = std::strtold(text.c_str(), nullptr);
+      if (n < lo || n > hi) {
+        char range[96];
+        std::snprintf(range, sizeof range, "an integer from %.0Lf to %.0Lf", lo, hi);
+        throw wrong(v.type == VarType::Integer ? std::string("an integer in the 32-bit range") : std::string(range));
+      }
+      s.number = static_cast<double>(n);
+      if (v.type == VarType::UInt64) s.uint64 = std::strtoull(text.c_str() + (text[0] == '+'), nullptr, 10);
+      else if (v.type == VarType::Int64) s.int64 = std::strtoll(text.c_str(), nullptr, 10);
+    } else {
+      switch (v.type) {
+        case VarType::Boolean: {
+          bool b = false;
+          try {
+            b = val.as<bool>();
+          } catch (const YAML::Exception&) {
+            throw wrong("true or false");
+          }
+          s.number = b ? 1 : 0;
+          break;
         }
-        s.number = static_cast<double>(n);
-        break;
+        case VarType::String:
+          s.text = val.Scalar();
+          break;
+        case VarType::Binary: {
+          s.text = val.Scalar();
+          if (s.text.size() % 2 || s.text.find_first_not_of("0123456789abcdefABCDEF") != std::string::npos)
+            throw wrong("hex digits, two per byte (e.g. 666f6f)");
+          break;
+        }
+        case VarType::Enumeration: {
+          const auto items = md_->enumerations.find(v.declared_type);
+          long long n = 0;
+          bool ok = false;
+          try {
+            n = val.as<long long>();
+            ok = val.Scalar().find_first_of(".eE") == std::string::npos;
+          } catch (const YAML::Exception&) {
+          }
+          if (!ok && items != md_->enumerations.end()) {
+            const auto it = items->second.find(val.Scalar());
+            if (it != items->second.end()) {
+              n = it->second;
+              ok = true;
+            }
+          }
+          if (!ok) {
+            std::vector<std::string> names;
+            if (items != md_->enumerations.end())
+              for (const auto& [item, value] : items->second) names.push_back(item + " (" + std::to_string(value) + ")");
+            throw wrong("an item of " + v.declared_type + ": " + allowed_list(names));
+          }
+          s.number = static_cast<double>(n);
+          s.int64 = n;
+          break;
+        }
+        default:
+          throw cfg::ConfigError(k + ": '" + name + "' is an FMI " + type_name(v.type) + " variable; fmu_adapter does not set " +
+                                 type_name(v.type) + " variables");
       }
     }
-    inst_->set(v, s, "(start value from " + k + ")");
+    start_values_.push_back({&v, s, k, {}});
   }
+  for (const auto& sv : start_values_)
+    if (!sv.var->dimensions.empty() && sv.array.size() != array_size(*sv.var))
+      throw cfg::ConfigError(sv.key + ": '" + sv.var->name + "' has " + std::to_string(array_size(*sv.var)) +
+                             " values, the list " + std::to_string(sv.array.size()));
+}
+
+void FmuModel::set_start_values() {
+  for (const auto& sv : start_values_)
+    if (sv.var->causality != Causality::StructuralParameter)  // set in Configuration Mode
+    {
+      if (sv.var->dimensions.empty()) inst_->set(*sv.var, sv.value, "(start value from " + sv.key + ")");
+      else inst_->set_array(*sv.var, sv.array, "(start value from " + sv.key + ")");
+    }
 }
 
 void FmuModel::parse_mapping(const YAML::Node& root, const std::string& path) {
@@ -337,11 +484,8 @@ void FmuModel::parse_mapping(const YAML::Node& root, const std::string& path) {
   start_ = root["start"] ? YAML::Clone(root["start"]) : YAML::Node();
   if (start_ && !start_.IsNull() && !start_.IsMap())
     throw cfg::ConfigError(key("start") + ": expected a map {variable name: value}");
-  if (start_ && start_.IsMap())
-    for (const auto& kv : start_) {  // names and kinds now, values once instantiated
-      const std::string k = key("start") + "." + kv.first.as<std::string>();
-      variable(kv.first.as<std::string>(), k);
-    }
+  // Names, kinds and values now (also at start-up, without a master); set once instantiated.
+  check_start_values(start_, key("start"));
   inputs_.clear();
   outputs_.clear();
   std::set<std::string> names;
@@ -371,7 +515,7 @@ void FmuModel::parse_mapping(const YAML::Node& root, const std::string& path) {
     throw cfg::ConfigError(where + ": '" + name + "' is neither ground nor a kinematics port of this mapping");
   };
   // One input variable set by two ports would take whichever comes last.
-  std::map<const Variable*, std::string> set_by;
+  std::map<std::pair<const Variable*, long long>, std::string> set_by;
   for (auto* list : {&inputs_, &outputs_})
     for (auto& p : *list) {
       if (p.kind == SignalKind::Wrench) {
@@ -387,8 +531,8 @@ void FmuModel::parse_mapping(const YAML::Node& root, const std::string& path) {
       for (auto& c : p.quaternion) comps.push_back(&c);
       for (auto& c : p.angles) comps.push_back(&c);
       for (const auto* c : comps)
-        if (c->var && !set_by.emplace(c->var, p.name).second)
-          throw cfg::ConfigError(p.path + ": FMU input '" + c->var->name + "' is set by port '" + set_by[c->var] +
+        if (c->var && !set_by.emplace(std::make_pair(c->var, c->element), p.name).second)
+          throw cfg::ConfigError(p.path + ": FMU input '" + c->var->name + "' is set by port '" + set_by[{c->var, c->element}] +
                                  "' already");
     }
 }
@@ -404,6 +548,7 @@ void FmuModel::prepare(const YAML::Node& parameters, const std::string& particip
   if (md_ && text == prepared_yaml_) return;  // the same mapping: keep the loaded FMU
   inst_.reset();
   lib_.reset();
+  lib3_.reset();
   md_.reset();
   unpacked_.reset();
   const std::string given = cfg::get_string(root, path, "fmu");
@@ -416,9 +561,24 @@ void FmuModel::prepare(const YAML::Node& parameters, const std::string& particip
     throw FmuError("FMU '" + label_ + "': no modelDescription.xml at the top of the archive; not an FMU (or a folder was zipped around it)");
   md_ = std::make_unique<ModelDescription>(parse_model_description(xml, label_));
   label_ = fs::path(fmu_path_).filename().string() + " (model '" + md_->model_name + "')";
-  const std::string so = "binaries/linux64/" + md_->model_identifier + ".so";
+  // FMI 2.0: binaries/linux64; FMI 3.0: binaries/x86_64-linux (<architecture>-<os>).
+  const std::string platform = md_->fmi_major == 3 ? "x86_64-linux" : "linux64";
+  const std::string folder = "binaries/" + platform + "/";
+  const std::string so = folder + md_->model_identifier + ".so";
   const fs::path so_path = fs::path(unpacked_->dir()) / so;
   if (!fs::exists(so_path)) {
+    // The platform folder may hold a library of another name: then the modelIdentifier is wrong
+    // (or the FMU was renamed by hand), not the platform.
+    std::vector<std::string> here;
+    for (const auto& e : unpacked_->entries())
+      if (e.rfind(folder, 0) == 0 && e.size() > folder.size() && e.back() != '/') here.push_back(e.substr(folder.size()));
+    if (!here.empty())
+      throw FmuError("FMU '" + label_ + "': <CoSimulation modelIdentifier=\"" + md_->model_identifier +
+                     "\"> in modelDescription.xml names the binary " + so + ", which is not in the archive; " +
+                     folder + " holds " + allowed_list(here) +
+                     ". The modelIdentifier must be the binary's file name without .so: the FMU is "
+                     "inconsistent (renamed by hand?); export it again, or repack it with the binary named " +
+                     md_->model_identifier + ".so");
     std::set<std::string> platforms;
     for (const auto& e : unpacked_->entries())
       if (e.rfind("binaries/", 0) == 0) {
@@ -430,12 +590,20 @@ void FmuModel::prepare(const YAML::Node& parameters, const std::string& particip
     throw FmuError("FMU '" + label_ + "': no binary for this platform: " + so + " is not in the archive (" +
                    (list.empty() ? std::string("it has no binaries at all")
                                  : "it has binaries for: " + list) +
-                   "); export the FMU for linux64 (x86_64 Linux) from its tool");
+                   "); export the FMU for " + platform + " (x86_64 Linux) from its tool");
   }
   if (md_->needs_execution_tool)
     std::cerr << "fmu_adapter " << participant_ << ": FMU " << label_
               << " declares needsExecutionTool=\"true\": its tool must be installed and licensed on this host\n";
-  lib_ = std::make_unique<Fmi2Library>(so_path.string(), label_);
+  if (md_->fmi_major == 3) {
+    lib3_ = std::make_unique<Fmi3Library>(so_path.string(), label_);
+    lib_state_ = lib3_->has_state_functions();
+    lib_serialize_ = lib3_->has_serialize_functions();
+  } else {
+    lib_ = std::make_unique<Fmi2Library>(so_path.string(), label_);
+    lib_state_ = lib_->has_state_functions();
+    lib_serialize_ = lib_->has_serialize_functions();
+  }
   parse_mapping(root, path);
   prepared_yaml_ = text;
 }
@@ -448,6 +616,7 @@ void FmuModel::configure(const YAML::Node& parameters, const cosim::RunInfo& run
     // the session and may be killed rather than told to stop.
     inst_.reset();
     lib_.reset();
+    lib3_.reset();
     md_.reset();
     unpacked_.reset();
     prepared_yaml_.clear();
@@ -476,13 +645,40 @@ void FmuModel::configure_instance(const YAML::Node& parameters, const cosim::Run
     throw cfg::ConfigError(path + ".step_size: " + std::to_string(cosim::to_seconds(inner_step_)) +
                            " s does not divide the macro step " + std::to_string(cosim::to_seconds(run.macro_step)) +
                            " s; choose a step size that does, or substeps: N");
-  const std::string resources = "file://" + (fs::path(unpacked_->dir()) / "resources").string() + "/";
+  // FMI 3.0 fixedInternalStepSize: the FMU integrates with that step; a doStep that is not a
+  // whole number of them makes it end the step with a shorter one (or interpolate). Said, not
+  // refused: it is the FMU's business, and the result may still be what the user wants.
+  if (md_->fixed_internal_step_size && *md_->fixed_internal_step_size > 0) {
+    const double h = cosim::to_seconds(inner_step_), n = h / *md_->fixed_internal_step_size;
+    if (std::abs(n - std::nearbyint(n)) > 1e-9 * std::max(1.0, n) || std::nearbyint(n) < 1)
+      std::cerr << "fmu_adapter " << participant_ << ": note: FMU " << label_ << " integrates with a fixed internal step of "
+                << *md_->fixed_internal_step_size << " s (fixedInternalStepSize); its doStep of " << h
+                << " s is not a whole number of them, so each step ends with a shorter one: choose a macro step or "
+                   "step_size that is a multiple of it\n";
+  }
   const std::string who = "fmu_adapter " + participant_ + ": ";
-  inst_ = std::make_unique<Fmi2Instance>(*lib_, *md_, label_, instance_name_, resources, verbose_,
-                                         [who](const std::string& line) { std::cerr << who << line << "\n"; });
-  set_start_values(start_, path + ".start");
-  inst_->setup_experiment(cosim::to_seconds(run.t_start), tolerance_, cosim::to_seconds(run.t_end));
-  inst_->enter_initialization();
+  auto sink = [who](const std::string& line) { std::cerr << who << line << "\n"; };
+  const std::string resources_dir = (fs::path(unpacked_->dir()) / "resources").string() + "/";
+  if (md_->fmi_major == 3) {
+    // FMI 3.0 takes the resources folder as a native path. Structural parameters are set in
+    // Configuration Mode, the other start values after it (FMI 3.0, 2.3.2).
+    auto inst = std::make_unique<Fmi3Instance>(*lib3_, *md_, label_, instance_name_, resources_dir, verbose_, sink);
+    bool structural = false;
+    for (const auto& sv : start_values_) structural = structural || sv.var->causality == Causality::StructuralParameter;
+    if (structural) {
+      inst->enter_configuration();
+      for (const auto& sv : start_values_)
+        if (sv.var->causality == Causality::StructuralParameter)
+          inst->set(*sv.var, sv.value, "(start value from " + sv.key + ")");
+      inst->exit_configuration();
+    }
+    inst_ = std::move(inst);
+  } else {
+    // A URI (RFC 3986): the path percent-encoded, so a folder with a space or a '%' arrives intact.
+    inst_ = std::make_unique<Fmi2Instance>(*lib_, *md_, label_, instance_name_, file_uri(resources_dir), verbose_, sink);
+  }
+  set_start_values();
+  inst_->enter_initialization(cosim::to_seconds(run.t_start), tolerance_, cosim::to_seconds(run.t_end));
   inst_->exit_initialization();
 }
 
@@ -499,41 +695,127 @@ cosim::Ports FmuModel::outputs() const {
 }
 
 bool FmuModel::can_repeat() const {
-  return snapshots_ && md_ && md_->can_get_and_set_fmu_state && lib_ && lib_->has_state_functions();
+  return snapshots_ && md_ && md_->can_get_and_set_fmu_state && lib_state_;
 }
 
 std::string FmuModel::repeat_note() const {
   if (!md_) return "";
   if (!md_->can_get_and_set_fmu_state)
-    return "FMU " + label_ + " declares canGetAndSetFMUstate=\"false\" (or leaves it out): it cannot save and "
+    return "FMU " + label_ + " declares " + state_attribute() + "=\"false\" (or leaves it out): it cannot save and "
            "restore its state, so it cannot repeat a step";
-  if (!lib_ || !lib_->has_state_functions())
-    return "FMU " + label_ + " declares canGetAndSetFMUstate=\"true\" but its binary lacks fmi2GetFMUstate, "
-           "fmi2SetFMUstate or fmi2FreeFMUstate";
+  if (!lib_state_)
+    return "FMU " + label_ + " declares " + state_attribute() + "=\"true\" but its binary lacks " +
+           (md_->fmi_major == 3 ? "fmi3GetFMUState, fmi3SetFMUState or fmi3FreeFMUState"
+                                : "fmi2GetFMUstate, fmi2SetFMUstate or fmi2FreeFMUstate");
   if (!snapshots_) return "its mapping sets snapshots: false";
   return "";
+}
+
+bool FmuModel::can_checkpoint() const {
+  return md_ && md_->can_get_and_set_fmu_state && md_->can_serialize_fmu_state && lib_serialize_;
+}
+
+// A checkpoint file: a header line, the GUID (a state of another FMU is refused), the adapter's
+// highest input-derivative order so far, the size and the FMU's serialized state.
+namespace {
+constexpr const char* kCheckpointHeader = "fmu_adapter checkpoint 1";
+}
+
+void FmuModel::save_checkpoint(const std::string& path) {
+  if (!can_checkpoint())
+    throw FmuError("FMU " + label_ + " cannot serialize its state (" + serialize_attribute() + "=\"false\" or missing functions)");
+  const std::string bytes = inst_->serialize_state();
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  out << kCheckpointHeader << "\n" << md_->guid << "\n" << max_derivative_order_ << "\n" << bytes.size() << "\n";
+  out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+  out.flush();
+  if (!out) throw FmuError("cannot write checkpoint '" + path + "'");
+}
+
+void FmuModel::load_checkpoint(const std::string& path) {
+  if (!can_checkpoint())
+    throw FmuError("FMU " + label_ + " cannot deserialize a state (" + serialize_attribute() + "=\"false\" or missing functions)");
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw FmuError("cannot open checkpoint '" + path + "'");
+  std::string header, guid, order, size;
+  std::getline(in, header);
+  std::getline(in, guid);
+  std::getline(in, order);
+  std::getline(in, size);
+  if (header != kCheckpointHeader) throw FmuError("'" + path + "' is not a checkpoint of fmu_adapter");
+  if (guid != md_->guid)
+    throw FmuError("checkpoint '" + path + "' is of an FMU with GUID " + guid + ", but FMU " + label_ + " has " +
+                   md_->guid + ": resume with the FMU the run started with");
+  std::size_t n = 0;
+  try {
+    max_derivative_order_ = std::stoi(order);
+    n = static_cast<std::size_t>(std::stoull(size));
+  } catch (const std::exception&) {
+    throw FmuError("checkpoint '" + path + "' is damaged (bad header)");
+  }
+  std::string bytes(n, '\0');
+  in.read(bytes.data(), static_cast<std::streamsize>(n));
+  if (static_cast<std::size_t>(in.gcount()) != n) throw FmuError("checkpoint '" + path + "' is truncated");
+  inst_->deserialize_state(bytes);
+}
+
+std::string FmuModel::state_attribute() const {
+  return md_ && md_->fmi_major == 3 ? "canGetAndSetFMUState" : "canGetAndSetFMUstate";
+}
+
+std::string FmuModel::value_text(const std::string& name) {
+  const Variable* v = md_ ? md_->find(name) : nullptr;
+  if (!v || !inst_) throw FmuError("FMU " + label_ + ": no variable '" + name + "' (or not configured)");
+  return inst_->get_text(*v, "(read by name)");
 }
 
 void FmuModel::save_snapshot() { inst_->save_state(); }
 void FmuModel::restore_snapshot() { inst_->restore_state(); }
 
+double FmuModel::array_element(const Component& c, const std::string& when) {
+  const std::vector<double> all = inst_->get_array(*c.var, array_size(*c.var), when);
+  if (c.element >= static_cast<long long>(all.size()))
+    throw FmuError("FMU " + label_ + ": element " + std::to_string(c.element + 1) + " of '" + c.var->name + "' " + when +
+                   " is beyond its " + std::to_string(all.size()) + " values");
+  return all[static_cast<std::size_t>(c.element)];
+}
+
 double FmuModel::read(const Component& c, const std::string& when) {
-  return c.var ? inst_->get_number(*c.var, when) : c.constant;
+  if (!c.var) return c.constant;
+  const double x = c.element < 0 ? inst_->get_number(*c.var, when) : array_element(c, when);
+  return c.factor == 1 && c.offset == 0 ? x : c.factor * x + c.offset;  // untouched bits without a conversion
 }
 
 void FmuModel::write(const Component& c, double value, const PortMap& p, const std::string& when) {
   if (!c.var) return;
   const Variable& v = *c.var;
   Scalar s;
+  if (c.factor != 1 || c.offset != 0) value = c.factor * value + c.offset;
   s.number = value;
-  if (v.type == VarType::Integer || v.type == VarType::Enumeration) {
+  if (is_integer(v.type)) {
     const double r = std::nearbyint(value);
-    if (!(r >= std::numeric_limits<int>::min() && r <= std::numeric_limits<int>::max()))
+    const bool fmi2 = v.type == VarType::Integer || (v.type == VarType::Enumeration && md_->fmi_major == 2);
+    long double lo = 0, hi = 0;
+    integer_range(v.type == VarType::Enumeration && !fmi2 ? VarType::Int64 : v.type, &lo, &hi);
+    // The 64-bit bounds as doubles round up to 2^63 and 2^64, which do not fit: hence < there.
+    const bool wide = v.type == VarType::Int64 || v.type == VarType::UInt64 || (v.type == VarType::Enumeration && !fmi2);
+    const long double x = static_cast<long double>(r);
+    if (!(x >= lo && (wide ? x < hi : x <= hi)))
       throw cosim::InputError("input '" + p.name + "': " + std::to_string(value) + " does not fit FMU " +
-                              type_name(v.type) + " variable '" + v.name + "' (32-bit)");
+                              type_name(v.type) + " variable '" + v.name + "' (" +
+                              (fmi2 ? std::string("32-bit") : std::string(type_name(v.type)) + " range") + ")");
     s.number = r;  // the nearest integer
   } else if (v.type == VarType::Boolean) {
     s.number = value > 0.5 ? 1 : 0;
+  }
+  if (c.element >= 0) {  // an array element: read the array, change one value, set it all
+    std::vector<double> all = inst_->get_array(v, array_size(v), when);
+    if (c.element >= static_cast<long long>(all.size()))
+      throw FmuError("FMU " + label_ + ": input port '" + p.name + "': element " + std::to_string(c.element + 1) + " of '" +
+                     v.name + "' is beyond its " + std::to_string(all.size()) + " values");
+    all[static_cast<std::size_t>(c.element)] = s.number;
+    inst_->set_array(v, all, when);
+    return;
   }
   inst_->set(v, s, when);
 }
@@ -714,7 +996,7 @@ void FmuModel::write_input_derivatives(const cosim::StepInputs& in, cosim::TimeP
           d += poly.coefficients[i * n + index] * falling * sk;
           sk *= s;
         }
-        inst_->set_input_derivative(*component->var, j, d / Lj, when);
+        inst_->set_input_derivative(*component->var, j, component->factor * d / Lj, when);
       }
     }
   }
@@ -732,9 +1014,30 @@ cosim::StepResult FmuModel::step(const cosim::StepInputs& in, bool /*want_averag
     for (const bool wrench : {false, true})
       for (const auto& p : inputs_)
         if ((p.kind == SignalKind::Wrench) == wrench) write_input(p, in.at(p.name, t), when);
-    if (input_derivatives_ && md_->can_interpolate_inputs && lib_->setRealInputDerivatives)
+    if (input_derivatives_ && md_->can_interpolate_inputs && inst_->can_set_input_derivatives())
       write_input_derivatives(in, t, when);
-    inst_->do_step(cosim::to_seconds(t), h);
+    if (const std::optional<double> reached = inst_->do_step(cosim::to_seconds(t), h)) {
+      // The FMU ended itself: the run ends at the time it reached (whole ns, within the
+      // sub-step), with its outputs there.
+      cosim::TimePoint at = t + cosim::Duration(static_cast<int64_t>(std::llround((*reached - cosim::to_seconds(t)) * 1e9)));
+      at = std::clamp(at, t, t + inner_step_);
+      char text[200];
+      std::snprintf(text, sizeof text, "at t = %.9g s", cosim::to_seconds(at));
+      received_.clear();
+      for (const auto& p : inputs_)
+        if (p.kind == SignalKind::Kinematics) received_[p.name] = cosim::Kinematics::from_value(in.at(p.name, at));
+      cosim::StepResult r;
+      r.outputs = read_outputs(text);
+      r.ended_at = at;
+      std::snprintf(text, sizeof text,
+                    md_->fmi_major == 3 ? "fmi3DoStep at t = %.9g s (step %.9g s) set terminateSimulation: the FMU "
+                                          "ended the simulation at its last successful time %.9g s"
+                                        : "fmi2DoStep at t = %.9g s (step %.9g s) returned fmi2Discard with fmi2Terminated: the FMU "
+                                          "ended the simulation at its last successful time %.9g s",
+                    cosim::to_seconds(t), h, *reached);
+      r.ended_reason = inst_->who() + " ended itself: " + text;
+      return r;
+    }
   }
   char when[64];
   std::snprintf(when, sizeof when, "at t = %.9g s", cosim::to_seconds(in.t_end()));

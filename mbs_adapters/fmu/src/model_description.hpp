@@ -1,5 +1,6 @@
-// modelDescription.xml of an FMI 2.0 co-simulation FMU: what the importer needs of it (FMI 2.0.x
-// standard, section 2.2). Parsed with pugixml; every problem raises FmuError naming the FMU.
+// modelDescription.xml of an FMI 2.0 or 3.0 co-simulation FMU: what the importer needs of it (FMI
+// 2.0.x section 2.2; FMI 3.0 section 2.4). Parsed with pugixml; every problem raises FmuError
+// naming the FMU. FMI 3.0's types map onto VarType; its arrays carry their dimensions.
 #pragma once
 
 #include <map>
@@ -16,8 +17,17 @@ struct FmuError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-enum class VarType { Real, Integer, Boolean, String, Enumeration };
-enum class Causality { Parameter, CalculatedParameter, Input, Output, Local, Independent };
+// Real and Integer are FMI 2.0's; Float32 ... Clock are FMI 3.0's (its Enumeration is an Int64).
+enum class VarType { Real, Integer, Boolean, String, Enumeration, Float32, Float64, Int8, UInt8, Int16, UInt16,
+                     Int32, UInt32, Int64, UInt64, Binary, Clock };
+enum class Causality { Parameter, CalculatedParameter, Input, Output, Local, Independent, StructuralParameter };
+
+bool is_float(VarType t);    // Real, Float32, Float64
+bool is_integer(VarType t);  // Integer, Enumeration, Int8 ... UInt64
+// A number on the bus: floats, integers, Boolean (not String, Binary, Clock).
+inline bool is_numeric(VarType t) { return is_float(t) || is_integer(t) || t == VarType::Boolean; }
+// The range of an integer type, as long double (exact for every 64-bit bound).
+void integer_range(VarType t, long double* lo, long double* hi);
 enum class Variability { Constant, Fixed, Tunable, Discrete, Continuous };
 enum class Initial { None, Exact, Approx, Calculated };
 
@@ -37,6 +47,13 @@ struct Variable {
   std::string declared_type;
   std::string description;
   std::string unit;
+  // FMI 3.0 arrays: one entry per <Dimension>, a fixed size (start) or the value reference of
+  // the structural parameter that holds it. Empty: a scalar.
+  struct Dimension {
+    std::optional<unsigned long long> start;
+    std::optional<unsigned> value_reference;
+  };
+  std::vector<Dimension> dimensions;
 };
 
 struct DefaultExperiment {
@@ -45,15 +62,23 @@ struct DefaultExperiment {
 
 struct ModelDescription {
   std::string fmi_version;
+  int fmi_major = 2;  // 2 or 3
   std::string model_name;
   std::string guid;
   std::string generation_tool;
   // CoSimulation element
   std::string model_identifier;
   bool can_get_and_set_fmu_state = false;
+  bool can_serialize_fmu_state = false;
   bool can_handle_variable_step = false;
   bool can_interpolate_inputs = false;
   bool needs_execution_tool = false;
+  // FMI 3.0 <CoSimulation>
+  bool provides_intermediate_update = false;
+  bool can_return_early = false;  // canReturnEarlyAfterIntermediateUpdate
+  bool might_return_early = false;  // mightReturnEarlyFromDoStep
+  bool has_event_mode = false;
+  std::optional<double> fixed_internal_step_size;
   bool has_model_exchange = false;
   DefaultExperiment default_experiment;
   std::vector<Variable> variables;
@@ -62,10 +87,11 @@ struct ModelDescription {
 
   // nullptr when there is none.
   const Variable* find(const std::string& name) const;
+  const Variable* find_by_reference(unsigned value_reference) const;  // FMI 3.0: unique
 };
 
 // Parses the text of a modelDescription.xml; `fmu` names the FMU in messages. Refuses
-// malformed XML, an fmiVersion other than 2.0, a description without a CoSimulation element,
+// malformed XML, an fmiVersion other than 2.0 or 3.0, a description without a CoSimulation element,
 // variables without name/valueReference/type and duplicate names.
 ModelDescription parse_model_description(const std::string& xml, const std::string& fmu);
 

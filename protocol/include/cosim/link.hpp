@@ -123,6 +123,10 @@ struct StepAnswer {
   double compute_seconds = 0;
   double round_trip_seconds = 0;
   bool checkpointed = false;  // the checkpoint the request asked for was written
+  // The participant ended itself at this time (<= the request's end; step_reply_t::ENDED): the
+  // outputs are at that time and it takes no further step. ended_reason says why.
+  std::optional<TimePoint> ended_at;
+  std::string ended_reason;
 };
 
 class Transport {

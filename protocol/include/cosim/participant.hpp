@@ -55,6 +55,10 @@ struct StepResult {
   Signals outputs;                  // at t_end
   std::optional<Signals> average;   // over the step, when asked
   std::vector<std::pair<std::string, double>> diagnostics;
+  // The model ended itself (an FMU that reports fmi2Terminated) at this time, t_start..t_end of
+  // the step: `outputs` are at that time and no further step follows; `ended_reason` says why.
+  std::optional<TimePoint> ended_at;
+  std::string ended_reason;
 };
 
 // Raised by a model for an input it cannot accept (the step is refused, the state kept).
