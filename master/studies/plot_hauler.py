@@ -6,10 +6,14 @@
 
 writes OUT_front_axle.png (longitudinal and vertical tire force at the front axle, TYDEX C, like
 the paper's Figure 10), OUT_rear_axles.png (both rear axles on one chart, like Figure 11),
-OUT_discharge.png (body angle, payload left in the body, soil in the scene and removed,
-suspension strokes and pressures, hoist force) and prints the soil mass balance.
+OUT_discharge.png (body angle; the soil the body carries and the grains in its box, the soil
+removed; the soil's force on the body; suspension strokes; circuit pressures; hoist force) and
+prints the soil mass balance.
 Forces are shown after a centred moving average of --filter seconds (0: raw) over the raw
-curve drawn faintly: the DEM's contact noise is in every force.
+curve drawn faintly: the DEM's contact noise is in every force. Every force axis says which
+way a positive value points: tire forces act on the machine in TYDEX C axes (F_x > 0 pushes it
+forward, F_z > 0 carries it), the soil's force on the body is in ground axes (x forward, z up),
+the hoist force is positive pushing (raising the body).
 """
 import argparse
 import os
@@ -45,6 +49,9 @@ def main():
               "rear1_stroke", "rear2_stroke", "front_pressure", "rear_pressure", "hoist_force", "body_angle")}
         d = f"participants/{a.soil}/diagnostics/"
         soil = {k: f[d + k][:] for k in ("payload_body", "particles", "removed", "removed_mass") if d + k in f}
+        # the soil's wrench on the body: [fx fy fz tx ty tz rx ry rz], ground axes
+        w = f"participants/{a.soil}/outputs/body"
+        wrench = f[w][:].reshape(len(t), -1) if w in f else None
         status = f["status"][()].decode() if "status" in f else ""
 
     def forces(ax, keys, title, ylabel):
@@ -57,8 +64,10 @@ def main():
         ax.grid(alpha=0.3)
 
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
-    forces(axes[0], [("front_fx", "front axle")], "Front axle, longitudinal F_x (TYDEX C)", "kN")
-    forces(axes[1], [("front_fz", "front axle")], "Front axle, vertical F_z (TYDEX C)", "kN")
+    forces(axes[0], [("front_fx", "front axle")], "Front axle, longitudinal F_x (TYDEX C)",
+           "F_x on the machine [kN], + pushes it forward")
+    forces(axes[1], [("front_fz", "front axle")], "Front axle, vertical F_z (TYDEX C)",
+           "F_z on the machine [kN], + carries it")
     fig.suptitle(f"Tire forces at the front axle during the discharge: {os.path.basename(a.h5)}", fontsize=11)
     fig.tight_layout()
     fig.savefig(out + "_front_axle.png", dpi=120)
@@ -66,9 +75,9 @@ def main():
 
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
     forces(axes[0], [("rear1_fx", "rear axle 1 (2nd)"), ("rear2_fx", "rear axle 2 (3rd)")],
-           "Rear axles, longitudinal F_x (TYDEX C)", "kN")
+           "Rear axles, longitudinal F_x (TYDEX C)", "F_x on the machine [kN], + pushes it forward")
     forces(axes[1], [("rear1_fz", "rear axle 1 (2nd)"), ("rear2_fz", "rear axle 2 (3rd)")],
-           "Rear axles, vertical F_z (TYDEX C)", "kN")
+           "Rear axles, vertical F_z (TYDEX C)", "F_z on the machine [kN], + carries it")
     axes[0].legend(fontsize=8)
     axes[1].legend(fontsize=8)
     fig.suptitle(f"Tire forces at both rear axles during the discharge: {os.path.basename(a.h5)}", fontsize=11)
@@ -76,33 +85,49 @@ def main():
     fig.savefig(out + "_rear_axles.png", dpi=120)
     plt.close(fig)
 
-    fig, axes = plt.subplots(2, 2, figsize=(11, 7), sharex=True)
+    fig, axes = plt.subplots(3, 2, figsize=(11, 10), sharex=True)
     axes[0][0].plot(t, np.degrees(g["body_angle"]), lw=1.0)
-    axes[0][0].set_ylabel("body angle [deg]")
+    axes[0][0].set_ylabel("body angle [deg], + tipped")
     ax = axes[0][1]
+    if wrench is not None:
+        # what the body carries: the soil's downward force on it, in tonnes of weight
+        carried = -wrench[:, 2] / 9.81 / 1e3
+        line, = ax.plot(t, carried, lw=0.4, alpha=0.35)
+        ax.plot(t, smooth(t, carried, a.filter), lw=1.0, color=line.get_color(),
+                label="carried by the body (soil's downward force / g)")
     if "payload_body" in soil:
-        ax.plot(t, soil["payload_body"] / 1e3, lw=1.0, label="in the body (payload)")
+        ax.plot(t, soil["payload_body"] / 1e3, lw=1.0, ls="--",
+                label="grains inside the body's box (also those\nresting on the pile behind the tail)")
     if "removed_mass" in soil:
         ax.plot(t, soil["removed_mass"] / 1e3, lw=1.0, label="removed (left the region)")
     ax.set_ylabel("soil [t]")
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=7)
     ax = axes[1][0]
+    if wrench is not None:
+        for col, label in ((0, "F_x, + forward"), (2, "F_z, + up")):
+            line, = ax.plot(t, wrench[:, col] / 1e3, lw=0.4, alpha=0.35)
+            ax.plot(t, smooth(t, wrench[:, col], a.filter) / 1e3, lw=1.0, color=line.get_color(), label=label)
+        ax.legend(fontsize=8)
+    ax.set_ylabel("soil's force on the body [kN]\n(ground axes)")
+    ax = axes[1][1]
     for key, label in (("front_stroke", "front"), ("rear1_stroke", "rear 1"), ("rear2_stroke", "rear 2")):
         ax.plot(t, g[key] * 1e3, lw=1.0, label=label)
-    ax.set_ylabel("suspension stroke [mm]")
+    ax.set_ylabel("suspension stroke [mm],\n+ extending (0 = compressed)")
     ax.legend(fontsize=8)
-    ax = axes[1][1]
+    ax = axes[2][0]
     ax.plot(t, g["front_pressure"] / 1e6, lw=1.0, label="front circuit")
     ax.plot(t, g["rear_pressure"] / 1e6, lw=1.0, label="rear circuit (bogie)")
-    ax.plot(t, g["hoist_force"] / 1e7, lw=1.0, ls="--", label="hoist force [10 MN]")
     ax.set_ylabel("pressure [MPa]")
     ax.legend(fontsize=8)
+    ax = axes[2][1]
+    ax.plot(t, g["hoist_force"] / 1e3, lw=1.0)
+    ax.set_ylabel("hoist force [kN],\n+ pushing (raising the body)")
     for row in axes:
         for ax in row:
             ax.grid(alpha=0.3)
-    for ax in axes[1]:
+    for ax in axes[2]:
         ax.set_xlabel("time [s]")
-    fig.suptitle(f"Discharge: body, payload, suspension ({status})", fontsize=11)
+    fig.suptitle(f"Discharge: body, soil, suspension, hoist ({status})", fontsize=11)
     fig.tight_layout()
     fig.savefig(out + "_discharge.png", dpi=120)
     plt.close(fig)
@@ -112,8 +137,11 @@ def main():
         bal = soil["particles"] + soil["removed"]
         print(f"plot_hauler: soil count balance: {int(n0)} grains at the start; in the scene + removed "
               f"{'equals it at every step' if np.all(bal[1:] == n0) else 'DIFFERS at some step'}; at the end "
-              f"{int(soil['particles'][-1])} in the scene (of which {soil['payload_body'][-1] / 1e3:.2f} t in the "
-              f"body), {int(soil['removed'][-1])} removed ({soil['removed_mass'][-1] / 1e3:.2f} t)")
+              f"{int(soil['particles'][-1])} in the scene ({soil['payload_body'][-1] / 1e3:.2f} t of them inside the "
+              f"body's box), {int(soil['removed'][-1])} removed ({soil['removed_mass'][-1] / 1e3:.2f} t)")
+    if wrench is not None:
+        print(f"plot_hauler: the body carries {-wrench[-1, 2] / 9.81 / 1e3:.2f} t of soil at the end "
+              f"(the soil's downward force on it / g)")
     print(f"plot_hauler: wrote {out}_front_axle.png, {out}_rear_axles.png and {out}_discharge.png")
 
 

@@ -1,7 +1,7 @@
 """The hauler's discharge over LCM on loopback (issue 12; docs/hauler.md), a small load:
 
 * the load is prepared with the project's own config (dem_run configs/soil/hauler_load_prepare.yaml:
-  2,905 grains, 23.3 t, at the pose the hauler starts in under it; docs/hauler.md) and the
+  2,907 grains, 23.3 t, at the pose the hauler starts in under it; docs/hauler.md) and the
   co-simulation is started from configs/hauler.yaml alone (the first 10.5 s of its tipping
   profile: the soil flows from about 7.5 s)
   (cosim_master launches hauler_adapter and the same dem_service as the wheel loader's);
