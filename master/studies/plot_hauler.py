@@ -2,13 +2,14 @@
 """Charts of one hauler discharge from its HDF5 file (docs/output.md, docs/hauler.md):
 
     /usr/bin/python3 master/studies/plot_hauler.py results/hauler.h5 [--participant hauler]
-        [--soil soil] [--out results/hauler] [--filter 0.05]
+        [--soil soil] [--out results/hauler] [--filter 0.05] [--table 1,6,7,8,9,10,12,16,22]
 
 writes OUT_front_axle.png (longitudinal and vertical tire force at the front axle, TYDEX C, like
 the paper's Figure 10), OUT_rear_axles.png (both rear axles on one chart, like Figure 11),
 OUT_discharge.png (body angle; the soil the body carries and the grains in its box, the soil
 removed; the soil's force on the body; suspension strokes; circuit pressures; hoist force) and
-prints the soil mass balance.
+prints the soil mass balance. --table prints docs/hauler.md's results table at the times given
+(forces after the moving average, the rest as recorded).
 Forces are shown after a centred moving average of --filter seconds (0: raw) over the raw
 curve drawn faintly: the DEM's contact noise is in every force. Every force axis says which
 way a positive value points: tire forces act on the machine in TYDEX C axes (F_x > 0 pushes it
@@ -37,6 +38,7 @@ def main():
     ap.add_argument("--soil", default="soil")
     ap.add_argument("--out", default=None)
     ap.add_argument("--filter", type=float, default=0.05, help="moving average of the forces, s")
+    ap.add_argument("--table", default="", help="times [s] for a markdown table of the results, e.g. 1,6,10")
     a = ap.parse_args()
     out = a.out or os.path.splitext(a.h5)[0]
     with h5py.File(a.h5, "r") as f:
@@ -49,9 +51,13 @@ def main():
               "rear1_stroke", "rear2_stroke", "front_pressure", "rear_pressure", "hoist_force", "body_angle")}
         d = f"participants/{a.soil}/diagnostics/"
         soil = {k: f[d + k][:] for k in ("payload_body", "particles", "removed", "removed_mass") if d + k in f}
-        # the soil's wrench on the body: [fx fy fz tx ty tz rx ry rz], ground axes
+        # the soil's wrench on the body: [fx fy fz tx ty tz rx ry rz], ground axes; row 0 (the
+        # service's output before its first step, zero: no contact computed yet) is left out
         w = f"participants/{a.soil}/outputs/body"
         wrench = f[w][:].reshape(len(t), -1) if w in f else None
+    tw = t[1:]
+    if wrench is not None:
+        wrench = wrench[1:]
         status = f["status"][()].decode() if "status" in f else ""
 
     def forces(ax, keys, title, ylabel):
@@ -92,8 +98,8 @@ def main():
     if wrench is not None:
         # what the body carries: the soil's downward force on it, in tonnes of weight
         carried = -wrench[:, 2] / 9.81 / 1e3
-        line, = ax.plot(t, carried, lw=0.4, alpha=0.35)
-        ax.plot(t, smooth(t, carried, a.filter), lw=1.0, color=line.get_color(),
+        line, = ax.plot(tw, carried, lw=0.4, alpha=0.35)
+        ax.plot(tw, smooth(tw, carried, a.filter), lw=1.0, color=line.get_color(),
                 label="carried by the body (soil's downward force / g)")
     if "payload_body" in soil:
         ax.plot(t, soil["payload_body"] / 1e3, lw=1.0, ls="--",
@@ -105,8 +111,8 @@ def main():
     ax = axes[1][0]
     if wrench is not None:
         for col, label in ((0, "F_x, + forward"), (2, "F_z, + up")):
-            line, = ax.plot(t, wrench[:, col] / 1e3, lw=0.4, alpha=0.35)
-            ax.plot(t, smooth(t, wrench[:, col], a.filter) / 1e3, lw=1.0, color=line.get_color(), label=label)
+            line, = ax.plot(tw, wrench[:, col] / 1e3, lw=0.4, alpha=0.35)
+            ax.plot(tw, smooth(tw, wrench[:, col], a.filter) / 1e3, lw=1.0, color=line.get_color(), label=label)
         ax.legend(fontsize=8)
     ax.set_ylabel("soil's force on the body [kN]\n(ground axes)")
     ax = axes[1][1]
@@ -142,7 +148,31 @@ def main():
     if wrench is not None:
         print(f"plot_hauler: the body carries {-wrench[-1, 2] / 9.81 / 1e3:.2f} t of soil at the end "
               f"(the soil's downward force on it / g)")
+    if a.table:
+        table(t, g, soil, wrench, a)
     print(f"plot_hauler: wrote {out}_front_axle.png, {out}_rear_axles.png and {out}_discharge.png")
+
+
+def table(t, g, soil, wrench, a):
+    """docs/hauler.md's results table: one row per requested time (the nearest record row)."""
+    f = {k: smooth(t, g[k], a.filter) for k in ("front_fx", "front_fz", "rear1_fx", "rear1_fz", "rear2_fx", "rear2_fz")}
+    tw = t[1:]
+    carried = smooth(tw, -wrench[:, 2], a.filter) / 9.81 if wrench is not None else None
+    push = smooth(tw, wrench[:, 0], a.filter) if wrench is not None else None
+    print("| t [s] | body [deg] | carried / in the box [t] | soil F_x on the body [kN] | front F_z [kN] | "
+          "rear 1 / rear 2 F_z [kN] | front / rear 1 / rear 2 F_x [kN] | strokes front / rear 1 / rear 2 [mm] | "
+          "rear pressure [MPa] | hoist [kN] |")
+    print("| --- " * 10 + "|")
+    for ts in (float(x) for x in a.table.split(",")):
+        i = int(np.argmin(np.abs(t - ts)))
+        box = soil["payload_body"][i] / 1e3 if "payload_body" in soil else float("nan")
+        c = carried[i - 1] / 1e3 if carried is not None and i > 0 else float("nan")
+        px = push[i - 1] / 1e3 if push is not None and i > 0 else float("nan")
+        print(f"| {t[i]:g} | {np.degrees(g['body_angle'][i]):.1f} | {c:.2f} / {box:.2f} | {px:.1f} | "
+              f"{f['front_fz'][i] / 1e3:.1f} | {f['rear1_fz'][i] / 1e3:.1f} / {f['rear2_fz'][i] / 1e3:.1f} | "
+              f"{f['front_fx'][i] / 1e3:.1f} / {f['rear1_fx'][i] / 1e3:.1f} / {f['rear2_fx'][i] / 1e3:.1f} | "
+              f"{g['front_stroke'][i] * 1e3:.0f} / {g['rear1_stroke'][i] * 1e3:.0f} / {g['rear2_stroke'][i] * 1e3:.0f} | "
+              f"{g['rear_pressure'][i] / 1e6:.2f} | {g['hoist_force'][i] / 1e3:.0f} |")
 
 
 if __name__ == "__main__":
