@@ -10,7 +10,8 @@
 * as the body tips, before the soil flows, the front axle's vertical tire force falls and the
   rear axles' rises (the load's centre of gravity moves back towards the hinge);
 * the longitudinal tire forces are near zero before tipping and clearly not while the soil
-  flows out (the soil pushes the machine forward as it leaves, the parking brake holds it);
+  flows out: the soil pushes the body forward as it leaves (its F_x on the body > 0), so the
+  braked tires pull the machine back (their summed F_x < 0);
 * a second run is bit-identical.
 """
 import os
@@ -96,6 +97,7 @@ class Discharge(unittest.TestCase):
                 t = f["time"][:]
                 out = lambda k: f[f"participants/hauler/outputs/{k}"][:].reshape(len(t))  # noqa: E731
                 diag = lambda k: f[f"participants/soil/diagnostics/{k}"][:]  # noqa: E731
+                soil_fx = f["participants/soil/outputs/body"][:].reshape(len(t), -1)[:, 0]
                 front_fz, rear_fz = out("front_fz"), out("rear1_fz") + out("rear2_fz")
                 fx = out("front_fx") + out("rear1_fx") + out("rear2_fx")
                 angle = np.degrees(out("body_angle"))
@@ -127,6 +129,9 @@ class Discharge(unittest.TestCase):
             self.assertLess(quiet, 500.0)
             self.assertGreater(busy, 4 * quiet)
             self.assertGreater(busy, 500.0)
+            # Which way: the soil pushes the body forward, the braked tires pull the machine back.
+            self.assertGreater(soil_fx[flowing].mean(), 500.0)
+            self.assertLess(fx[flowing].mean(), -500.0)
 
             # A second run: bit-identical, every output and diagnostic of both participants
             # (the wall-time diagnostics excepted).
