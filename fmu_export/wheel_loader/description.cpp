@@ -10,7 +10,7 @@ namespace fmu_export {
 namespace wl {
 
 const std::vector<ScalarOutput>& scalar_outputs() {
-  // The names, order and meaning of wheel_loader_adapter's scalar outputs (wheel_loader_model.cpp).
+  // The names, order and meaning of wheel_loader_adapter's scalar outputs (wheel_loader_adapter.cpp).
   static const std::vector<ScalarOutput> v{
       {"a_long", "N", "A-pin force on the bucket from the boom, bucket x", true},
       {"a_vert", "N", "A-pin force on the bucket from the boom, bucket z", true},

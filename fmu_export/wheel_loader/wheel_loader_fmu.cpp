@@ -128,7 +128,7 @@ class WheelLoaderSlave final : public Slave {
   void step(double t, double h) override {
     const std::int64_t h_ns = step_ns(t, h, t_ns_, inner_ns_);
     const wheel_loader::Wrench w = input_wrench(("at t = " + number(t) + " s").c_str());
-    model_->set_bucket_wrench([w](double) { return w; });
+    model_->set_wrench([w](double) { return w; });
     outputs_valid_ = false;
     try {
       // The end time as the native adapter computes it (cosim::to_seconds of whole ns).
@@ -152,7 +152,7 @@ class WheelLoaderSlave final : public Slave {
       w.torque[i] = in[3 + i];
       w.point[i] = in[6 + i];
     }
-    model_->set_bucket_wrench([w](double) { return w; });
+    model_->set_wrench([w](double) { return w; });
     const cosim::Kinematics k = model_->bucket();
     for (int i = 0; i < 3; ++i) {
       real_vr(wl::kPosition + i) = k.position[i];
@@ -162,7 +162,7 @@ class WheelLoaderSlave final : public Slave {
     for (int i = 0; i < 4; ++i) real_vr(wl::kQuaternion + i) = k.orientation[i];
     const wheel_loader::Reports r = model_->reports();
     const wheel_loader::V3 edge = model_->cutting_edge();
-    // wheel_loader_model.cpp's order (wl::scalar_outputs())
+    // wheel_loader_adapter.cpp's order (wl::scalar_outputs())
     const double v[] = {r.a_long, r.a_vert, r.j_long, r.j_vert, r.lift_force,
                         r.tilt_force, r.speed, r.x_machine, r.drive_force,
                         r.normal_load, r.bucket_pitch, r.boom_angle, edge[0], edge[2]};

@@ -2,7 +2,7 @@
 
 #include <Simbody.h>
 
-#include "simbody_state_file.hpp"
+#include "simbody_machine.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -15,26 +15,17 @@
 namespace hauler {
 
 using namespace SimTK;
+using mbs::mass_properties;
+using mbs::pin_axes;  // positive angles turn x towards z: chassis nose up, body front up
+using mbs::to_array;
+using mbs::xz;
 
 namespace {
 
 const double kDeg = Pi / 180;
 
-SimTK::Vec3 xz(const Vec2& v) { return SimTK::Vec3(v[0], 0, v[1]); }
-SimTK::Vec3 v3(const V3& a) { return SimTK::Vec3(a[0], a[1], a[2]); }
-V3 arr(const SimTK::Vec3& a) { return {a[0], a[1], a[2]}; }
-
-// Pins and the planar joint turn about their mobilizer frames' z; this rotation puts that z
-// along ground -y, so body frames stay parallel to ground at zero angles and positive angles
-// turn x towards z (chassis nose up, body front up).
-Rotation pin_axes() { return Rotation(Pi / 2, XAxis); }
 // A slider moves along its mobilizer frames' x; this rotation puts that x along the parent's z.
 Rotation slider_axes() { return Rotation(-Pi / 2, YAxis); }
-
-MassProperties mass_properties(double mass, const SimTK::Vec3& com, const Vec3& inertia) {
-  const Inertia central(SimTK::Vec3(inertia[0], inertia[1], inertia[2]));
-  return MassProperties(mass, com, central.shiftFromMassCenter(com, mass));
-}
 
 // The dump body with the rigid test payload, if any, as one rigid body (body frame).
 MassProperties body_mass_properties(const Parameters& p) {
@@ -178,10 +169,7 @@ class StrutForces : public Force::Custom::Implementation {
 // ---------------------------------------------------------------------------------------
 // The hauler.
 
-struct Hauler::Impl {
-  MultibodySystem system;
-  SimbodyMatterSubsystem matter{system};
-  GeneralForceSubsystem forces{system};
+struct HaulerImpl : mbs::Machine::Simbody {
   MobilizedBody::Planar chassis;  // the front unit
   MobilizedBody::Weld rear;       // the rear frame
   MobilizedBody::Slider axle[3];
@@ -192,8 +180,6 @@ struct Hauler::Impl {
   bool static_solve = false;
   bool with_static_load = false;  // during the solve: static_load on the body
   double anchor_x[3] = {0, 0, 0}, anchor_pitch = 0;
-  std::unique_ptr<RungeKutta3Integrator> integrator;
-  State state, snapshot;
 
   struct Tire {
     double N = 0, Fx = 0, deflection = 0;
@@ -211,7 +197,7 @@ namespace {
 
 class MachineForces : public Force::Custom::Implementation {
  public:
-  MachineForces(const Parameters& p, const Hauler& h, const Hauler::Impl& m) : p_(p), h_(h), m_(m) {}
+  MachineForces(const Parameters& p, const Hauler& h, const HaulerImpl& m) : p_(p), h_(h), m_(m) {}
   void calcForce(const State& s, Vector_<SpatialVec>& body, Vector_<SimTK::Vec3>&,
                  Vector&) const override {
     const auto f = m_.force_state(p_, h_, s);
@@ -241,27 +227,12 @@ class MachineForces : public Force::Custom::Implementation {
  private:
   const Parameters& p_;
   const Hauler& h_;
-  const Hauler::Impl& m_;
-};
-
-class BodyWrench : public Force::Custom::Implementation {
- public:
-  BodyWrench(const Hauler& h, const MobilizedBody& body) : h_(h), body_(body) {}
-  void calcForce(const State& s, Vector_<SpatialVec>& forces, Vector_<SimTK::Vec3>&,
-                 Vector&) const override {
-    const Wrench w = h_.wrench_at(s.getTime()).shifted_to(arr(body_.getBodyOriginLocation(s)));
-    body_.applyBodyForce(s, SpatialVec(v3(w.torque), v3(w.force)), forces);
-  }
-  Real calcPotentialEnergy(const State&) const override { return 0; }
-
- private:
-  const Hauler& h_;
-  const MobilizedBody& body_;
+  const HaulerImpl& m_;
 };
 
 }  // namespace
 
-Hauler::Impl::ForceState Hauler::Impl::force_state(const Parameters& p, const Hauler& h,
+HaulerImpl::ForceState HaulerImpl::force_state(const Parameters& p, const Hauler& h,
                                                    const State& s) const {
   ForceState f;
   const double pitch = chassis.getQ(s)[0];
@@ -324,8 +295,9 @@ double Hauler::target_angle(double t) const {
   return 0.5 * (lo + hi);
 }
 
-Hauler::Hauler(const Parameters& p, double t_start) : p_(p), impl_(new Impl) {
-  Impl& P = *impl_;
+Hauler::Hauler(const Parameters& p, double t_start)
+    : MachineOf("hauler", p, std::make_unique<HaulerImpl>()) {
+  HaulerImpl& P = impl();
   const Rotation R = pin_axes();
   // the hoist must lengthen as the body tips, and be a real cylinder at every angle
   {
@@ -390,26 +362,22 @@ Hauler::Hauler(const Parameters& p, double t_start) : p_(p), impl_(new Impl) {
   P.struts = struts;
   Force::Custom(P.forces, struts);
   Force::Custom(P.forces, new MachineForces(p_, *this, P));
-  Force::Custom(P.forces, new BodyWrench(*this, P.body));
+  P.couple(*this, P.body);
 
   State& s = P.state;
   s = P.system.realizeTopology();
   s.setTime(t_start);
   P.solve_static(p_, *this, s, true);
 
-  P.integrator = std::make_unique<RungeKutta3Integrator>(P.system);
-  P.integrator->setFixedStepSize(p.inner_step);
-  P.integrator->setAllowInterpolation(false);
+  P.make_integrator(p.inner_step);
 }
-
-Hauler::~Hauler() = default;
 
 // Static equilibrium by Newton's method on chassis pitch and height, the three axle slides,
 // the body angle and the two circuits' oil, with the brake off and the machine at rest:
 // the six generalized accelerations vanish and each circuit's ride height is at ride_stroke
 // (the front strut's slide is 0, the rear struts' mean slide is 0). Finite-difference
 // Jacobian with a trust region and backtracking.
-void Hauler::Impl::solve_static(const Parameters& p, const Hauler& h, State& s, bool static_load) {
+void HaulerImpl::solve_static(const Parameters& p, const Hauler& h, State& s, bool static_load) {
   static_solve = true;
   with_static_load = static_load;
   const auto& sus = p.suspension;
@@ -428,8 +396,6 @@ void Hauler::Impl::solve_static(const Parameters& p, const Hauler& h, State& s, 
   y[5] = h.target_angle(t);
   y[6] = oil_for(sus.front, 1, W / 3);
   y[7] = oil_for(sus.rear, 2, W / 3);
-  const double scale[8] = {0.05, 0.05, 0.05, 0.05, 0.05, 0.05, 2e-3, 2e-3};
-  const double fd[8] = {1e-7, 1e-7, 1e-7, 1e-7, 1e-7, 1e-7, 1e-10, 1e-10};
   auto residual = [&](const SimTK::Vector& v) {
     chassis.setQ(s, SimTK::Vec3(v[0], p.initial_position, v[1]));
     for (int i = 0; i < 3; ++i) axle[i].setOneQ(s, 0, v[2 + i]);
@@ -446,34 +412,9 @@ void Hauler::Impl::solve_static(const Parameters& p, const Hauler& h, State& s, 
     r[7] = 0.5 * (v[3] + v[4]);
     return r;
   };
-  SimTK::Vector r = residual(y);
-  for (int it = 0; it < 80 && r.normInf() > 1e-11; ++it) {
-    SimTK::Matrix J(8, 8);
-    for (int j = 0; j < 8; ++j) {
-      SimTK::Vector yp = y;
-      yp[j] += fd[j];
-      const SimTK::Vector rp = residual(yp);
-      for (int i = 0; i < 8; ++i) J(i, j) = (rp[i] - r[i]) / fd[j];
-    }
-    SimTK::Vector dy;
-    const SimTK::Vector rhs = -r;
-    FactorLU(J).solve(rhs, dy);
-    double cap = 1;
-    for (int j = 0; j < 8; ++j) cap = std::max(cap, std::abs(dy[j]) / scale[j]);
-    dy /= cap;
-    double step = 1;
-    bool improved = false;
-    for (int k = 0; k < 30 && !improved; ++k, step *= 0.5) {
-      const SimTK::Vector rn = residual(y + step * dy);
-      if (rn.normInf() < r.normInf()) {
-        y += step * dy;
-        r = rn;
-        improved = true;
-      }
-    }
-    if (!improved) break;  // at the round-off floor
-  }
-  residual(y);
+  const SimTK::Vector r = mbs::solve_newton(
+      residual, y, {80, 1e-11, {1e-7, 1e-7, 1e-7, 1e-7, 1e-7, 1e-7, 1e-10, 1e-10},
+                    {0.05, 0.05, 0.05, 0.05, 0.05, 0.05, 2e-3, 2e-3}});
   static_solve = false;
   if (!(r.normInf() < 1e-6))
     throw std::runtime_error("hauler: no static equilibrium found at t_start (residual " +
@@ -486,77 +427,12 @@ void Hauler::Impl::solve_static(const Parameters& p, const Hauler& h, State& s, 
   system.realize(s, Stage::Acceleration);
 }
 
-double Hauler::time() const { return impl_->state.getTime(); }
-double Hauler::total_mass() const { return impl_->total_mass; }
+double Hauler::total_mass() const { return impl().total_mass; }
 
-void Hauler::set_body_wrench(WrenchInput input) {
-  wrench_ = std::move(input);
-  // forces, reactions and accelerations cached for the current state used the old input
-  impl_->state.invalidateAllCacheAtOrAbove(Stage::Dynamics);
-}
-
-void Hauler::resolve_static() { impl_->solve_static(p_, *this, impl_->state, false); }
-
-void Hauler::save_snapshot() { impl_->snapshot = impl_->state; }
-void Hauler::restore_snapshot() { impl_->state = impl_->snapshot; }
-
-void Hauler::save_state(const std::string& path) const {
-  mbs::save_simbody_state(path, "hauler", impl_->state);
-}
-
-void Hauler::load_state(const std::string& path) {
-  mbs::load_simbody_state(path, "hauler", impl_->state);
-  impl_->snapshot = impl_->state;
-}
-
-void Hauler::advance(double t_end, const std::function<void()>& after_inner_step) {
-  auto& integ = *impl_->integrator;
-  State& s = impl_->state;
-  const double t0 = s.getTime();
-  const double h = p_.inner_step;
-  const long n = std::lround((t_end - t0) / h);
-  if (n < 1 || std::abs(t0 + n * h - t_end) > 1e-9 * std::max(1.0, std::abs(t_end)))
-    throw std::invalid_argument("advance: " + std::to_string(t_end - t0) +
-                                " s is not a whole number of inner steps of " + std::to_string(h) + " s");
-  // A fresh start each call: the input may have changed, and a restored snapshot must
-  // repeat bit for bit.
-  integ.initialize(s);
-  for (long k = 1; k <= n; ++k) {
-    const double tk = k == n ? t_end : t0 + k * h;
-    while (integ.getTime() < tk) integ.stepTo(tk);
-    if (after_inner_step) {
-      s = integ.getState();
-      after_inner_step();
-    }
-  }
-  s = integ.getState();
-}
-
-double Hauler::max_acceleration() const {
-  impl_->system.realize(impl_->state, Stage::Acceleration);
-  return impl_->state.getUDot().normInf();
-}
-
-cosim::Kinematics Hauler::body() const {
-  const State& s = impl_->state;
-  impl_->system.realize(s, Stage::Velocity);
-  const auto& b = impl_->body;
-  cosim::Kinematics k;
-  k.position = arr(b.getBodyOriginLocation(s));
-  const Quaternion q = b.getBodyRotation(s).convertRotationToQuaternion();
-  k.orientation = {q[0], q[1], q[2], q[3]};
-  k.velocity = arr(b.getBodyOriginVelocity(s));
-  k.angular_velocity = arr(b.getBodyAngularVelocity(s));
-  return k;
-}
-
-V3 Hauler::body_point(const V3& in_body) const {
-  impl_->system.realize(impl_->state, Stage::Position);
-  return arr(impl_->body.findStationLocationInGround(impl_->state, v3(in_body)));
-}
+void Hauler::resolve_static() { impl().solve_static(p_, *this, impl().state, false); }
 
 Reports Hauler::reports() const {
-  const Impl& P = *impl_;
+  const HaulerImpl& P = impl();
   const State& s = P.state;
   P.system.realize(s, Stage::Acceleration);
   Reports r;
@@ -566,7 +442,7 @@ Reports Hauler::reports() const {
   for (int i = 0; i < 3; ++i) {
     AxleReport& a = r.axle[i];
     const SimTK::Vec3 spin = P.axle[i].getBodyRotation(s).y().asVec3();
-    const Dir3 F = tydex_c(arr(spin), {0, 0, 1}, {f.tire[i].Fx, 0, f.tire[i].N});
+    const Dir3 F = tydex_c(to_array(spin), {0, 0, 1}, {f.tire[i].Fx, 0, f.tire[i].N});
     a.fx = F[0];
     a.fy = F[1];
     a.fz = F[2];
@@ -575,7 +451,7 @@ Reports Hauler::reports() const {
     a.strut_force = se[i]->force;
     a.end_stop = se[i]->end_stop;
     a.deflection = f.tire[i].deflection;
-    a.centre = arr(f.tire[i].centre);
+    a.centre = to_array(f.tire[i].centre);
   }
   for (int c = 0; c < 2; ++c) {
     CircuitReport& cr = c == 0 ? r.front : r.rear;
@@ -601,17 +477,12 @@ Reports Hauler::reports() const {
 // ---------------------------------------------------------------------------------------
 // The strut rig.
 
-struct StrutRig::Impl {
+struct StrutRig::Impl : mbs::Machine::Simbody {
   Suspension suspension;
   Circuit circuit;
-  MultibodySystem system;
-  SimbodyMatterSubsystem matter{system};
-  GeneralForceSubsystem forces{system};
   MobilizedBody::Slider mass;
   const StrutForces* strut = nullptr;
   std::function<double(double)> load;
-  std::unique_ptr<RungeKutta3Integrator> integrator;
-  State state;
   double h = 2e-4;
 };
 
@@ -675,9 +546,7 @@ StrutRig::StrutRig(const Suspension& suspension, const Circuit& circuit, double 
   excess(0.5 * (lo + hi));
   strut->set_ride_filtered(s, 0, strut->evaluate(s, 0).ride);
   R.system.realize(s, Stage::Acceleration);
-  R.integrator = std::make_unique<RungeKutta3Integrator>(R.system);
-  R.integrator->setFixedStepSize(inner_step);
-  R.integrator->setAllowInterpolation(false);
+  R.make_integrator(inner_step);
 }
 
 StrutRig::~StrutRig() = default;
@@ -689,17 +558,7 @@ void StrutRig::set_load(std::function<double(double)> load) {
 
 double StrutRig::time() const { return impl_->state.getTime(); }
 
-void StrutRig::advance(double t_end) {
-  auto& integ = *impl_->integrator;
-  integ.initialize(impl_->state);
-  const double t0 = impl_->state.getTime();
-  const long n = std::lround((t_end - t0) / impl_->h);
-  for (long k = 1; k <= n; ++k) {
-    const double tk = k == n ? t_end : t0 + k * impl_->h;
-    while (integ.getTime() < tk) integ.stepTo(tk);
-  }
-  impl_->state = integ.getState();
-}
+void StrutRig::advance(double t_end) { mbs::advance_fixed(*impl_->integrator, impl_->state, impl_->h, t_end); }
 
 RigState StrutRig::state() const {
   const Impl& R = *impl_;

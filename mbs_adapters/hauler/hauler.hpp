@@ -1,5 +1,6 @@
-// The articulated-hauler multibody model (Simbody). It knows nothing of the bus: a test drives
-// it directly, the adapter (hauler_model.hpp) maps it onto signals.
+// The articulated-hauler multibody model (Simbody), a machine of the machine layer
+// (mbs_adapters/common/machine.hpp) with the dump body as its coupled body. It knows nothing of
+// the bus: a test drives it directly, the adapter (hauler_adapter.hpp) maps it onto signals.
 //
 // Planar in the x-z plane (x forward, y left, z up, road z = 0), with full 3D outputs:
 //   ground -Planar(x, z, pitch)-> front unit -Weld-> rear frame -Pin(hinge)-> dump body
@@ -16,27 +17,22 @@
 // Each circuit carries two continuous states (Simbody z): its oil volume and the low-passed
 // ride height the level control acts on.
 //
-// Simbody 3.7's headers do not compile as C++20, so they stay inside hauler.cpp (C++17);
-// this header is plain C++.
+// Simbody stays inside hauler.cpp (built as C++17); this header is plain C++.
 #pragma once
 
-#include <string>
-
-#include <array>
 #include <functional>
 #include <memory>
+#include <string>
 
-#include "cosim/quantities.hpp"
+#include "machine.hpp"
 #include "parameters.hpp"
 
 namespace hauler {
 
-using V3 = std::array<double, 3>;
-
-// The coupling quantities (cosim/quantities.hpp). The external wrench on the dump body: force
-// and torque in ground, the torque about `point` (ground).
-using Wrench = cosim::Wrench;
-using WrenchInput = std::function<Wrench(double t)>;
+using mbs::V3;
+// The external wrench on the dump body: force and torque in ground, the torque about `point`.
+using mbs::Wrench;
+using mbs::WrenchInput;
 
 constexpr int kFront = 0, kRear1 = 1, kRear2 = 2;
 constexpr const char* kAxleNames[3] = {"front", "rear1", "rear2"};
@@ -75,34 +71,21 @@ struct Reports {
   double kinetic_energy = 0; // J
 };
 
-class Hauler {
+struct HaulerImpl;  // the Simbody system (hauler.cpp)
+
+class Hauler final : public mbs::MachineOf<Parameters, HaulerImpl> {
  public:
   // Builds the model and puts it at rest in static equilibrium at time t_start: tires and
   // struts loaded, the body at its tipping target, static_load on the body, and each circuit's
   // oil set so its ride height is at ride_stroke (the level control has finished). The brake
   // anchors are where the wheels then stand.
   explicit Hauler(const Parameters& p, double t_start = 0);
-  ~Hauler();
-  Hauler(const Hauler&) = delete;
-  Hauler& operator=(const Hauler&) = delete;
 
-  // The external wrench on the dump body as a function of time; empty means none.
-  void set_body_wrench(WrenchInput input);
-  // Advances with fixed inner steps to t_end (a whole number of inner steps ahead);
-  // after_inner_step, when given, runs after every inner step.
-  void advance(double t_end, const std::function<void()>& after_inner_step = {});
-
-  double time() const;
   // The body frame origin (hinge axis, centre plane), its orientation body -> ground and its
   // velocities, all in ground.
-  cosim::Kinematics body() const;
+  cosim::Kinematics body() const { return coupled_body(); }
   Reports reports() const;
-  // A body-frame point in ground.
-  V3 body_point(const V3& in_body) const;
-  const Parameters& parameters() const { return p_; }
   double total_mass() const;
-  // Largest |udot| (generalized accelerations) at the current state: ~0 at rest.
-  double max_acceleration() const;
   // Target body angle [rad] and hoist length [m] of the tipping profile at time t.
   double target_angle(double t) const;
   double hoist_length_at(double body_angle) const;
@@ -111,25 +94,6 @@ class Hauler {
   // static_load, and, like the constructor, each circuit's oil solved for ride height and the
   // brake anchored where the wheels then stand.
   void resolve_static();
-
-  // One snapshot slot: the whole Simbody state (bodies and the circuits' oil).
-  void save_snapshot();
-  void restore_snapshot();
-  // Checkpoints: the Simbody state's time, q, u and z to a file and back, exactly (the
-  // integrator starts afresh at every advance, so nothing else carries over). load_state
-  // throws std::runtime_error for a file of another model or layout.
-  void save_state(const std::string& path) const;
-  void load_state(const std::string& path);
-
-  // Evaluated wrench at time t (zero if none).
-  Wrench wrench_at(double t) const { return wrench_ ? wrench_(t) : Wrench{}; }
-
-  struct Impl;
-
- private:
-  Parameters p_;
-  std::unique_ptr<Impl> impl_;
-  WrenchInput wrench_;
 };
 
 // One strut and its circuit alone, on a test rig: a sprung mass on a vertical slider, carried

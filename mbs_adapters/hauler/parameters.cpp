@@ -11,6 +11,8 @@ namespace hauler {
 namespace cfg = cosim::config;
 using cfg::ConfigError;
 using cfg::join_path;
+using mbs::get_vec2;
+using mbs::get_vec3;
 
 namespace {
 
@@ -20,46 +22,11 @@ std::string num(double v) {
   return s.str();
 }
 
-Vec2 get_vec2(const YAML::Node& n, const std::string& path, const std::string& key, Vec2 fallback) {
-  if (!n[key]) return fallback;
-  const auto v = cfg::get_vector(n, path, key, 2);
-  return {v[0], v[1]};
-}
-
-Vec3 get_vec3(const YAML::Node& n, const std::string& path, const std::string& key, Vec3 fallback) {
-  if (!n[key]) return fallback;
-  const auto v = cfg::get_vector(n, path, key, 3);
-  return {v[0], v[1], v[2]};
-}
-
 double non_negative(const YAML::Node& n, const std::string& path, const std::string& key,
                     double fallback) {
   const double v = cfg::get_double_or(n, path, key, fallback);
   if (!(v >= 0)) throw ConfigError(join_path(path, key) + ": must be >= 0, got " + num(v));
   return v;
-}
-
-void check_inertia(const Vec3& I, const std::string& path) {
-  for (double v : I)
-    if (!(v > 0)) throw ConfigError(join_path(path, "inertia") + ": moments must be > 0 [kg m2]");
-  if (I[0] + I[1] < I[2] || I[1] + I[2] < I[0] || I[0] + I[2] < I[1])
-    throw ConfigError(join_path(path, "inertia") +
-                      ": principal moments must satisfy the triangle inequality "
-                      "(each at most the sum of the other two)");
-}
-
-void read_body(const YAML::Node& root, const std::string& parent, const std::string& key,
-               Body& body, std::vector<std::string> extra = {}) {
-  if (!root[key]) return;
-  const YAML::Node n = root[key];
-  const std::string path = join_path(parent, key);
-  std::vector<std::string> allowed{"mass", "com", "inertia"};
-  allowed.insert(allowed.end(), extra.begin(), extra.end());
-  cfg::check_keys(n, path, allowed);
-  body.mass = cfg::get_positive_or(n, path, "mass", body.mass);
-  body.com = get_vec2(n, path, "com", body.com);
-  body.inertia = get_vec3(n, path, "inertia", body.inertia);
-  check_inertia(body.inertia, path);
 }
 
 void read_axle(const YAML::Node& root, const std::string& parent, const std::string& key, Axle& a) {
@@ -70,7 +37,7 @@ void read_axle(const YAML::Node& root, const std::string& parent, const std::str
   a.x = cfg::get_double_or(n, path, "x", a.x);
   a.mass = cfg::get_positive_or(n, path, "mass", a.mass);
   a.inertia = get_vec3(n, path, "inertia", a.inertia);
-  check_inertia(a.inertia, path);
+  mbs::check_inertia(a.inertia, path);
 }
 
 void read_circuit(const YAML::Node& root, const std::string& parent, const std::string& key,
@@ -153,8 +120,8 @@ Parameters read_parameters(const YAML::Node& root, const std::string& path) {
   p.gravity = non_negative(root, path, "gravity", p.gravity);
   p.initial_position = cfg::get_double_or(root, path, "initial_position", p.initial_position);
 
-  read_body(root, path, "front_unit", p.front_unit);
-  read_body(root, path, "rear_frame", p.rear_frame);
+  mbs::read_body(root, path, "front_unit", p.front_unit);
+  mbs::read_body(root, path, "rear_frame", p.rear_frame);
   if (root["axles"]) {
     const auto n = root["axles"];
     const auto ap = join_path(path, "axles");
@@ -226,7 +193,7 @@ Parameters read_parameters(const YAML::Node& root, const std::string& path) {
                         " m with level_control.dead_band " + num(s.dead_band) +
                         " m must lie inside the stroke (0, " + num(s.stroke) + ") m");
   }
-  read_body(root, path, "dump_body", p.dump_body, {"hinge", "shape"});
+  mbs::read_body(root, path, "dump_body", p.dump_body, true, {"hinge", "shape"});
   if (root["dump_body"]) {
     const auto n = root["dump_body"];
     const auto bp = join_path(path, "dump_body");
@@ -279,13 +246,7 @@ Parameters read_parameters(const YAML::Node& root, const std::string& path) {
     p.static_load = read_load(root["static_load"], join_path(path, "static_load"), p.static_load, false);
   if (root["test_payload"] && !root["test_payload"].IsNull())
     p.test_payload = read_load(root["test_payload"], join_path(path, "test_payload"), Load{}, true);
-  if (root["limits"]) {
-    const auto n = root["limits"];
-    const auto lp = join_path(path, "limits");
-    cfg::check_keys(n, lp, {"max_force", "max_torque"});
-    p.max_force = cfg::get_positive_or(n, lp, "max_force", p.max_force);
-    p.max_torque = cfg::get_positive_or(n, lp, "max_torque", p.max_torque);
-  }
+  mbs::read_limits(root, path, p.max_force, p.max_torque);
   return p;
 }
 

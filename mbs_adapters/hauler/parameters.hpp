@@ -15,32 +15,21 @@
 #include <string>
 #include <vector>
 
+#include "machine_config.hpp"
 #include "profile.hpp"
 
 namespace hauler {
 
-// hauler.cpp is C++17 (Simbody's headers); the comparisons are for C++20 code (tests).
-#if __cplusplus >= 202002L
-#define HL_DEFAULT_EQ(T) bool operator==(const T&) const = default;
-#else
-#define HL_DEFAULT_EQ(T)
-#endif
-
-using Vec2 = std::array<double, 2>;  // [x, z]
-using Vec3 = std::array<double, 3>;
-
-struct Body {
-  double mass = 1;
-  Vec2 com{0, 0};         // chassis coordinates (dump body: body frame)
-  Vec3 inertia{1, 1, 1};  // principal moments about the centre of mass [kg m2], body axes
-  HL_DEFAULT_EQ(Body)
-};
+using mbs::Vec2;  // [x, z]
+using mbs::Vec3;
+// mass, com (chassis coordinates; the dump body's in the body frame), inertia
+using mbs::Body;
 
 struct Axle {
   double x = 0;           // chassis x of the axle centre (all axle centres lie on chassis z = 0)
   double mass = 2000;     // unsprung: axle, final drives, two wheels [kg]
   Vec3 inertia{1500, 400, 1500};
-  HL_DEFAULT_EQ(Axle)
+  MBS_DEFAULT_EQ(Axle)
 };
 
 // The dump body's inner shell in the body frame (shared by the model and the mesh generator):
@@ -54,7 +43,7 @@ struct BodyShape {
   double side_height = 1.5;
   double front_x() const { return tail_x + length; }
   double volume() const { return length * width * side_height; }
-  HL_DEFAULT_EQ(BodyShape)
+  MBS_DEFAULT_EQ(BodyShape)
 };
 
 // One hydro-pneumatic circuit: the struts of its axles (one lumped strut per axle for the
@@ -67,7 +56,7 @@ struct Circuit {
   double damping_quadratic = 2e6;      // orifice: F = c2 v|v| [N s2/m2] per axle
   double damping_linear = 1.5e5;       // F = c1 v [N s/m] per axle
   double level_rate = 2e-4;            // oil flow of the ride-height control [m3/s]
-  HL_DEFAULT_EQ(Circuit)
+  MBS_DEFAULT_EQ(Circuit)
 };
 
 struct Suspension {
@@ -80,14 +69,14 @@ struct Suspension {
   bool level_control = true;
   double dead_band = 0.02;             // |ride - ride_stroke| tolerated [m]
   double time_constant = 1.0;          // low-pass of the measured ride height [s]
-  HL_DEFAULT_EQ(Suspension)
+  MBS_DEFAULT_EQ(Suspension)
 };
 
 struct Tires {
   double unloaded_radius = 0.89;       // 29.5R25 [m]
   double stiffness = 2.5e6;            // radial, per axle (two tires) [N/m]
   double damping = 3e4;                // per axle [N s/m]
-  HL_DEFAULT_EQ(Tires)
+  MBS_DEFAULT_EQ(Tires)
 };
 
 // Longitudinal law: with the parking brake applied the wheels are locked to their axles and
@@ -99,7 +88,7 @@ struct Brake {
   double damping = 1e5;                // per axle [N s/m]
   double friction = 0.7;               // cap, times the vertical load
   double rolling_radius = 0.8;         // lever of the locked wheel's contact point [m]
-  HL_DEFAULT_EQ(Brake)
+  MBS_DEFAULT_EQ(Brake)
 };
 
 struct Hoist {
@@ -107,7 +96,7 @@ struct Hoist {
   Vec2 body_pin{3.2, -0.15};           // body frame
   double stiffness = 1e8;              // position servo [N/m]
   double damping = 2e6;                // rate feedback [N s/m]
-  HL_DEFAULT_EQ(Hoist)
+  MBS_DEFAULT_EQ(Hoist)
 };
 
 // Keyframed signals of time (mbs_adapters/common/profile.hpp).
@@ -117,7 +106,7 @@ struct Tipping {
   bool smooth = true;
   bool by_length = false;  // keyframes are hoist cylinder lengths [m], else body angles [deg]
   Profile profile;         // angle [deg] (stored as given) or length [m]
-  HL_DEFAULT_EQ(Tipping)
+  MBS_DEFAULT_EQ(Tipping)
 };
 
 // A rigid load fixed in the dump body (body frame), e.g. a test payload.
@@ -125,7 +114,7 @@ struct Load {
   double mass = 0;
   Vec2 com{2.6, 1.1};
   double gyration_radius = 1.0;  // its own inertia m r^2 about each axis through com [m]
-  HL_DEFAULT_EQ(Load)
+  MBS_DEFAULT_EQ(Load)
 };
 
 struct Parameters {
@@ -158,7 +147,7 @@ struct Parameters {
 
   const Axle& axle(int i) const { return i == 0 ? front_axle : i == 1 ? rear1_axle : rear2_axle; }
   static Tipping default_tipping();
-  HL_DEFAULT_EQ(Parameters)
+  MBS_DEFAULT_EQ(Parameters)
 };
 
 // Reads and validates a machine config (the layout of configs/hauler/machine.yaml): unknown

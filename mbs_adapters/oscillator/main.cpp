@@ -3,7 +3,7 @@
 #include <cstring>
 #include <iostream>
 
-#include "oscillator_model.hpp"
+#include "oscillator_adapter.hpp"
 
 int main(int argc, char** argv) {
   // Several processes share one log: a line must reach it in one write, not one per <<.
@@ -19,7 +19,7 @@ int main(int argc, char** argv) {
               << "usage: oscillator_participant --side mass1|mass2 [--name NAME] [--bus URL]\n";
     return 2;
   }
-  oscillator::OscillatorModel model(side == "mass1" ? oscillator::Side::Mass1
+  oscillator::OscillatorAdapter model(side == "mass1" ? oscillator::Side::Mass1
                                                     : oscillator::Side::Mass2);
   return cosim::run_participant(model, side, static_cast<int>(rest.size()), rest.data());
 }

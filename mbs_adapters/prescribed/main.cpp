@@ -5,14 +5,14 @@
 #include <iostream>
 
 #include "cosim/yaml_config.hpp"
-#include "prescribed_model.hpp"
+#include "prescribed_adapter.hpp"
 
 int main(int argc, char** argv) {
   // Several processes share one log: a line must reach it in one write, not one per <<.
   std::setvbuf(stderr, nullptr, _IOLBF, 1 << 14);
   try {
     auto args = cosim::parse_participant_args(argc, argv, false);
-    prescribed::PrescribedModel model(args.config, args.config_dir);
+    prescribed::PrescribedAdapter model(args.config, args.config_dir);
     return cosim::run_participant(model, "prescribed", static_cast<int>(args.rest.size()),
                                   args.rest.data());
   } catch (const cosim::config::ConfigError& e) {

@@ -4,50 +4,16 @@
 
 #include <algorithm>
 #include <cmath>
-#include <functional>
 
 namespace wheel_loader {
 
 namespace cfg = cosim::config;
 using cfg::ConfigError;
 using cfg::join_path;
+using mbs::get_vec2;
+using mbs::read_body;
 
 namespace {
-
-Vec2 get_vec2(const YAML::Node& n, const std::string& path, const std::string& key, Vec2 fallback) {
-  if (!n[key]) return fallback;
-  const auto v = cfg::get_vector(n, path, key, 2);
-  return {v[0], v[1]};
-}
-
-Vec3 get_vec3(const YAML::Node& n, const std::string& path, const std::string& key, Vec3 fallback) {
-  if (!n[key]) return fallback;
-  const auto v = cfg::get_vector(n, path, key, 3);
-  return {v[0], v[1], v[2]};
-}
-
-void read_body(const YAML::Node& root, const std::string& parent, const std::string& key,
-               Body& body, bool has_com, std::vector<std::string> extra, 
-               const std::function<void(const YAML::Node&, const std::string&)>& more = {}) {
-  if (!root[key]) return;
-  const YAML::Node n = root[key];
-  const std::string path = join_path(parent, key);
-  std::vector<std::string> allowed{"mass", "inertia"};
-  if (has_com) allowed.push_back("com");
-  allowed.insert(allowed.end(), extra.begin(), extra.end());
-  cfg::check_keys(n, path, allowed);
-  body.mass = cfg::get_positive_or(n, path, "mass", body.mass);
-  if (has_com) body.com = get_vec2(n, path, "com", body.com);
-  body.inertia = get_vec3(n, path, "inertia", body.inertia);
-  const auto& I = body.inertia;
-  for (double v : I)
-    if (!(v > 0)) throw ConfigError(join_path(path, "inertia") + ": moments must be > 0");
-  if (I[0] + I[1] < I[2] || I[1] + I[2] < I[0] || I[0] + I[2] < I[1])
-    throw ConfigError(join_path(path, "inertia") +
-                      ": principal moments must satisfy the triangle inequality "
-                      "(each at most the sum of the other two)");
-  if (more) more(n, path);
-}
 
 Profile read_profile(const YAML::Node& n, const std::string& parent, const std::string& key,
                      const Profile& fallback) {
@@ -136,25 +102,28 @@ Parameters read_parameters(const YAML::Node& root, const std::string& path) {
       throw ConfigError(join_path(dp, "traction_coefficient") + ": must be in [0, 2]");
     p.speed_gain = cfg::get_positive_or(n, dp, "speed_gain", p.speed_gain);
   }
-  read_body(root, path, "frame", p.frame, true, {});
-  read_body(root, path, "boom", p.boom, true, {"pivot", "a_pin", "lift_pin", "crank_pivot"},
-            [&](const YAML::Node& n, const std::string& bp) {
-              p.boom_pivot = get_vec2(n, bp, "pivot", p.boom_pivot);
-              p.a_pin = get_vec2(n, bp, "a_pin", p.a_pin);
-              p.lift_boom_pin = get_vec2(n, bp, "lift_pin", p.lift_boom_pin);
-              p.crank_pivot = get_vec2(n, bp, "crank_pivot", p.crank_pivot);
-            });
-  read_body(root, path, "bell_crank", p.bell_crank, true, {"cylinder_pin", "link_pin"},
-            [&](const YAML::Node& n, const std::string& bp) {
-              p.crank_cylinder_pin = get_vec2(n, bp, "cylinder_pin", p.crank_cylinder_pin);
-              p.crank_link_pin = get_vec2(n, bp, "link_pin", p.crank_link_pin);
-            });
-  read_body(root, path, "tilt_link", p.tilt_link, false, {});
-  read_body(root, path, "bucket", p.bucket, true, {"j_pin", "shape"},
-            [&](const YAML::Node& n, const std::string& bp) {
-              p.j_pin = get_vec2(n, bp, "j_pin", p.j_pin);
-              if (n["shape"]) p.shape = read_shape(n["shape"], join_path(bp, "shape"));
-            });
+  read_body(root, path, "frame", p.frame);
+  read_body(root, path, "boom", p.boom, true, {"pivot", "a_pin", "lift_pin", "crank_pivot"});
+  if (const auto n = root["boom"]) {
+    const auto bp = join_path(path, "boom");
+    p.boom_pivot = get_vec2(n, bp, "pivot", p.boom_pivot);
+    p.a_pin = get_vec2(n, bp, "a_pin", p.a_pin);
+    p.lift_boom_pin = get_vec2(n, bp, "lift_pin", p.lift_boom_pin);
+    p.crank_pivot = get_vec2(n, bp, "crank_pivot", p.crank_pivot);
+  }
+  read_body(root, path, "bell_crank", p.bell_crank, true, {"cylinder_pin", "link_pin"});
+  if (const auto n = root["bell_crank"]) {
+    const auto bp = join_path(path, "bell_crank");
+    p.crank_cylinder_pin = get_vec2(n, bp, "cylinder_pin", p.crank_cylinder_pin);
+    p.crank_link_pin = get_vec2(n, bp, "link_pin", p.crank_link_pin);
+  }
+  read_body(root, path, "tilt_link", p.tilt_link, false);
+  read_body(root, path, "bucket", p.bucket, true, {"j_pin", "shape"});
+  if (const auto n = root["bucket"]) {
+    const auto bp = join_path(path, "bucket");
+    p.j_pin = get_vec2(n, bp, "j_pin", p.j_pin);
+    if (n["shape"]) p.shape = read_shape(n["shape"], join_path(bp, "shape"));
+  }
   for (auto [key, cyl] : {std::pair{"lift_cylinder", &p.lift_cylinder},
                           std::pair{"tilt_cylinder", &p.tilt_cylinder}}) {
     if (!root[key]) continue;
@@ -182,13 +151,7 @@ Parameters read_parameters(const YAML::Node& root, const std::string& path) {
           throw ConfigError(join_path(mp, name) + ": cylinder extension " + std::to_string(k[1]) +
                             " m is beyond +-2 m");
   }
-  if (root["limits"]) {
-    const auto n = root["limits"];
-    const auto lp = join_path(path, "limits");
-    cfg::check_keys(n, lp, {"max_force", "max_torque"});
-    p.max_force = cfg::get_positive_or(n, lp, "max_force", p.max_force);
-    p.max_torque = cfg::get_positive_or(n, lp, "max_torque", p.max_torque);
-  }
+  mbs::read_limits(root, path, p.max_force, p.max_torque);
   return p;
 }
 

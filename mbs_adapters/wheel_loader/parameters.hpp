@@ -12,26 +12,15 @@
 #include <string>
 #include <vector>
 
+#include "machine_config.hpp"
 #include "profile.hpp"
 
 namespace wheel_loader {
 
-// wheel_loader.cpp is C++17 (Simbody's headers); the comparisons are for C++20 code (tests).
-#if __cplusplus >= 202002L
-#define WL_DEFAULT_EQ(T) bool operator==(const T&) const = default;
-#else
-#define WL_DEFAULT_EQ(T)
-#endif
-
-using Vec2 = std::array<double, 2>;  // [x, z]
-using Vec3 = std::array<double, 3>;
-
-struct Body {
-  double mass = 1;
-  Vec2 com{0, 0};        // frame coordinates at the design pose (bucket: bucket frame)
-  Vec3 inertia{1, 1, 1};  // principal moments about the centre of mass [kg m2], body axes
-  WL_DEFAULT_EQ(Body)
-};
+using mbs::Vec2;  // [x, z]
+using mbs::Vec3;
+// mass, com (frame coordinates at the design pose; the bucket's in the bucket frame), inertia
+using mbs::Body;
 
 // The bucket's shell in the bucket frame (shared by the model and the mesh generator).
 struct BucketShape {
@@ -45,7 +34,7 @@ struct BucketShape {
   double guard_angle = 40;    // spill guard angle above the horizontal [deg]
   double edge_depth = 0.25;   // cutting-edge bevel: reaches this far back under the floor
   double edge_thickness = 0.06;  // and this far below it
-  WL_DEFAULT_EQ(BucketShape)
+  MBS_DEFAULT_EQ(BucketShape)
 };
 
 // Keyframed signals of time (mbs_adapters/common/profile.hpp).
@@ -56,14 +45,14 @@ struct Maneuver {
   Profile speed;  // target machine speed [m/s]
   Profile lift;   // lift cylinder extension from its design-pose length [m]
   Profile tilt;   // tilt cylinder extension from its design-pose length [m] (+ curls back)
-  WL_DEFAULT_EQ(Maneuver)
+  MBS_DEFAULT_EQ(Maneuver)
 };
 
 struct Cylinder {
   Vec2 frame_pin{0, 0};   // frame coordinates
   double stiffness = 1e8;  // N/m: position feedback (hydraulic compliance)
   double damping = 1e6;    // N s/m: rate feedback
-  WL_DEFAULT_EQ(Cylinder)
+  MBS_DEFAULT_EQ(Cylinder)
 };
 
 struct Parameters {
@@ -104,7 +93,7 @@ struct Parameters {
   double max_torque = 2e7;   // N m
 
   static Maneuver default_maneuver();
-  WL_DEFAULT_EQ(Parameters)
+  MBS_DEFAULT_EQ(Parameters)
 };
 
 // Reads and validates a machine config (the layout of configs/wheel_loader/machine.yaml):

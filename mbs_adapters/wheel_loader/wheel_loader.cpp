@@ -2,7 +2,7 @@
 
 #include <Simbody.h>
 
-#include "simbody_state_file.hpp"
+#include "simbody_machine.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -11,11 +11,11 @@
 namespace wheel_loader {
 
 using namespace SimTK;
+using mbs::pin_axes;
+using mbs::to_array;
+using mbs::xz;
 
-struct WheelLoader::Impl {
-  MultibodySystem system;
-  SimbodyMatterSubsystem matter{system};
-  GeneralForceSubsystem forces{system};
+struct WheelLoaderImpl : mbs::Machine::Simbody {
   MobilizedBody::Planar frame;
   MobilizedBody::Pin boom, bucket, crank, link;
   Constraint::PointOnLine j_pin;
@@ -25,8 +25,6 @@ struct WheelLoader::Impl {
   SimTK::Vec3 front_axle, rear_axle;  // frame
   double lift_design = 0, tilt_design = 0;  // design-pose cylinder lengths
   double total_mass = 0;
-  std::unique_ptr<RungeKutta3Integrator> integrator;
-  State state, snapshot;
   bool drive_off = false;  // during the static solve
   // loop closure in the boom frame's x-z plane (design-pose coordinates, boom pivot origin)
   SimTK::Vec2 A_b, C_b, D0_b, J0_b;
@@ -45,17 +43,10 @@ struct WheelLoader::Impl {
 
 namespace {
 
-SimTK::Vec3 xz(const Vec2& v) { return SimTK::Vec3(v[0], 0, v[1]); }
 SimTK::Vec3 xz_minus(const Vec2& a, const Vec2& b) { return xz({a[0] - b[0], a[1] - b[1]}); }
 
-// Simbody pins and the planar joint turn about the mobilizer frames' z; this rotation puts
-// that z along ground -y, so body frames stay parallel to ground at zero angles and positive
-// angles turn x towards z.
-Rotation pin_axes() { return Rotation(Pi / 2, XAxis); }
-
 MassProperties mass_properties(const wheel_loader::Body& b, const SimTK::Vec3& com) {
-  const Inertia central(SimTK::Vec3(b.inertia[0], b.inertia[1], b.inertia[2]));
-  return MassProperties(b.mass, com, central.shiftFromMassCenter(com, b.mass));
+  return mbs::mass_properties(b.mass, com, b.inertia);
 }
 
 double cross2(const SimTK::Vec2& a, const SimTK::Vec2& b) { return a[0] * b[1] - a[1] * b[0]; }
@@ -66,35 +57,17 @@ SimTK::Vec2 rot2(double angle, const SimTK::Vec2& a) {
   return SimTK::Vec2(c * a[0] - s * a[1], s * a[0] + c * a[1]);
 }
 
-SimTK::Vec3 v3(const V3& a) { return SimTK::Vec3(a[0], a[1], a[2]); }
-V3 arr(const SimTK::Vec3& a) { return {a[0], a[1], a[2]}; }
-
 // Lift and tilt cylinders, tires and drive: everything the machine does to itself.
 class MachineForces : public Force::Custom::Implementation {
  public:
-  MachineForces(const Parameters& p, const WheelLoader::Impl& m) : p_(p), m_(m) {}
+  MachineForces(const Parameters& p, const WheelLoaderImpl& m) : p_(p), m_(m) {}
   void calcForce(const State& s, Vector_<SpatialVec>& body, Vector_<SimTK::Vec3>&,
                  Vector&) const override;
   Real calcPotentialEnergy(const State& s) const override;
 
  private:
   const Parameters& p_;
-  const WheelLoader::Impl& m_;
-};
-
-class BucketWrench : public Force::Custom::Implementation {
- public:
-  BucketWrench(const WheelLoader& wl, const MobilizedBody& bucket) : wl_(wl), bucket_(bucket) {}
-  void calcForce(const State& s, Vector_<SpatialVec>& body, Vector_<SimTK::Vec3>&,
-                 Vector&) const override {
-    const Wrench w = wl_.wrench_at(s.getTime()).shifted_to(arr(bucket_.getBodyOriginLocation(s)));
-    bucket_.applyBodyForce(s, SpatialVec(v3(w.torque), v3(w.force)), body);
-  }
-  Real calcPotentialEnergy(const State&) const override { return 0; }
-
- private:
-  const WheelLoader& wl_;
-  const MobilizedBody& bucket_;
+  const WheelLoaderImpl& m_;
 };
 
 struct CylinderState {
@@ -115,7 +88,7 @@ CylinderState cylinder(const State& s, const MobilizedBody& frame, const SimTK::
 
 }  // namespace
 
-WheelLoader::Impl::ForceState WheelLoader::Impl::force_state(const Parameters& p,
+WheelLoaderImpl::ForceState WheelLoaderImpl::force_state(const Parameters& p,
                                                              const State& s) const {
   const double t = s.getTime();
   const auto& m = p.maneuver;
@@ -195,8 +168,9 @@ Real MachineForces::calcPotentialEnergy(const State& s) const {
 
 }  // namespace
 
-WheelLoader::WheelLoader(const Parameters& p, double t_start) : p_(p), impl_(new Impl) {
-  Impl& P = *impl_;
+WheelLoader::WheelLoader(const Parameters& p, double t_start)
+    : MachineOf("wheel_loader", p, std::make_unique<WheelLoaderImpl>()) {
+  WheelLoaderImpl& P = impl();
   const Rotation R = pin_axes();
   Force::UniformGravity(P.forces, P.matter, SimTK::Vec3(0, 0, -p_.gravity));
 
@@ -241,7 +215,7 @@ WheelLoader::WheelLoader(const Parameters& p, double t_start) : p_(p), impl_(new
   P.total_mass = p.frame.mass + p.boom.mass + p.bell_crank.mass + p.tilt_link.mass + p.bucket.mass;
 
   Force::Custom(P.forces, new MachineForces(p_, P));
-  Force::Custom(P.forces, new BucketWrench(*this, P.bucket));
+  P.couple(*this, P.bucket);
 
   State& s = P.state;
   s = P.system.realizeTopology();
@@ -263,15 +237,10 @@ WheelLoader::WheelLoader(const Parameters& p, double t_start) : p_(p), impl_(new
   P.frame.setU(s, SimTK::Vec3(0, p.initial_speed, 0));
   P.system.realize(s, Stage::Acceleration);
 
-  P.integrator = std::make_unique<RungeKutta3Integrator>(P.system);
-  P.integrator->setFixedStepSize(p.inner_step);
-  P.integrator->setAllowInterpolation(false);
-  P.integrator->setConstraintTolerance(1e-10);
+  P.make_integrator(p.inner_step, 1e-10);
 }
 
-WheelLoader::~WheelLoader() = default;
-
-void WheelLoader::Impl::set_linkage(State& s, double boom_angle, double crank_angle) const {
+void WheelLoaderImpl::set_linkage(State& s, double boom_angle, double crank_angle) const {
   const SimTK::Vec2 D_b = C_b + rot2(crank_angle, D0_b - C_b);
   const double rA = (J0_b - A_b).norm(), rD = (J0_b - D0_b).norm();
   const SimTK::Vec2 AD = D_b - A_b;
@@ -293,7 +262,7 @@ void WheelLoader::Impl::set_linkage(State& s, double boom_angle, double crank_an
 // Static equilibrium by Newton's method on the independent coordinates (frame pitch and
 // height, boom and bell-crank angles) with the machine at rest and the drive off: their
 // accelerations vanish. Finite-difference Jacobian; the loop closes exactly in set_linkage.
-void WheelLoader::Impl::solve_static(const Parameters& p, State& s) {
+void WheelLoaderImpl::solve_static(const Parameters& p, State& s) {
   drive_off = true;
   SimTK::Vector y(4);
   y[0] = frame.getQ(s)[0];
@@ -341,37 +310,12 @@ void WheelLoader::Impl::solve_static(const Parameters& p, State& s) {
       y[3] += dc / cap;
     }
   }
-  SimTK::Vector r = residual(y);
-  for (int it = 0; it < 50 && r.normInf() > 1e-11; ++it) {
-    SimTK::Matrix Jm(4, 4);
-    // the height step stays inside the tire deflection (the tire force has a kink at contact)
-    const double deflection = total_mass * p.gravity / (2 * p.axle_stiffness);
-    for (int j = 0; j < 4; ++j) {
-      SimTK::Vector yp = y;
-      const double h = j == 1 ? std::min(1e-7, 0.1 * deflection) : 1e-7;
-      yp[j] += h;
-      const SimTK::Vector rp = residual(yp);
-      for (int i = 0; i < 4; ++i) Jm(i, j) = (rp[i] - r[i]) / h;
-    }
-    SimTK::Vector dy;
-    const SimTK::Vector rhs = -r;
-    FactorLU(Jm).solve(rhs, dy);
-    // a trust region: at most 0.05 rad and 0.05 m per iteration
-    const double cap = std::max(dy.normInf(), 0.05) / 0.05;
-    dy /= cap;
-    double step = 1;
-    bool improved = false;
-    for (int k = 0; k < 30 && !improved; ++k, step *= 0.5) {  // backtrack while it grows
-      const SimTK::Vector rn = residual(y + step * dy);
-      if (rn.normInf() < r.normInf()) {
-        y += step * dy;
-        r = rn;
-        improved = true;
-      }
-    }
-    if (!improved) break;  // at the round-off floor
-  }
-  residual(y);
+  // the height step stays inside the tire deflection (the tire force has a kink at contact);
+  // a trust region: at most 0.05 rad and 0.05 m per iteration
+  const double deflection = total_mass * p.gravity / (2 * p.axle_stiffness);
+  const SimTK::Vector r =
+      mbs::solve_newton(residual, y, {50, 1e-11, {1e-7, std::min(1e-7, 0.1 * deflection), 1e-7, 1e-7},
+                                      {0.05, 0.05, 0.05, 0.05}});
   drive_off = false;
   if (r.normInf() > 1e-6)
     throw std::runtime_error("wheel loader: no static equilibrium found at t_start (residual " +
@@ -379,86 +323,16 @@ void WheelLoader::Impl::solve_static(const Parameters& p, State& s) {
                              " rad/s2): check masses, stiffnesses and the maneuver at t_start");
 }
 
-double WheelLoader::time() const { return impl_->state.getTime(); }
-double WheelLoader::total_mass() const { return impl_->total_mass; }
+double WheelLoader::total_mass() const { return impl().total_mass; }
 
-void WheelLoader::set_bucket_wrench(WrenchInput input) {
-  wrench_ = std::move(input);
-  // forces, reactions and accelerations cached for the current state used the old input
-  impl_->state.invalidateAllCacheAtOrAbove(Stage::Dynamics);
-}
+void WheelLoader::resolve_static() { impl().solve_static(p_, impl().state); }
 
-void WheelLoader::resolve_static() { impl_->solve_static(p_, impl_->state); }
-
-void WheelLoader::save_snapshot() { impl_->snapshot = impl_->state; }
-void WheelLoader::restore_snapshot() { impl_->state = impl_->snapshot; }
-std::shared_ptr<const void> WheelLoader::copy_state() const { return std::make_shared<const State>(impl_->state); }
-void WheelLoader::set_state(const std::shared_ptr<const void>& saved) {
-  impl_->state = *static_cast<const State*>(saved.get());
-}
-
-void WheelLoader::save_state(const std::string& path) const {
-  mbs::save_simbody_state(path, "wheel_loader", impl_->state);
-}
-
-void WheelLoader::load_state(const std::string& path) {
-  mbs::load_simbody_state(path, "wheel_loader", impl_->state);
-  impl_->snapshot = impl_->state;
-}
-
-void WheelLoader::advance(double t_end, const std::function<void()>& after_inner_step) {
-  auto& integ = *impl_->integrator;
-  State& s = impl_->state;
-  const double t0 = s.getTime();
-  const double h = p_.inner_step;
-  const long n = std::lround((t_end - t0) / h);
-  if (n < 1 || std::abs(t0 + n * h - t_end) > 1e-9 * std::max(1.0, std::abs(t_end)))
-    throw std::invalid_argument("advance: " + std::to_string(t_end - t0) +
-                                " s is not a whole number of inner steps of " + std::to_string(h) +
-                                " s");
-  // A fresh start each call: the input may have changed, and a restored snapshot must
-  // repeat bit for bit.
-  integ.initialize(s);
-  for (long k = 1; k <= n; ++k) {
-    const double tk = k == n ? t_end : t0 + k * h;
-    while (integ.getTime() < tk) integ.stepTo(tk);
-    if (after_inner_step) {
-      s = integ.getState();
-      after_inner_step();
-    }
-  }
-  s = integ.getState();
-}
-
-double WheelLoader::max_acceleration() const {
-  impl_->system.realize(impl_->state, Stage::Acceleration);
-  return impl_->state.getUDot().normInf();
-}
-
-cosim::Kinematics WheelLoader::bucket() const {
-  const State& s = impl_->state;
-  impl_->system.realize(s, Stage::Velocity);
-  const auto& b = impl_->bucket;
-  cosim::Kinematics k;
-  k.position = arr(b.getBodyOriginLocation(s));
-  const Quaternion q = b.getBodyRotation(s).convertRotationToQuaternion();
-  k.orientation = {q[0], q[1], q[2], q[3]};
-  k.velocity = arr(b.getBodyOriginVelocity(s));
-  k.angular_velocity = arr(b.getBodyAngularVelocity(s));
-  return k;
-}
-
-V3 WheelLoader::bucket_point(const V3& in_bucket) const {
-  impl_->system.realize(impl_->state, Stage::Position);
-  return arr(impl_->bucket.findStationLocationInGround(impl_->state, v3(in_bucket)));
-}
-
-V3 WheelLoader::cutting_edge() const { return bucket_point({p_.shape.edge_x, 0, p_.shape.floor_z}); }
+V3 WheelLoader::cutting_edge() const { return coupled_point({p_.shape.edge_x, 0, p_.shape.floor_z}); }
 
 namespace {
 
 // Force (and moment about its own J point) that the PointOnLine puts on the bucket.
-SimTK::Vec3 j_force_on_bucket(const WheelLoader::Impl& P, const State& s) {
+SimTK::Vec3 j_force_on_bucket(const WheelLoaderImpl& P, const State& s) {
   const Vector_<SpatialVec> cf = P.j_pin.getConstrainedBodyForcesAsVector(s);
   for (ConstrainedBodyIndex i(0); i < cf.size(); ++i)
     if (int(P.j_pin.getMobilizedBodyFromConstrainedBody(i).getMobilizedBodyIndex()) ==
@@ -470,7 +344,7 @@ SimTK::Vec3 j_force_on_bucket(const WheelLoader::Impl& P, const State& s) {
 }  // namespace
 
 Reports WheelLoader::reports() const {
-  const Impl& P = *impl_;
+  const WheelLoaderImpl& P = impl();
   const State& s = P.state;
   P.system.realize(s, Stage::Acceleration);
   Reports r;
@@ -501,7 +375,7 @@ Reports WheelLoader::reports() const {
 }
 
 Dynamics WheelLoader::dynamics() const {
-  const Impl& P = *impl_;
+  const WheelLoaderImpl& P = impl();
   const State& s = P.state;
   P.system.realize(s, Stage::Acceleration);
   auto body = [&](const MobilizedBody& b) {
@@ -509,11 +383,11 @@ Dynamics WheelLoader::dynamics() const {
     const MassProperties& mp = b.getBodyMassProperties(s);
     const Rotation& R = b.getBodyRotation(s);
     d.mass = mp.getMass();
-    d.origin = arr(b.getBodyOriginLocation(s));
-    d.com = arr(b.findStationLocationInGround(s, mp.getMassCenter()));
-    d.com_acceleration = arr(b.findStationAccelerationInGround(s, mp.getMassCenter()));
-    d.angular_velocity = arr(b.getBodyAngularVelocity(s));
-    d.angular_acceleration = arr(b.getBodyAngularAcceleration(s));
+    d.origin = to_array(b.getBodyOriginLocation(s));
+    d.com = to_array(b.findStationLocationInGround(s, mp.getMassCenter()));
+    d.com_acceleration = to_array(b.findStationAccelerationInGround(s, mp.getMassCenter()));
+    d.angular_velocity = to_array(b.getBodyAngularVelocity(s));
+    d.angular_acceleration = to_array(b.getBodyAngularAcceleration(s));
     const Mat33 I = R * mp.calcCentralInertia().toMat33() * ~R;
     for (int i = 0; i < 3; ++i) d.inertia[i] = {I(i, 0), I(i, 1), I(i, 2)};
     return d;
@@ -521,7 +395,7 @@ Dynamics WheelLoader::dynamics() const {
   auto reaction = [&](const MobilizedBody& b) {
     const SpatialVec r = b.findMobilizerReactionOnBodyAtMInGround(s);
     const SimTK::Vec3 at = b.getBodyOriginLocation(s);  // M is at the body origin here
-    return PinForce{arr(at), arr(r[1]), arr(r[0])};
+    return PinForce{to_array(at), to_array(r[1]), to_array(r[0])};
   };
   Dynamics d;
   d.frame = body(P.frame);
@@ -543,15 +417,15 @@ Dynamics WheelLoader::dynamics() const {
       if (int(P.j_pin.getMobilizedBodyFromConstrainedBody(i).getMobilizedBodyIndex()) ==
           int(P.bucket.getMobilizedBodyIndex()))
         M = -cf[i][0] - (at - P.bucket.getBodyOriginLocation(s)) % F;
-    d.j_pin = PinForce{arr(at), arr(F), arr(M)};
+    d.j_pin = PinForce{to_array(at), to_array(F), to_array(M)};
   }
   const auto f = P.force_state(p_, s);
   auto cyl = [&](const MobilizedBody& b, const SimTK::Vec3& at_b, const SimTK::Vec3& at_frame,
                  double force, V3& frame_end) {
     const SimTK::Vec3 pb = b.findStationLocationInGround(s, at_b);
     const SimTK::Vec3 pf = P.frame.findStationLocationInGround(s, at_frame);
-    frame_end = arr(pf);
-    return PinForce{arr(pb), arr(force * (pb - pf) / (pb - pf).norm()), {0, 0, 0}};
+    frame_end = to_array(pf);
+    return PinForce{to_array(pb), to_array(force * (pb - pf) / (pb - pf).norm()), {0, 0, 0}};
   };
   d.lift_on_boom = cyl(P.boom, P.lift_boom, P.lift_frame, f.lift_force, d.lift_frame_pin);
   d.tilt_on_crank = cyl(P.crank, P.tilt_crank, P.tilt_frame, f.tilt_force, d.tilt_frame_pin);

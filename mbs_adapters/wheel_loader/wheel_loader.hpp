@@ -1,5 +1,7 @@
-// The wheel-loader multibody model (Simbody). It knows nothing of the bus: a test drives it
-// directly, the adapter (wheel_loader_model.hpp) maps it onto signals.
+// The wheel-loader multibody model (Simbody), a machine of the machine layer
+// (mbs_adapters/common/machine.hpp) with the bucket as its coupled body. It knows nothing of the
+// bus: a test drives it directly, the adapter (wheel_loader_adapter.hpp) maps it onto
+// signals.
 //
 // Planar in the x-z plane (x forward, y left, z up, ground z = 0), with full 3D outputs:
 //   ground -Planar(x, z, pitch)-> frame -Pin-> boom -Pin(A)-> bucket
@@ -11,27 +13,21 @@
 // external bucket wrench, evaluated at the state's time.
 // Pin angles are positive about -y (x turns towards z): boom up, bucket curled back.
 //
-// Simbody 3.7's headers do not compile as C++20 (ambiguous reversed operator==), so they stay
-// inside wheel_loader.cpp (built as C++17); this header is plain C++.
+// Simbody stays inside wheel_loader.cpp (built as C++17); this header is plain C++.
 #pragma once
 
+#include <array>
 #include <string>
 
-#include <array>
-#include <functional>
-#include <memory>
-
-#include "cosim/quantities.hpp"
+#include "machine.hpp"
 #include "parameters.hpp"
 
 namespace wheel_loader {
 
-using V3 = std::array<double, 3>;
-
-// The coupling quantities (cosim/quantities.hpp: plain C++, no bus). The external wrench on
-// the bucket: force and torque in ground, the torque about `point` (ground).
-using Wrench = cosim::Wrench;
-using WrenchInput = std::function<Wrench(double t)>;
+using mbs::V3;
+// The external wrench on the bucket: force and torque in ground, the torque about `point`.
+using mbs::Wrench;
+using mbs::WrenchInput;
 
 // Section forces are the forces ON THE BUCKET from the boom (A) and from the tilt link (J),
 // in the bucket frame: long = x (towards the cutting edge), vert = z (up from the floor).
@@ -70,61 +66,26 @@ struct Dynamics {
   V3 gravity{};
 };
 
-class WheelLoader {
+struct WheelLoaderImpl;  // the Simbody system (wheel_loader.cpp)
+
+class WheelLoader final : public mbs::MachineOf<Parameters, WheelLoaderImpl> {
  public:
   // Builds the model and puts it at rest in static equilibrium (tires and cylinders loaded,
   // cylinders at their t_start targets) at time t_start, then gives it initial_speed.
   explicit WheelLoader(const Parameters& p, double t_start = 0);
-  ~WheelLoader();
-  WheelLoader(const WheelLoader&) = delete;
-  WheelLoader& operator=(const WheelLoader&) = delete;
 
-  // The external wrench on the bucket as a function of time; empty means none.
-  void set_bucket_wrench(WrenchInput input);
-  // Advances with fixed inner steps to t_end (a whole number of inner steps ahead);
-  // after_inner_step, when given, runs after every inner step.
-  void advance(double t_end, const std::function<void()>& after_inner_step = {});
-
-  double time() const;
   // The bucket frame origin (A-pin centre), its orientation bucket -> ground and velocities,
   // all in ground.
-  cosim::Kinematics bucket() const;
+  cosim::Kinematics bucket() const { return coupled_body(); }
   Reports reports() const;
-  // A bucket-frame point in ground, e.g. the cutting edge [edge_x, 0, floor_z].
-  V3 bucket_point(const V3& in_bucket) const;
+  // The cutting edge's tip in ground: the bucket-frame point [edge_x, 0, floor_z].
   V3 cutting_edge() const;
-  const Parameters& parameters() const { return p_; }
   Dynamics dynamics() const;
   double total_mass() const;
-  // Largest |udot| (generalized accelerations) at the current state: ~0 at rest.
-  double max_acceleration() const;
 
   // Puts the machine at rest in static equilibrium at the current time and x position, with
   // the current wrench input applied (the constructor does this without one).
   void resolve_static();
-
-  // One snapshot slot: the whole Simbody state.
-  void save_snapshot();
-  void restore_snapshot();
-  // Checkpoints: the Simbody state's time, q, u and z to a file and back, exactly (the
-  // integrator starts afresh at every advance, so nothing else carries over). load_state
-  // throws std::runtime_error for a file of another model or layout.
-  void save_state(const std::string& path) const;
-  void load_state(const std::string& path);
-  // Any number of saved states (the FMU's fmi2GetFMUstate): a copy of the whole Simbody state,
-  // opaque here (Simbody stays inside wheel_loader.cpp, compiled as Debian's Simbody was).
-  std::shared_ptr<const void> copy_state() const;
-  void set_state(const std::shared_ptr<const void>& saved);
-
-  // Evaluated wrench at time t (zero if none).
-  Wrench wrench_at(double t) const { return wrench_ ? wrench_(t) : Wrench{}; }
-
-  struct Impl;
-
- private:
-  Parameters p_;
-  std::unique_ptr<Impl> impl_;
-  WrenchInput wrench_;
 };
 
 }  // namespace wheel_loader

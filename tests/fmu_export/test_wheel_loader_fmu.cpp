@@ -109,7 +109,7 @@ TEST(WheelLoaderFmu, TheFmuIsTheNativeModelBitForBit) {
     const wheel_loader::Wrench w = wrench_at_step(k);
     ASSERT_EQ(set_wrench(f, w), fmi2OK);
     ASSERT_EQ(lib.fmi2DoStep(f.c, k * kH, kH, fmi2True), fmi2OK) << f.log.all();
-    native.set_bucket_wrench([w](double) { return w; });
+    native.set_wrench([w](double) { return w; });
     native.advance(static_cast<double>((k + 1) * 1000000LL) * 1e-9);
     const auto a = fmu_outputs(f), b = native_outputs(native);
     EXPECT_TRUE(same_bits(a, b)) << "step " << k << ": " << first_difference(a, b);
@@ -146,7 +146,7 @@ TEST(WheelLoaderFmu, AMachineFileAndParametersGiveTheNativeMachine) {
     ASSERT_EQ(set_wrench(f, wrench_at_step(k)), fmi2OK);
     ASSERT_EQ(lib.fmi2DoStep(f.c, k * kH, kH, fmi2True), fmi2OK) << f.log.all();
     const wheel_loader::Wrench w = wrench_at_step(k);
-    native.set_bucket_wrench([w](double) { return w; });
+    native.set_wrench([w](double) { return w; });
     native.advance(static_cast<double>((k + 1) * 1000000LL) * 1e-9);
   }
   const auto a = fmu_outputs(f), b = native_outputs(native);

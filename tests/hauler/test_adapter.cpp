@@ -12,7 +12,7 @@
 #include <string>
 
 #include "config.hpp"  // master/src: the macro-step check
-#include "hauler_model.hpp"
+#include "hauler_adapter.hpp"
 
 using namespace hauler;
 using cosim::Duration;
@@ -29,7 +29,7 @@ cosim::RunInfo run_info(Duration macro = nanoseconds(1'000'000)) {
 
 // The config error message for these parameters (empty if accepted).
 std::string refusal(const std::string& yaml) {
-  HaulerModel m(cosim::config::load_file(kMachine));
+  HaulerAdapter m(cosim::config::load_file(kMachine));
   try {
     m.configure(YAML::Load(yaml), run_info());
   } catch (const cosim::config::ConfigError& e) {
@@ -89,7 +89,7 @@ TEST(hauler_adapter, RefusesBadKeysAndValuesNamingThem) {
 
 // An inner step that does not divide the 1 ms macro step: the master's check refuses it.
 TEST(hauler_adapter, InnerStepThatDoesNotDivideTheMacroStepIsRefused) {
-  HaulerModel m(cosim::config::load_file(kMachine));
+  HaulerAdapter m(cosim::config::load_file(kMachine));
   m.configure(YAML::Load("{inner_step: 3e-4}"), run_info());
   master::Config c;
   c.macro_step = run_info().macro_step;
@@ -99,7 +99,7 @@ TEST(hauler_adapter, InnerStepThatDoesNotDivideTheMacroStepIsRefused) {
 }
 
 TEST(hauler_adapter, PortsAndInitialOutputs) {
-  HaulerModel m(cosim::config::load_file(kMachine));
+  HaulerAdapter m(cosim::config::load_file(kMachine));
   m.configure(YAML::Load("{}"), run_info());
   EXPECT_EQ(m.inner_step(), nanoseconds(200'000));
   ASSERT_EQ(m.inputs().size(), 1u);
@@ -133,14 +133,14 @@ TEST(hauler_adapter, PortsAndInitialOutputs) {
   EXPECT_NEAR(scalar(out, "front_stroke"), 0.10, 1e-9);
   EXPECT_NEAR(scalar(out, "body_angle"), 0.0, 0.01);
 
-  HaulerModel with(cosim::config::load_file(kMachine));
+  HaulerAdapter with(cosim::config::load_file(kMachine));
   with.configure(YAML::Load("{test_payload: {mass: 39000}}"), run_info());
   EXPECT_EQ(with.outputs().back().name, "payload_rigid");
   EXPECT_EQ(scalar(with.initial_outputs(), "payload_rigid"), 39000.0);
 }
 
 TEST(hauler_adapter, RefusesAnInsaneWrenchAndKeepsItsState) {
-  HaulerModel m(cosim::config::load_file(kMachine));
+  HaulerAdapter m(cosim::config::load_file(kMachine));
   m.configure(YAML::Load("{}"), run_info());
   const TimePoint t1 = cosim::time_point_ns(1'000'000);
   const cosim::Vec3 x0 = cosim::Kinematics::from_value(m.initial_outputs().at("body").value).position;
@@ -158,7 +158,7 @@ TEST(hauler_adapter, RefusesAnInsaneWrenchAndKeepsItsState) {
 // The master's iterations: a step redone from the snapshot gives the same bits, outputs and
 // averages; the input matters.
 TEST(hauler_adapter, SnapshotRepeatsAStepBitForBit) {
-  HaulerModel m(cosim::config::load_file(kMachine));
+  HaulerAdapter m(cosim::config::load_file(kMachine));
   m.configure(YAML::Load("{tipping.angle: [[0, 0], [0.01, 0], [1, 20]]}"), run_info());
   const cosim::Vec3 o = cosim::Kinematics::from_value(m.initial_outputs().at("body").value).position;
   const Duration H = nanoseconds(1'000'000);
@@ -192,7 +192,7 @@ TEST(hauler_adapter, SnapshotRepeatsAStepBitForBit) {
 // the rear struts extend into their stop, the bogie stops sharing evenly, and the level control
 // drains the rear circuit.
 TEST(hauler_adapter, DischargeAtTheMacroStepIsStableAndHitsTheStrokeLimit) {
-  HaulerModel m(cosim::config::load_file(kMachine));
+  HaulerAdapter m(cosim::config::load_file(kMachine));
   m.configure(YAML::Load("{static_load: {mass: 39000, com: [2.6, 1.1]}}"), run_info());
   const Parameters& p = m.model().parameters();
   const Duration H = nanoseconds(1'000'000);
@@ -206,7 +206,7 @@ TEST(hauler_adapter, DischargeAtTheMacroStepIsStableAndHitsTheStrokeLimit) {
   cosim::StepResult r;
   for (int i = 0; i < 16000; ++i, t += H) {
     const double ts = cosim::to_seconds(t);
-    const cosim::Vec3 c = m.model().body_point({2.6, 0, 1.1});
+    const cosim::Vec3 c = m.model().coupled_point({2.6, 0, 1.1});
     r = m.step(cosim::StepInputs(t, t + H, wrench({0, 0, -payload(ts) * 9.81}, c)), false);
     const auto& o = r.outputs;
     for (const char* n : {"front_stroke", "rear1_stroke", "rear2_stroke"}) {
@@ -241,7 +241,7 @@ TEST(hauler_adapter, DischargeAtTheMacroStepIsStableAndHitsTheStrokeLimit) {
 TEST(hauler_adapter, CheckpointRestoresTheStateBitForBit) {
   const std::string path = ::testing::TempDir() + "hauler_checkpoint.ckpt";
   const char* params = "{tipping.angle: [[0, 0], [0.01, 0], [1, 20]]}";
-  HaulerModel m(cosim::config::load_file(kMachine));
+  HaulerAdapter m(cosim::config::load_file(kMachine));
   m.configure(YAML::Load(params), run_info());
   ASSERT_TRUE(m.can_checkpoint());
   const cosim::Vec3 o = cosim::Kinematics::from_value(m.initial_outputs().at("body").value).position;
@@ -253,7 +253,7 @@ TEST(hauler_adapter, CheckpointRestoresTheStateBitForBit) {
   cosim::RunInfo resume = run_info();
   resume.resume_steps_done = 20;
   resume.resume_time = t;
-  HaulerModel r(cosim::config::load_file(kMachine));
+  HaulerAdapter r(cosim::config::load_file(kMachine));
   r.configure(YAML::Load(params), resume);
   r.load_checkpoint(path);
   for (int i = 20; i < 30; ++i, t += H) {

@@ -1,7 +1,7 @@
 """The hauler's discharge over LCM on loopback (issue 12; docs/hauler.md), a small load:
 
 * the load is prepared with the project's own config (dem_run configs/soil/hauler_load_prepare.yaml:
-  2,905 grains, 23.3 t, at the pose the hauler starts in under it; docs/hauler.md) and the
+  2,907 grains, 23.3 t, at the pose the hauler starts in under it; docs/hauler.md) and the
   co-simulation is started from configs/hauler.yaml alone (the first 10.5 s of its tipping
   profile: the soil flows from about 7.5 s)
   (cosim_master launches hauler_adapter and the same dem_service as the wheel loader's);
@@ -10,7 +10,8 @@
 * as the body tips, before the soil flows, the front axle's vertical tire force falls and the
   rear axles' rises (the load's centre of gravity moves back towards the hinge);
 * the longitudinal tire forces are near zero before tipping and clearly not while the soil
-  flows out (the soil pushes the machine forward as it leaves, the parking brake holds it);
+  flows out: the soil pushes the body forward as it leaves (its F_x on the body > 0), so the
+  braked tires pull the machine back (their summed F_x < 0);
 * a second run is bit-identical.
 """
 import os
@@ -96,6 +97,7 @@ class Discharge(unittest.TestCase):
                 t = f["time"][:]
                 out = lambda k: f[f"participants/hauler/outputs/{k}"][:].reshape(len(t))  # noqa: E731
                 diag = lambda k: f[f"participants/soil/diagnostics/{k}"][:]  # noqa: E731
+                soil_fx = f["participants/soil/outputs/body"][:].reshape(len(t), -1)[:, 0]
                 front_fz, rear_fz = out("front_fz"), out("rear1_fz") + out("rear2_fz")
                 fx = out("front_fx") + out("rear1_fx") + out("rear2_fx")
                 angle = np.degrees(out("body_angle"))
@@ -127,6 +129,9 @@ class Discharge(unittest.TestCase):
             self.assertLess(quiet, 500.0)
             self.assertGreater(busy, 4 * quiet)
             self.assertGreater(busy, 500.0)
+            # Which way: the soil pushes the body forward, the braked tires pull the machine back.
+            self.assertGreater(soil_fx[flowing].mean(), 500.0)
+            self.assertLess(fx[flowing].mean(), -500.0)
 
             # A second run: bit-identical, every output and diagnostic of both participants
             # (the wall-time diagnostics excepted).

@@ -132,7 +132,7 @@ TEST(hauler_model, ParkingBrakeHoldsAHorizontalPush) {
   const V3 origin = h.body().position;
   const double push = -60e3;  // N, backwards
   // ramped in over 1 s (a step would ring the machine on its brake springs for seconds)
-  h.set_body_wrench([&](double t) {
+  h.set_wrench([&](double t) {
     const double s = std::min(t, 1.0);
     return Wrench{{push * s * s * (3 - 2 * s), 0, 0}, {0, 0, 0}, origin};
   });
@@ -160,11 +160,11 @@ TEST(hauler_model, StaticLoadWrenchAndRigidPayloadAgree) {
   Hauler a(rigid), b(assumed), c(empty);
   // the wrench's point is a ground point: the body settles lower and less nose-down under the
   // load, so the point is moved with the body and the statics solved again until it stays
-  V3 point = c.body_point({2.6, 0, 1.1});
-  c.set_body_wrench([&](double) { return Wrench{{0, 0, -39000 * 9.81}, {0, 0, 0}, point}; });
+  V3 point = c.coupled_point({2.6, 0, 1.1});
+  c.set_wrench([&](double) { return Wrench{{0, 0, -39000 * 9.81}, {0, 0, 0}, point}; });
   for (int i = 0; i < 4; ++i) {
     c.resolve_static();
-    point = c.body_point({2.6, 0, 1.1});
+    point = c.coupled_point({2.6, 0, 1.1});
   }
   const Reports ra = a.reports(), rb = b.reports(), rc = c.reports();
   for (int i = 0; i < 3; ++i) {

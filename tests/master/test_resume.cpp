@@ -463,7 +463,7 @@ struct StopAfter final : master::Observer {
 // there), or resumed from `h5` itself.
 void run_in_process(const std::vector<std::string>& sets, const std::string& h5, const std::string& folder,
                     int64_t stop_after, bool resume) {
-  oscillator::OscillatorModel m1(oscillator::Side::Mass1), m2(oscillator::Side::Mass2);
+  oscillator::OscillatorAdapter m1(oscillator::Side::Mass1), m2(oscillator::Side::Mass2);
   cosim::ParticipantCore c1("mass1", m1), c2("mass2", m2);
   auto transport = cosim::make_in_process_transport(99, {{"mass1", &c1}, {"mass2", &c2}});
   master::Config config;

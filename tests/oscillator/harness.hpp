@@ -21,7 +21,7 @@
 
 #include "config.hpp"
 #include "cosimulation.hpp"
-#include "oscillator_model.hpp"
+#include "oscillator_adapter.hpp"
 
 namespace harness {
 
@@ -57,7 +57,7 @@ class Collector final : public master::Observer {
 };
 
 inline Series run_in_process(const master::Config& config) {
-  oscillator::OscillatorModel m1(oscillator::Side::Mass1), m2(oscillator::Side::Mass2);
+  oscillator::OscillatorAdapter m1(oscillator::Side::Mass1), m2(oscillator::Side::Mass2);
   cosim::ParticipantCore c1("mass1", m1), c2("mass2", m2);
   auto transport = cosim::make_in_process_transport(1234, {{"mass1", &c1}, {"mass2", &c2}});
   master::CoSimulation sim(config, *transport);

@@ -9,7 +9,7 @@
 #include <string>
 
 #include "config.hpp"  // master/src: the macro-step check
-#include "wheel_loader_model.hpp"
+#include "wheel_loader_adapter.hpp"
 
 using namespace wheel_loader;
 using cosim::Duration;
@@ -28,7 +28,7 @@ YAML::Node params(const std::string& yaml) { return YAML::Load(yaml); }
 
 // The config error message for these parameters (empty if accepted).
 std::string refusal(const std::string& yaml, Duration macro = nanoseconds(1'000'000)) {
-  WheelLoaderModel m(cosim::config::load_file(kMachine));
+  WheelLoaderAdapter m(cosim::config::load_file(kMachine));
   try {
     m.configure(params(yaml), run_info(macro));
   } catch (const cosim::config::ConfigError& e) {
@@ -85,7 +85,7 @@ TEST(wheel_loader_adapter, RefusesBadKeysAndValuesNamingThem) {
 // An inner step that does not divide the 1 ms macro step: the adapter declares it, the
 // master's one macro-step check refuses it before the first step, naming both.
 TEST(wheel_loader_adapter, InnerStepThatDoesNotDivideTheMacroStepIsRefused) {
-  WheelLoaderModel m(cosim::config::load_file(kMachine));
+  WheelLoaderAdapter m(cosim::config::load_file(kMachine));
   m.configure(params("{inner_step: 3e-4}"), run_info());
   master::Config c;
   c.macro_step = run_info().macro_step;
@@ -104,7 +104,7 @@ TEST(wheel_loader_adapter, InnerStepThatDoesNotDivideTheMacroStepIsRefused) {
 }
 
 TEST(wheel_loader_adapter, PortsAndInitialOutputs) {
-  WheelLoaderModel m(cosim::config::load_file(kMachine));
+  WheelLoaderAdapter m(cosim::config::load_file(kMachine));
   m.configure(params("{}"), run_info());
   EXPECT_EQ(m.inner_step(), nanoseconds(100'000));
   ASSERT_EQ(m.inputs().size(), 1u);
@@ -126,7 +126,7 @@ TEST(wheel_loader_adapter, PortsAndInitialOutputs) {
 }
 
 TEST(wheel_loader_adapter, RefusesAnInsaneWrenchAndKeepsItsState) {
-  WheelLoaderModel m(cosim::config::load_file(kMachine));
+  WheelLoaderAdapter m(cosim::config::load_file(kMachine));
   m.configure(params("{}"), run_info());
   const TimePoint t1 = cosim::time_point_ns(1'000'000);
   const cosim::Vec3 x0 = bucket_position(m.initial_outputs());
@@ -144,7 +144,7 @@ TEST(wheel_loader_adapter, RefusesAnInsaneWrenchAndKeepsItsState) {
 // The master's iterations: a step redone from the snapshot gives the same bits; an average
 // is the trapezoid mean of the inner samples.
 TEST(wheel_loader_adapter, SnapshotRepeatsAStepBitForBit) {
-  WheelLoaderModel m(cosim::config::load_file(kMachine));
+  WheelLoaderAdapter m(cosim::config::load_file(kMachine));
   m.configure(params("{initial_speed: 1.2}"), run_info(nanoseconds(2'000'000)));
   const cosim::Vec3 ref = bucket_position(m.initial_outputs());
   const Duration H = nanoseconds(2'000'000);
@@ -177,7 +177,7 @@ TEST(wheel_loader_adapter, SnapshotRepeatsAStepBitForBit) {
 TEST(wheel_loader_adapter, CheckpointRestoresTheStateBitForBit) {
   const std::string path = ::testing::TempDir() + "wheel_loader_checkpoint.ckpt";
   const Duration H = nanoseconds(2'000'000);
-  WheelLoaderModel m(cosim::config::load_file(kMachine));
+  WheelLoaderAdapter m(cosim::config::load_file(kMachine));
   m.configure(params("{initial_speed: 1.2}"), run_info(H));
   ASSERT_TRUE(m.can_checkpoint());
   const cosim::Vec3 ref = bucket_position(m.initial_outputs());
@@ -188,7 +188,7 @@ TEST(wheel_loader_adapter, CheckpointRestoresTheStateBitForBit) {
   cosim::RunInfo resume = run_info(H);
   resume.resume_steps_done = 5;
   resume.resume_time = t;
-  WheelLoaderModel r(cosim::config::load_file(kMachine));
+  WheelLoaderAdapter r(cosim::config::load_file(kMachine));
   r.configure(params("{initial_speed: 1.2}"), resume);
   r.load_checkpoint(path);
   for (int i = 5; i < 10; ++i, t += H) {
@@ -203,13 +203,13 @@ TEST(wheel_loader_adapter, CheckpointRestoresTheStateBitForBit) {
     for (std::size_t k = 0; k < a.diagnostics.size(); ++k) EXPECT_EQ(a.diagnostics[k].second, b.diagnostics[k].second);
   }
   // not vacuous: a model that was not restored is elsewhere
-  WheelLoaderModel fresh(cosim::config::load_file(kMachine));
+  WheelLoaderAdapter fresh(cosim::config::load_file(kMachine));
   fresh.configure(params("{initial_speed: 1.2}"), run_info(H));
   EXPECT_NE(bucket_position(fresh.initial_outputs())[0], bucket_position(m.initial_outputs())[0]);
   // a checkpoint of another time or another model is refused, naming why
   cosim::RunInfo later = resume;
   later.resume_time = t;
-  WheelLoaderModel w(cosim::config::load_file(kMachine));
+  WheelLoaderAdapter w(cosim::config::load_file(kMachine));
   w.configure(params("{initial_speed: 1.2}"), later);
   try {
     w.load_checkpoint(path);

@@ -108,7 +108,7 @@ TEST(wheel_loader_model, BearingForcesBalanceBucketWeightAndInertia) {
 TEST(wheel_loader_model, BearingForcesBalanceWithExternalWrench) {
   Parameters p;
   WheelLoader wl(p, 5.2);
-  wl.set_bucket_wrench([](double t) {
+  wl.set_wrench([](double t) {
     Wrench w;
     w.force = {-6e4 - 1e4 * std::sin(20 * t), 2e3, 3e4};
     w.torque = {1e3, -2e4 * std::cos(15 * t), 5e2};
@@ -241,7 +241,7 @@ TEST(wheel_loader_model, ExternalWrenchGoesWhereItShould) {
   // (1) a vertical force through the A-pin goes entirely into the A-pin
   const V3 F{0, 0, -8e4};
   WheelLoader with_force(p);
-  with_force.set_bucket_wrench([&](double) { return Wrench{F, {0, 0, 0}, A}; });
+  with_force.set_wrench([&](double) { return Wrench{F, {0, 0, 0}, A}; });
   // re-solve statics with the wrench in place
   with_force.resolve_static();
   const Dynamics d1 = with_force.dynamics();
@@ -256,7 +256,7 @@ TEST(wheel_loader_model, ExternalWrenchGoesWhereItShould) {
   // capacity about its axis): the change in J force along the link times its arm about A
   const V3 T{0, 2e4, 0};
   WheelLoader with_torque(p);
-  with_torque.set_bucket_wrench([&](double) { return Wrench{{0, 0, 0}, T, {5, 0, 5}}; });
+  with_torque.set_wrench([&](double) { return Wrench{{0, 0, 0}, T, {5, 0, 5}}; });
   with_torque.resolve_static();
   const Dynamics d2 = with_torque.dynamics();
   const V3 dJ2 = sub(d2.j_pin.force, d0.j_pin.force);
@@ -271,8 +271,8 @@ TEST(wheel_loader_model, ExternalWrenchGoesWhereItShould) {
   const V3 r{8.0, 0.0, 1.5};
   const V3 T3{0, 1e4, 0};
   WheelLoader at_r(p), at_origin(p);
-  at_r.set_bucket_wrench([&](double) { return Wrench{F3, T3, r}; });
-  at_origin.set_bucket_wrench([&](double) { return Wrench{F3, add(T3, cross(sub(r, A), F3)), A}; });
+  at_r.set_wrench([&](double) { return Wrench{F3, T3, r}; });
+  at_origin.set_wrench([&](double) { return Wrench{F3, add(T3, cross(sub(r, A), F3)), A}; });
   at_r.resolve_static();
   at_origin.resolve_static();
   const Reports ra = at_r.reports(), rb = at_origin.reports();
@@ -282,7 +282,7 @@ TEST(wheel_loader_model, ExternalWrenchGoesWhereItShould) {
   EXPECT_NEAR(ra.j_vert, rb.j_vert, 1e-6 * norm(F3));
   // and it matters: the same force about the origin without the transfer differs
   WheelLoader naive(p);
-  naive.set_bucket_wrench([&](double) { return Wrench{F3, T3, A}; });
+  naive.set_wrench([&](double) { return Wrench{F3, T3, A}; });
   naive.resolve_static();
   EXPECT_GT(std::abs(naive.reports().j_long - ra.j_long), 1e3);
 }
@@ -298,7 +298,7 @@ TEST(wheel_loader_model, TractionLimitStallsTheMachine) {
   for (double resistance : {1.0e5, 2.5e5}) {
     WheelLoader wl(p);
     const V3 A = wl.bucket().position;
-    wl.set_bucket_wrench([&](double) { return Wrench{{-resistance, 0, 0}, {0, 0, 0}, A}; });
+    wl.set_wrench([&](double) { return Wrench{{-resistance, 0, 0}, {0, 0, 0}, A}; });
     double worst_ratio = 0, min_speed = 1e9;
     wl.advance(1.5, [&] {
       const Reports r = wl.reports();

@@ -10,9 +10,9 @@
 
 namespace oscillator {
 
-class OscillatorModel final : public cosim::Model {
+class OscillatorAdapter final : public cosim::Model {
  public:
-  explicit OscillatorModel(Side side) : side_(side) {}
+  explicit OscillatorAdapter(Side side) : side_(side) {}
   void configure(const YAML::Node& parameters, const cosim::RunInfo& run) override;
   cosim::Ports inputs() const override;
   cosim::Ports outputs() const override;

@@ -1,4 +1,4 @@
-#include "prescribed_model.hpp"
+#include "prescribed_adapter.hpp"
 
 #include <cerrno>
 #include <cstdio>
@@ -44,17 +44,17 @@ std::vector<ToolTrack> read_tools(const YAML::Node& root, const std::string& pat
 
 }  // namespace
 
-PrescribedModel::PrescribedModel(YAML::Node root, std::string base_dir)
+PrescribedAdapter::PrescribedAdapter(YAML::Node root, std::string base_dir)
     : root_(root ? YAML::Clone(root) : YAML::Node(YAML::NodeType::Map)), base_dir_(std::move(base_dir)) {}
 
-PrescribedModel::~PrescribedModel() {
+PrescribedAdapter::~PrescribedAdapter() {
   try {
     flush();
   } catch (...) {
   }
 }
 
-void PrescribedModel::configure(const YAML::Node& parameters, const cosim::RunInfo& run) {
+void PrescribedAdapter::configure(const YAML::Node& parameters, const cosim::RunInfo& run) {
   const std::string path = "participants." + run.participant + ".parameters";
   YAML::Node root = YAML::Clone(root_);
   cfg::apply_overrides(root, parameters, path);
@@ -83,19 +83,19 @@ void PrescribedModel::configure(const YAML::Node& parameters, const cosim::RunIn
   }
 }
 
-cosim::Ports PrescribedModel::inputs() const {
+cosim::Ports PrescribedAdapter::inputs() const {
   cosim::Ports p;
   for (const auto& t : tools_) p.push_back({t.wrench_input, cosim::SignalKind::Wrench});
   return p;
 }
 
-cosim::Ports PrescribedModel::outputs() const {
+cosim::Ports PrescribedAdapter::outputs() const {
   cosim::Ports p;
   for (const auto& t : tools_) p.push_back({t.name, cosim::SignalKind::Kinematics});
   return p;
 }
 
-cosim::Signals PrescribedModel::poses_at(TimePoint t) const {
+cosim::Signals PrescribedAdapter::poses_at(TimePoint t) const {
   cosim::Signals s;
   for (const auto& tool : tools_) {
     const Pose p = tool.trajectory.evaluate(cosim::to_seconds(t));
@@ -105,9 +105,9 @@ cosim::Signals PrescribedModel::poses_at(TimePoint t) const {
   return s;
 }
 
-cosim::Signals PrescribedModel::initial_outputs() { return poses_at(TimePoint{}); }
+cosim::Signals PrescribedAdapter::initial_outputs() { return poses_at(TimePoint{}); }
 
-void PrescribedModel::flush() {
+void PrescribedAdapter::flush() {
   if (!record_) return;
   for (const auto& row : pending_) *record_ << row;
   pending_.clear();
@@ -116,7 +116,7 @@ void PrescribedModel::flush() {
   if (!*record_) throw std::runtime_error(cosim::write_failure(record_path_, std::strerror(errno)));
 }
 
-cosim::StepResult PrescribedModel::step(const cosim::StepInputs& in, bool /*want_average*/) {
+cosim::StepResult PrescribedAdapter::step(const cosim::StepInputs& in, bool /*want_average*/) {
   // Rows wait until the next step starts: a repeat (restore_snapshot) drops them instead.
   flush();
   for (const auto& tool : tools_) {
@@ -137,7 +137,7 @@ cosim::StepResult PrescribedModel::step(const cosim::StepInputs& in, bool /*want
   return r;
 }
 
-void PrescribedModel::save_checkpoint(const std::string& path) {
+void PrescribedAdapter::save_checkpoint(const std::string& path) {
   flush();  // the step is accepted: its rows belong before the checkpoint
   const long long bytes = record_ ? static_cast<long long>(record_->tellp()) : 0;
   std::ofstream out(path, std::ios::trunc);
@@ -146,7 +146,7 @@ void PrescribedModel::save_checkpoint(const std::string& path) {
   if (!out || bytes < 0) throw std::runtime_error("cannot write '" + path + "'");
 }
 
-void PrescribedModel::load_checkpoint(const std::string& path) {
+void PrescribedAdapter::load_checkpoint(const std::string& path) {
   std::ifstream in(path);
   std::string magic, key;
   int version = 0;

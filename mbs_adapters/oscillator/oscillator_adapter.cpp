@@ -1,4 +1,4 @@
-#include "oscillator_model.hpp"
+#include "oscillator_adapter.hpp"
 
 #include <cosim/yaml_config.hpp>
 
@@ -46,34 +46,34 @@ Parameters read_parameters(Side side, const YAML::Node& node, Duration* inner_st
   return p;
 }
 
-void OscillatorModel::configure(const YAML::Node& parameters, const RunInfo&) {
+void OscillatorAdapter::configure(const YAML::Node& parameters, const RunInfo&) {
   p_ = read_parameters(side_, parameters, &inner_step_);
   half_ = std::make_unique<Half>(side_, p_, to_seconds(inner_step_));
 }
 
-Ports OscillatorModel::inputs() const {
+Ports OscillatorAdapter::inputs() const {
   if (side_ == Side::Mass1) return {{"force", SignalKind::Scalar}};
   return {{"x", SignalKind::Scalar}, {"v", SignalKind::Scalar}};
 }
 
-Ports OscillatorModel::outputs() const {
+Ports OscillatorAdapter::outputs() const {
   if (side_ == Side::Mass1) return {{"x", SignalKind::Scalar}, {"v", SignalKind::Scalar}};
   return {{"force", SignalKind::Scalar}};
 }
 
-Signals OscillatorModel::to_signals(const Eigen::VectorXd& out) const {
+Signals OscillatorAdapter::to_signals(const Eigen::VectorXd& out) const {
   if (side_ == Side::Mass1)
     return {{"x", {SignalKind::Scalar, {out(0)}}}, {"v", {SignalKind::Scalar, {out(1)}}}};
   return {{"force", {SignalKind::Scalar, {out(0)}}}};
 }
 
-Signals OscillatorModel::initial_outputs() {
+Signals OscillatorAdapter::initial_outputs() {
   Eigen::VectorXd u(2);
   u << p_.x1, p_.v1;  // mass1's initial state (mass2: parameters coupled_position/velocity)
   return to_signals(half_->output(u));
 }
 
-StepResult OscillatorModel::step(const StepInputs& in, bool want_average) {
+StepResult OscillatorAdapter::step(const StepInputs& in, bool want_average) {
   const int m = half_->input_size();
   const auto names = side_ == Side::Mass1 ? std::vector<std::string>{"force"}
                                           : std::vector<std::string>{"x", "v"};
@@ -103,7 +103,7 @@ namespace {
 const char* side_name(Side side) { return side == Side::Mass1 ? "mass1" : "mass2"; }
 }  // namespace
 
-void OscillatorModel::save_checkpoint(const std::string& path) {
+void OscillatorAdapter::save_checkpoint(const std::string& path) {
   std::ofstream out(path, std::ios::trunc);
   char line[160];
   const auto& x = half_->state();
@@ -114,7 +114,7 @@ void OscillatorModel::save_checkpoint(const std::string& path) {
   if (!out) throw std::runtime_error("cannot write '" + path + "'");
 }
 
-void OscillatorModel::load_checkpoint(const std::string& path) {
+void OscillatorAdapter::load_checkpoint(const std::string& path) {
   std::ifstream in(path);
   std::string magic, side_key, side, state_key, a, b;
   int version = 0;

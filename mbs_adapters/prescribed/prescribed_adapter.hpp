@@ -21,11 +21,11 @@ struct ToolTrack {
   Trajectory trajectory;
 };
 
-class PrescribedModel final : public cosim::Model {
+class PrescribedAdapter final : public cosim::Model {
  public:
   // root: the participant's config file (may be empty) after --set; base_dir resolves its
   // relative paths. The master's parameters amend it in configure().
-  PrescribedModel(YAML::Node root, std::string base_dir);
+  PrescribedAdapter(YAML::Node root, std::string base_dir);
 
   void configure(const YAML::Node& parameters, const cosim::RunInfo& run) override;
   cosim::Ports inputs() const override;
@@ -41,7 +41,7 @@ class PrescribedModel final : public cosim::Model {
   bool can_checkpoint() const override { return true; }
   void save_checkpoint(const std::string& path) override;
   void load_checkpoint(const std::string& path) override;
-  ~PrescribedModel() override;
+  ~PrescribedAdapter() override;
 
   const std::vector<ToolTrack>& tools() const { return tools_; }
 
