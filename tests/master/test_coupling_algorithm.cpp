@@ -10,7 +10,7 @@
 #include "config.hpp"
 #include "cosimulation.hpp"
 #include "coupling_algorithm.hpp"
-#include "oscillator_model.hpp"
+#include "oscillator_adapter.hpp"
 
 namespace {
 
@@ -146,7 +146,7 @@ TEST(CouplingAlgorithm, AnAlgorithmGivenToCoSimulationRunsIt) {
   };
   const auto c = config({"time.end=0.05"});
   auto run = [&](std::unique_ptr<master::CouplingAlgorithm> algorithm, Rows& rows) {
-    oscillator::OscillatorModel m1(oscillator::Side::Mass1), m2(oscillator::Side::Mass2);
+    oscillator::OscillatorAdapter m1(oscillator::Side::Mass1), m2(oscillator::Side::Mass2);
     cosim::ParticipantCore c1("mass1", m1), c2("mass2", m2);
     auto transport = cosim::make_in_process_transport(1234, {{"mass1", &c1}, {"mass2", &c2}});
     master::CoSimulation sim(c, *transport, std::move(algorithm));
