@@ -799,11 +799,6 @@ bool pair_rows_vector_available() {
 #endif
 }
 
-// Whether the stream kernel computes the spring's turn and the friction cap in every chunk
-// without a branch, or only in chunks with a lane that needs them: the same bits either way.
-// Where 512-bit divisions are cheap the branch costs more than the work (an AMD EPYC VM: 0.93x
-// of the pair forces branch-free); where they are dear, the other way round (an Intel Xeon VM:
-// 0.935x with the branch). docs/performance.md, "Divisions where they are dear".
 static bool branch_free_by_processor() {
 #if defined(__x86_64__) && defined(__GNUC__)
   __builtin_cpu_init();
@@ -812,10 +807,11 @@ static bool branch_free_by_processor() {
   return false;
 #endif
 }
-static std::atomic<bool> branch_free_chunks{branch_free_by_processor()};
 
-void use_branch_free_chunks(bool branch_free) { branch_free_chunks = branch_free; }
-bool branch_free_chunks_in_use() { return branch_free_chunks.load(std::memory_order_relaxed); }
+bool branch_free_chunks_default() {
+  static const bool by_processor = branch_free_by_processor();
+  return by_processor;
+}
 
 // The one place that picks the kernel: the vector one when asked for and available.
 template <bool Sleep>
@@ -827,7 +823,7 @@ static void dispatch(const PairRows& p, const PairSleep& sleep, std::size_t a0, 
   static const bool available = pair_rows_vector_available();
   if (vector && available) {
     ChunkKernel kernel(p);
-    const bool full = branch_free_chunks.load(std::memory_order_relaxed);
+    const bool full = p.branch_free_chunks;
     if (Sleep && p.spring_index)
       kernel.rows<true>(sleep, a0, a1, direct, remote, stats, full);
     else if (Sleep)

@@ -65,12 +65,14 @@ TEST(dem_ClosePairs, SameBitsAsEveryCandidate) {
   const bool vector_available = dem::detail::pair_rows_vector_available();
   for (const bool vector : {false, true}) {
     if (vector && !vector_available) continue;
-    dem::detail::use_vector_pairs(vector);
+    dem::EngineOptions options;
+    options.pair_kernel =
+        vector ? dem::EngineOptions::PairKernel::vector : dem::EngineOptions::PairKernel::scalar;
     for (const int threads : {1, 2}) {
       dem::State reference = lattice_state();
       {
         const dem::Scene scene = lattice_scene(threads, 0.0);
-        dem::Engine engine(scene);
+        dem::Engine engine(scene, options);
         std::int64_t contact_steps = 0;  // touching pairs, summed over the steps
         for (int k = 0; k < 1200; ++k) {
           engine.step(reference);
@@ -82,7 +84,7 @@ TEST(dem_ClosePairs, SameBitsAsEveryCandidate) {
       for (const double margin : {0.05, 0.2}) {
         const dem::Scene scene = lattice_scene(threads, margin);
         dem::State st = lattice_state();
-        dem::Engine engine(scene);
+        dem::Engine engine(scene, options);
         std::int64_t used_steps = 0;
         for (int k = 0; k < 1200; ++k) {
           engine.step(st);
@@ -98,7 +100,6 @@ TEST(dem_ClosePairs, SameBitsAsEveryCandidate) {
       }
     }
   }
-  dem::detail::use_vector_pairs(true);
 }
 
 // With sleepers (scene.sleep) the close pairs change no result either: the creeping grains fall
@@ -110,7 +111,9 @@ TEST(dem_ClosePairs, SameBitsAsEveryCandidateWithSleepers) {
   const bool vector_available = dem::detail::pair_rows_vector_available();
   for (const bool vector : {false, true}) {
     if (vector && !vector_available) continue;
-    dem::detail::use_vector_pairs(vector);
+    dem::EngineOptions options;
+    options.pair_kernel =
+        vector ? dem::EngineOptions::PairKernel::vector : dem::EngineOptions::PairKernel::scalar;
     for (const int threads : {1, 2}) {
       dem::State result[2];
       std::int64_t sleeper_steps[2] = {0, 0};
@@ -122,7 +125,7 @@ TEST(dem_ClosePairs, SameBitsAsEveryCandidateWithSleepers) {
         scene.sleep.tool_distance = 0;
         scene.sleep.close_pairs = true;  // off by default with sleeping
         dem::State st = lattice_state();
-        dem::Engine engine(scene);
+        dem::Engine engine(scene, options);
         for (int k = 0; k < 1200; ++k) {
           engine.step(st);
           sleeper_steps[margin > 0] += engine.sleeping();
@@ -141,7 +144,6 @@ TEST(dem_ClosePairs, SameBitsAsEveryCandidateWithSleepers) {
           << threads << " thread(s), " << (vector ? "vector" : "scalar") << " kernel";
     }
   }
-  dem::detail::use_vector_pairs(true);
 }
 
 // With sleeping on, close pairs are listed only when scene.sleep.close_pairs asks for them.

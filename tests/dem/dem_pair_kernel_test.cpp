@@ -173,9 +173,10 @@ PairRows start(const Rows& in, Result& out, const dem::ContactLaw& law, double d
 }
 
 Result run(const Rows& in, const dem::ContactLaw& law, double dt, std::size_t a0, std::size_t a1,
-           bool vector) {
+           bool vector, bool branch_free_chunks = dem::detail::branch_free_chunks_default()) {
   Result out;
-  const PairRows p = start(in, out, law, dt);
+  PairRows p = start(in, out, law, dt);
+  p.branch_free_chunks = branch_free_chunks;
   dem::detail::pair_rows(p, a0, a1, out.remote, out.stats, vector);
   return out;
 }
@@ -215,7 +216,6 @@ TEST(dem_PairKernel, VectorAndScalarGiveTheSameBits) {
   const double dt = 1e-4;
   std::mt19937_64 rng(7);
   std::int64_t contacts = 0, rows_seen = 0, remotes = 0;
-  const bool default_chunks = dem::detail::branch_free_chunks_in_use();
   for (const int sizes : {0, 1, 2}) {
     for (const dem::ContactLaw& law : laws()) {
       for (int rep = 0; rep < 6; ++rep) {
@@ -229,9 +229,7 @@ TEST(dem_PairKernel, VectorAndScalarGiveTheSameBits) {
         // chunk without a branch, or only the chunks that need them (the processor's default
         // is one of them).
         const bool branch_free = rep % 2 == 0;
-        dem::detail::use_branch_free_chunks(branch_free);
-        const Result v = run(rows, law, dt, a0, a1, true);
-        dem::detail::use_branch_free_chunks(default_chunks);
+        const Result v = run(rows, law, dt, a0, a1, true, branch_free);
         SCOPED_TRACE(branch_free ? "branch-free chunks" : "branching chunks");
         for (std::size_t i = 0; i < rows.x.size(); ++i)
           ASSERT_TRUE(same_bits(s.force[i], v.force[i]))
@@ -299,13 +297,12 @@ TEST(dem_PairKernel, WithSleepersVectorAndScalarGiveTheSameBits) {
             if (run == 16 && i >= a0 + 15 && i < a1) ++streamed_runs;
           }
         }
-        const bool default_chunks = dem::detail::branch_free_chunks_in_use();
-        dem::detail::use_branch_free_chunks(sizes % 2 == 0);
         Result res[2];
         std::vector<std::uint8_t> woken[2];
         for (const bool vector : {false, true}) {
           Result& out = res[vector];
-          const PairRows p = start(rows, out, law, dt);
+          PairRows p = start(rows, out, law, dt);
+          p.branch_free_chunks = sizes % 2 == 0;
           woken[vector].assign(n, 0);
           std::vector<std::int32_t> remote_wake;
           dem::detail::PairSleep sl;
@@ -318,7 +315,6 @@ TEST(dem_PairKernel, WithSleepersVectorAndScalarGiveTheSameBits) {
           dem::detail::pair_rows_sleep(p, sl, a0, a1, out.remote, out.stats, vector);
           for (const std::int32_t q : remote_wake) woken[vector][q] = 1;
         }
-        dem::detail::use_branch_free_chunks(default_chunks);
         for (std::size_t i = 0; i < n; ++i) {
           ASSERT_TRUE(same_bits(res[0].force[i], res[1].force[i])) << "force of particle " << i;
           ASSERT_EQ(woken[0][i], woken[1][i]) << "wake of particle " << i;
@@ -352,7 +348,9 @@ TEST(dem_PairKernel, WholeRunsAreTheSameWithEitherKernel) {
   for (const int threads : {1, 2}) {
     dem::State result[2];
     for (const bool vector : {false, true}) {
-      dem::detail::use_vector_pairs(vector);
+      dem::EngineOptions options;
+      options.pair_kernel = vector ? dem::EngineOptions::PairKernel::vector
+                                   : dem::EngineOptions::PairKernel::scalar;
       dem::Scene scene = demtest::one_species_scene(0.8e-3, 1.2e-3);
       scene.threads = threads;
       scene.broad_phase_interval = 10;
@@ -371,12 +369,11 @@ TEST(dem_PairKernel, WholeRunsAreTheSameWithEitherKernel) {
             st, {1.5e-3 + 2.5e-3 * (k % 11), 2.5e-3 * ((k / 11) % 11), 1.5e-3 + 2.5e-3 * (k / 121)},
             {0.05 * (U01(rng) - 0.5), 0.05 * (U01(rng) - 0.5), -0.2}, r);
       }
-      dem::Engine engine(scene);
+      dem::Engine engine(scene, options);
       for (int k = 0; k < 1500; ++k) engine.step(st);
       EXPECT_GT(engine.contact_stats().particle_contacts, 200);
       result[vector] = st;
     }
-    dem::detail::use_vector_pairs(true);
     int arrays = 0;
     dem::for_each_array(result[0], [&](const char* name, const auto& a, dem::Field) {
       const char* other = nullptr;

@@ -16,6 +16,12 @@
 
 namespace dem::detail {
 
+// The processor's choice for PairRows::branch_free_chunks: branch-free on AMD, where 512-bit
+// divisions are cheap (an AMD EPYC VM: 0.93x of the pair forces branch-free); branching where
+// they are dear (an Intel Xeon VM: 0.935x with the branch). docs/performance.md, "Divisions
+// where they are dear". EngineOptions::pair_chunks overrides it.
+bool branch_free_chunks_default();
+
 // A force on a particle of a later thread's range: applied after the parallel loop, in
 // thread order, so the sums do not depend on scheduling.
 struct PairRemote {
@@ -45,6 +51,10 @@ struct PairRows {
   std::size_t direct_end = 0;
   ContactLaw law;
   double dt = 0;
+  // The vector stream kernel (every particle awake) computes the spring's turn and the friction
+  // cap in every chunk without a branch (true), or only in chunks that need them (false). The
+  // same bits either way; the default follows the processor (branch_free_chunks_default()).
+  bool branch_free_chunks = branch_free_chunks_default();
 };
 
 struct PairRowStats {
@@ -79,13 +89,5 @@ void pair_rows_sleep(const PairRows& p, const PairSleep& sleep, std::size_t a0, 
                      std::vector<PairRemote>& remote, PairRowStats& stats, bool vector);
 
 bool pair_rows_vector_available();
-
-// The stream kernel (every particle awake) computes the spring's turn and the friction cap in
-// every chunk without a branch (true), or only in chunks that need them (false). The default
-// follows the processor (branch-free on AMD, where 512-bit divisions are cheap); the
-// environment's DEM_PAIR_CHUNKS (read_pair_kernel_environment) and tests switch it. The same
-// bits either way.
-void use_branch_free_chunks(bool branch_free);
-bool branch_free_chunks_in_use();
 
 }  // namespace dem::detail
