@@ -193,6 +193,18 @@ void Engine::pair_forces(State& s) {
     pair_forces_impl<false>(s);
 }
 
+detail::Kernel Engine::pair_kernel() const {
+  switch (options_.pair_kernel) {
+    case EngineOptions::PairKernel::scalar:
+      return detail::Kernel::scalar;
+    case EngineOptions::PairKernel::emulated:
+      return detail::Kernel::emulated;
+    case EngineOptions::PairKernel::vector:
+      break;
+  }
+  return detail::Kernel::vector;
+}
+
 // Threads take contiguous particle ranges of equal work (State::pair_work), not of equal
 // length: the bottom of a bed has about twice the contacts of its top half.
 void Engine::split_pair_work(const State& s) {
@@ -262,7 +274,7 @@ void Engine::pair_forces_blocks(State& s, const detail::PairRows& block_rows,
                                 const detail::PairSleep& rules) {
   const std::size_t n = s.size();
   const int T = threads_;
-  const bool vector = options_.pair_kernel == EngineOptions::PairKernel::vector;
+  const detail::Kernel kernel = pair_kernel();
   blocks_.make(s);
   const std::int64_t K = blocks_.count();
   const std::int64_t pass = blocks_.next_pass();
@@ -302,9 +314,9 @@ void Engine::pair_forces_blocks(State& s, const detail::PairRows& block_rows,
         });
       }
       if (Sleep)
-        detail::pair_rows_sleep(rows, sl, B[k], B[k + 1], remote, st, vector);
+        detail::pair_rows_sleep(rows, sl, B[k], B[k + 1], remote, st, kernel);
       else
-        detail::pair_rows(rows, B[k], B[k + 1], remote, st, vector);
+        detail::pair_rows(rows, B[k], B[k + 1], remote, st, kernel);
       __atomic_store_n(&DONE[k], pass, __ATOMIC_RELEASE);
     }
     thread_stats_[t] = ContactStats{st.contacts, 0, st.max_overlap, st.max_overlap_ratio};
@@ -325,7 +337,7 @@ template <bool Sleep>
 void Engine::pair_forces_ranges(State& s, const detail::PairRows& rows,
                                 const detail::PairSleep& rules) {
   const int T = threads_;
-  const bool vector = options_.pair_kernel == EngineOptions::PairKernel::vector;
+  const detail::Kernel kernel = pair_kernel();
   split_.assign(bounds_.begin(), bounds_.end());
 #pragma omp parallel num_threads(T)
   {
@@ -345,9 +357,9 @@ void Engine::pair_forces_ranges(State& s, const detail::PairRows& rows,
     if (Sleep) {
       detail::PairSleep sl = rules;
       sl.remote_wake = &remote_wake;
-      detail::pair_rows_sleep(rows, sl, a0, a1, remote, st, vector);
+      detail::pair_rows_sleep(rows, sl, a0, a1, remote, st, kernel);
     } else {
-      detail::pair_rows(rows, a0, a1, remote, st, vector);
+      detail::pair_rows(rows, a0, a1, remote, st, kernel);
     }
     remote.swap(remote_[t]);
     if (Sleep) remote_wake.swap(sleepers_.remote_wake(t));

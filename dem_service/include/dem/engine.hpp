@@ -94,6 +94,7 @@ class Engine {
   template <bool Sleep>
   void pair_forces_impl(State& s);
   void split_pair_work(const State& s);
+  detail::Kernel pair_kernel() const;
   detail::PairRows pair_rows_of(State& s);
   template <bool Sleep>
   void pair_forces_blocks(State& s, const detail::PairRows& rows, const detail::PairSleep& rules);

@@ -9,7 +9,10 @@ struct EngineOptions {
   // The pair forces: the AVX-512 kernel where the processor has it (vector), or the scalar
   // loop everywhere. Kept: the scalar loop is the reference the vector kernel's bit-equality
   // tests compare against, and bench/dem/kernel_ab.sh times one against the other.
-  enum class PairKernel { vector, scalar };
+  // emulated: the vector kernel's source with its lanes emulated in portable code (any
+  // processor, several times slower): for the tests that hold the vector path to the scalar
+  // loop's bits where the processor has no AVX-512.
+  enum class PairKernel { vector, scalar, emulated };
   PairKernel pair_kernel = PairKernel::vector;
   // The vector stream kernel's chunks: without a branch for the spring's turn and the friction
   // cap (branch-free), or only where a lane needs them (branching). The processor's default is
