@@ -284,8 +284,9 @@ Config parse_config(const YAML::Node& root, const std::string& source_text) {
                               "connect_timeout", "participants", "predictors", "connections",
                               "power", "output", "checkpoints", "faults"});
   if (root["bus"]) {
-    cfg::check_keys(root["bus"], "bus", {"url"});
+    cfg::check_keys(root["bus"], "bus", {"url", "authenticate"});
     c.bus_url = cfg::get_string_or(root["bus"], "bus", "url", c.bus_url);
+    c.authenticate = cfg::get_bool_or(root["bus"], "bus", "authenticate", c.authenticate);
   }
   parse_time(root["time"], c);
   parse_run_options(root, c);

@@ -69,6 +69,10 @@ struct CheckpointSpec {
 
 struct Config {
   std::string bus_url;
+  // false: an unauthenticated bus, by explicit choice (the recorded config says so). true: a
+  // key from the environment, else a fresh key for the run when the master launches every
+  // participant (docs/security.md#the-default-a-key-per-run).
+  bool authenticate = true;
   TimePoint t_start{}, t_end{};
   Duration macro_step{};
   Scheme scheme = Scheme::Jacobi;

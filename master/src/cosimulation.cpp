@@ -33,14 +33,11 @@ double power(SignalKind kind, const Value& F, const Value& V) {
 
 }  // namespace
 
-CoSimulation::CoSimulation(const Config& config, cosim::Transport& transport)
-    : config_(config), transport_(transport) {
-  if (config.scheme == Scheme::Jacobi) {
-    groups_.push_back({});
-    for (const auto& p : config.participants) groups_.back().push_back(p.name);
-  } else {
-    for (const auto& name : config.order) groups_.push_back({name});
-  }
+CoSimulation::CoSimulation(const Config& config, cosim::Transport& transport,
+                           std::unique_ptr<CouplingAlgorithm> algorithm)
+    : config_(config), transport_(transport), algorithm_(std::move(algorithm)) {
+  if (!algorithm_) algorithm_ = make_algorithm(config);
+  algorithm_->setup(config);
 }
 
 void CoSimulation::set_checkpoints(int64_t run_id, std::string folder) {
@@ -98,9 +95,14 @@ void CoSimulation::connect() {
           " cannot save checkpoints, so the run could not be resumed from them; set "
           "checkpoints.every: 0 (no checkpoints, no --resume) or replace the participant");
   }
-  can_iterate_ = true;
-  for (const auto& [name, info] : setup_.participants) can_iterate_ = can_iterate_ && info.can_repeat;
+  start_predictors();
+  algorithm_->initialize({&setup_.participants, max_order_});
+}
+
+void CoSimulation::start_predictors() {
+  const int64_t resume_steps = resume_ ? resume_->steps_done : 0;
   predictors_.clear();
+  max_order_ = 0;
   for (std::size_t i = 0; i < config_.connections.size(); ++i) {
     const auto& k = config_.connections[i];
     const auto& src = setup_.participants.at(k.from.participant);
@@ -128,19 +130,6 @@ void CoSimulation::connect() {
                                        config_.t_start + j * config_.macro_step,
                                        resume_->received_average.at(i).at(static_cast<std::size_t>(j)));
   }
-  // Start-up iterations redo the first steps from their start: every participant must be able
-  // to. One that cannot is refused here, before any step, not skipped silently (the order the
-  // run would reach depends on it).
-  if (config_.startup_iterations > 0 && max_order_ > 0)
-    for (const auto& [name, info] : setup_.participants)
-      if (!info.can_repeat)
-        throw cosim::config::ConfigError(
-            "startup_iterations: " + std::to_string(config_.startup_iterations) +
-            " (with predictor order " + std::to_string(max_order_) +
-            ") redoes the first steps, but participant '" + name + "' cannot repeat a step" +
-            (info.repeat_note.empty() ? std::string() : " (" + info.repeat_note + ")") +
-            "; set startup_iterations: 0 (the first steps then run once, at a lower start-up order) "
-            "or make the participant able to repeat steps");
 }
 
 std::vector<cosim::step_request_t> CoSimulation::requests(const std::vector<std::string>& group,
@@ -172,7 +161,7 @@ std::vector<cosim::step_request_t> CoSimulation::requests(const std::vector<std:
   return out;
 }
 
-std::vector<cosim::StepAnswer> CoSimulation::exchange(const std::vector<cosim::step_request_t>& qs) {
+std::vector<cosim::StepAnswer> CoSimulation::exchange_requests(const std::vector<cosim::step_request_t>& qs) {
   try {
     return transport_.exchange(qs);
   } catch (const cosim::MissingAverageError& e) {
@@ -189,64 +178,64 @@ std::vector<cosim::StepAnswer> CoSimulation::exchange(const std::vector<cosim::s
   }
 }
 
-void CoSimulation::run_step(int64_t step, TimePoint t0, TimePoint t1) {
-  const cosim::Stopwatch step_wall;
-  double waiting = 0;
-  StepRecord rec;
-  rec.step_index = step;
-  rec.t_start = t0;
-  rec.t_end = t1;
-  // The first steps have too few samples for the configured orders; iterating them (redo
-  // from the step's start with the new end sample) keeps the start-up from capping the order.
-  const bool iterate = step < max_order_ && can_iterate_;
-  const int iterations = iterate ? 1 + config_.startup_iterations : 1;
-  std::vector<InputPolynomial> sent(config_.connections.size());
-  std::map<std::string, cosim::Signals> averages;  // participants asked for interval averages
-  for (int it = 0; it < iterations; ++it) {
-    for (const auto& group : groups_) {
-      // The checkpoint goes with the last iteration: the state after it is the step's result.
-      auto qs = requests(group, step, it, t0, t1, it + 1 == iterations && checkpoint_due(step));
-      for (std::size_t i = 0; i < config_.connections.size(); ++i)
-        for (const auto& name : group)
-          if (config_.connections[i].to.participant == name) sent[i] = predictors_[i].predict(t0, t1);
-      const cosim::Stopwatch wait;
-      const auto answers = exchange(qs);
-      waiting += wait.seconds();
-      for (std::size_t g = 0; g < group.size(); ++g) {
-        const auto& name = group[g];
-        rec.outputs[name] = answers[g].outputs;
-        rec.diagnostics[name] = answers[g].diagnostics;
-        rec.compute_seconds[name] = answers[g].compute_seconds;
-        rec.round_trip_seconds[name] = answers[g].round_trip_seconds;
-        if (answers[g].average) averages[name] = *answers[g].average;
-        for (std::size_t i = 0; i < config_.connections.size(); ++i) {
-          const auto& k = config_.connections[i];
-          if (k.from.participant != name) continue;
-          if (k.use == Use::Average)  // the mean over this step: interpolation from now on
-            predictors_[i].record_mean(t0, t1, answers[g].average->at(k.from.signal).value);
-          else
-            predictors_[i].record(t1, answers[g].outputs.at(k.from.signal).value);
-        }
-      }
+void CoSimulation::open_step(int64_t step, TimePoint t0, TimePoint t1) {
+  open_.emplace();
+  open_->rec.step_index = step;
+  open_->rec.t_start = t0;
+  open_->rec.t_end = t1;
+  open_->sent.resize(config_.connections.size());
+}
+
+void CoSimulation::exchange(const std::vector<std::string>& group, int iteration, bool checkpoint) {
+  if (!open_) throw std::logic_error("exchange outside a macro step");
+  OpenStep& s = *open_;
+  StepRecord& rec = s.rec;
+  const TimePoint t0 = rec.t_start, t1 = rec.t_end;
+  auto qs = requests(group, rec.step_index, iteration, t0, t1, checkpoint);
+  for (std::size_t i = 0; i < config_.connections.size(); ++i)
+    for (const auto& name : group)
+      if (config_.connections[i].to.participant == name) s.sent[i] = predictors_[i].predict(t0, t1);
+  const cosim::Stopwatch wait;
+  const auto answers = exchange_requests(qs);
+  s.waiting += wait.seconds();
+  for (std::size_t g = 0; g < group.size(); ++g) {
+    const auto& name = group[g];
+    rec.outputs[name] = answers[g].outputs;
+    rec.diagnostics[name] = answers[g].diagnostics;
+    rec.compute_seconds[name] = answers[g].compute_seconds;
+    rec.round_trip_seconds[name] = answers[g].round_trip_seconds;
+    if (answers[g].average) s.averages[name] = *answers[g].average;
+    for (std::size_t i = 0; i < config_.connections.size(); ++i) {
+      const auto& k = config_.connections[i];
+      if (k.from.participant != name) continue;
+      if (k.use == Use::Average)  // the mean over this step: interpolation from now on
+        predictors_[i].record_mean(t0, t1, answers[g].average->at(k.from.signal).value);
+      else
+        predictors_[i].record(t1, answers[g].outputs.at(k.from.signal).value);
     }
   }
-  rec.iterations = iterations;
-  rec.checkpoint = checkpoint_due(step);  // every reply confirmed it, or exchange() raised
+}
+
+void CoSimulation::record_connections(OpenStep& s) const {
+  StepRecord& rec = s.rec;
   for (std::size_t i = 0; i < config_.connections.size(); ++i) {
     const auto& k = config_.connections[i];
     ConnectionRecord c;
-    c.sent = sent[i];
+    c.sent = s.sent[i];
     c.received = rec.outputs.at(k.from.participant).at(k.from.signal).value;
     if (k.use == Use::Average) {
-      c.predicted = sent[i].mean();
-      c.received_average = averages.at(k.from.participant).at(k.from.signal).value;
-      c.deviation = deviation(sent[i].kind, c.predicted, c.received_average);
+      c.predicted = s.sent[i].mean();
+      c.received_average = s.averages.at(k.from.participant).at(k.from.signal).value;
+      c.deviation = deviation(s.sent[i].kind, c.predicted, c.received_average);
     } else {
-      c.predicted = sent[i].evaluate(1.0);
-      c.deviation = deviation(sent[i].kind, c.predicted, c.received);
+      c.predicted = s.sent[i].evaluate(1.0);
+      c.deviation = deviation(s.sent[i].kind, c.predicted, c.received);
     }
     rec.connections.push_back(std::move(c));
   }
+}
+
+void CoSimulation::record_power(StepRecord& rec, bool any_connection) const {
   for (const auto& p : config_.power) {
     auto conn = [&](const Endpoint& from, const std::string& to) -> const ConnectionRecord& {
       for (std::size_t i = 0; i < config_.connections.size(); ++i)
@@ -256,27 +245,36 @@ void CoSimulation::run_step(int64_t step, TimePoint t0, TimePoint t1) {
     };
     const auto& f = conn(p.force, p.velocity.participant);
     const auto& v = conn(p.velocity, p.force.participant);
-    const auto kind = sent.empty() ? SignalKind::Scalar
-                                   : (f.received.size() == 1 ? SignalKind::Scalar : SignalKind::Wrench);
+    const auto kind = !any_connection ? SignalKind::Scalar
+                                      : (f.received.size() == 1 ? SignalKind::Scalar : SignalKind::Wrench);
     PowerRecord r;
     r.force_side = power(kind, f.received_for_power(), v.predicted);
     r.motion_side = power(kind, f.predicted, v.received_for_power());
     r.residual = r.force_side - r.motion_side;
     rec.power.push_back(r);
   }
-  rec.wall_seconds = step_wall.seconds();
-  rec.master_seconds = rec.wall_seconds - waiting;
-  for (auto* o : observers_) o->on_step(rec);
+}
+
+void CoSimulation::close_step(int iterations, bool checkpoint) {
+  if (!open_) throw std::logic_error("close_step outside a macro step");
+  OpenStep& s = *open_;
+  s.rec.iterations = iterations;
+  s.rec.checkpoint = checkpoint;  // every reply confirmed it, or exchange() raised
+  record_connections(s);
+  record_power(s.rec, !s.sent.empty());
+  s.rec.wall_seconds = s.wall.seconds();
+  s.rec.master_seconds = s.rec.wall_seconds - s.waiting;
+  for (auto* o : observers_) o->on_step(s.rec);
+  open_.reset();
 }
 
 void CoSimulation::run() {
   for (auto* o : observers_) o->on_start(setup_);
-  int64_t step = setup_.first_step;
+  const int64_t step = setup_.first_step;
   try {
-    for (TimePoint t = config_.t_start + step * config_.macro_step; t < config_.t_end;
-         t += config_.macro_step, ++step)
-      run_step(step, t, t + config_.macro_step);
+    algorithm_->run(*this, step, config_.t_start + step * config_.macro_step, config_.t_end);
   } catch (const std::exception& e) {
+    open_.reset();
     transport_.terminate(true, e.what());
     for (auto* o : observers_) o->on_finish(false, e.what());
     throw;

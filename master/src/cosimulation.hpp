@@ -11,6 +11,8 @@
 #include <vector>
 
 #include "config.hpp"
+#include "coupling_algorithm.hpp"
+#include "cosim/stopwatch.hpp"
 #include "predictor.hpp"
 
 namespace master {
@@ -86,9 +88,13 @@ class Observer {
   virtual void on_finish(bool ok, const std::string& message) {}
 };
 
-class CoSimulation {
+// The participants as a coupling algorithm sees them (Coupling), the predictors between them,
+// and the records of every step for the observers. The algorithm (make_algorithm(config)
+// unless one is given; set up here with the config) owns the step loop.
+class CoSimulation final : private Coupling {
  public:
-  CoSimulation(const Config& config, cosim::Transport& transport);
+  CoSimulation(const Config& config, cosim::Transport& transport,
+               std::unique_ptr<CouplingAlgorithm> algorithm = nullptr);
   void add_observer(Observer* observer) { observers_.push_back(observer); }
   // Checkpoints (config.checkpoints.every > 0, or a resume): the run's id and the folder the
   // participants write to (an absolute path on their hosts). Before connect().
@@ -101,23 +107,41 @@ class CoSimulation {
   // All macro steps; raises LinkError on failure after telling the observers.
   void run();
   const RunSetup& setup() const { return setup_; }
+  const CouplingAlgorithm& algorithm() const { return *algorithm_; }
 
  private:
+  // The macro step between open_step and close_step.
+  struct OpenStep {
+    cosim::Stopwatch wall;
+    double waiting = 0;  // s in exchanges
+    StepRecord rec;
+    std::vector<cosim::InputPolynomial> sent;       // per connection, the last one sent
+    std::map<std::string, cosim::Signals> averages;  // participants asked for interval averages
+  };
+
+  // Coupling
+  void open_step(int64_t step, TimePoint t0, TimePoint t1) override;
+  void exchange(const std::vector<std::string>& group, int iteration, bool checkpoint) override;
+  void close_step(int iterations, bool checkpoint) override;
+  bool checkpoint_due(int64_t step) const override;
+
   std::vector<cosim::step_request_t> requests(const std::vector<std::string>& group, int64_t step,
                                        int iteration, TimePoint t0, TimePoint t1, bool checkpoint);
-  bool checkpoint_due(int64_t step) const;
-  void run_step(int64_t step, TimePoint t0, TimePoint t1);
   // transport_.exchange, with a missing interval average named by its connection.
-  std::vector<cosim::StepAnswer> exchange(const std::vector<cosim::step_request_t>& requests);
+  std::vector<cosim::StepAnswer> exchange_requests(const std::vector<cosim::step_request_t>& requests);
+  // The predictors' start: the initial outputs, or a resumed run's recorded history.
+  void start_predictors();
+  void record_connections(OpenStep& s) const;
+  void record_power(StepRecord& rec, bool any_connection) const;
 
   const Config& config_;
   cosim::Transport& transport_;
+  std::unique_ptr<CouplingAlgorithm> algorithm_;
   std::vector<Observer*> observers_;
   RunSetup setup_;
   std::vector<Predictor> predictors_;  // one per connection
-  std::vector<std::vector<std::string>> groups_;  // participants stepping together
   int max_order_ = 0;
-  bool can_iterate_ = false;
+  std::optional<OpenStep> open_;
   int64_t run_id_ = 0;
   std::string checkpoint_folder_;
   std::optional<ResumePoint> resume_;

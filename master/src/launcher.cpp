@@ -6,7 +6,11 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <fcntl.h>
+#include <poll.h>
+
 #include <chrono>
+#include <cstring>
 #include <climits>
 #include <cstdlib>
 #include <iostream>
@@ -29,6 +33,88 @@ std::string own_dir() {
   if (n <= 0) return ".";
   std::string p(buf, static_cast<std::size_t>(n));
   return p.substr(0, p.rfind('/'));
+}
+
+// The master's environment for a child; with a shared key, COSIM_KEY_FILE names the inherited
+// descriptor and no other key variable is passed on.
+std::vector<std::string> child_environment(int key_fd) {
+  std::vector<std::string> env;
+  for (char** e = environ; e && *e; ++e) {
+    const std::string v = *e;
+    if (key_fd >= 0 && (v.rfind("COSIM_KEY=", 0) == 0 || v.rfind("COSIM_KEY_FILE=", 0) == 0)) continue;
+    env.push_back(v);
+  }
+  if (key_fd >= 0) env.push_back("COSIM_KEY_FILE=/proc/self/fd/" + std::to_string(key_fd));
+  return env;
+}
+
+// A process of its own (forked, no allocation) that copies what a participant writes to its
+// stdout and stderr (the pipes `out` and `err`) to the master's, each complete line with one
+// write(): the lines of the processes that share one log never interleave mid-line (a
+// participant writes a line in pieces when its stderr is unbuffered). It outlives the master
+// if need be and ends when the participant has closed both pipes.
+struct LineRelay {
+  int in = -1, out = -1;
+  char buf[1 << 16];
+  std::size_t n = 0;
+
+  static void write_all(int fd, const char* p, std::size_t size) {
+    while (size > 0) {
+      const ssize_t w = ::write(fd, p, size);
+      if (w < 0 && errno == EINTR) continue;
+      if (w <= 0) return;  // the log is gone: drain on, so the participant is not blocked
+      p += w;
+      size -= static_cast<std::size_t>(w);
+    }
+  }
+  // Writes the complete lines held (all of it at the end, or when a line fills the buffer).
+  void flush(bool all) {
+    std::size_t end = n;
+    if (!all) {
+      while (end > 0 && buf[end - 1] != '\n') --end;
+      if (end == 0 && n == sizeof buf) end = n;
+    }
+    write_all(out, buf, end);
+    std::memmove(buf, buf + end, n - end);
+    n -= end;
+  }
+  // Reads what is there; false at the end of the stream.
+  bool read_some() {
+    const ssize_t r = ::read(in, buf + n, sizeof buf - n);
+    if (r < 0 && errno == EINTR) return true;
+    if (r <= 0) {
+      flush(true);
+      return false;
+    }
+    n += static_cast<std::size_t>(r);
+    flush(false);
+    return true;
+  }
+};
+
+[[noreturn]] void run_line_relay(int out_pipe, int err_pipe) {
+  signal(SIGINT, SIG_IGN);  // a Ctrl-C for the run must not cut the participants' last words
+  signal(SIGTERM, SIG_IGN);
+  signal(SIGPIPE, SIG_IGN);
+  for (int fd = 3; fd < 1024; ++fd)
+    if (fd != out_pipe && fd != err_pipe) ::close(fd);
+  static LineRelay relays[2];
+  relays[0].in = out_pipe;
+  relays[0].out = STDOUT_FILENO;
+  relays[1].in = err_pipe;
+  relays[1].out = STDERR_FILENO;
+  bool open[2] = {true, true};
+  while (open[0] || open[1]) {
+    pollfd fds[2];
+    for (int i = 0; i < 2; ++i) fds[i] = {open[i] ? relays[i].in : -1, POLLIN, 0};
+    if (::poll(fds, 2, -1) < 0) {
+      if (errno == EINTR) continue;
+      break;
+    }
+    for (int i = 0; i < 2; ++i)
+      if (open[i] && (fds[i].revents & (POLLIN | POLLHUP | POLLERR))) open[i] = relays[i].read_some();
+  }
+  _exit(0);
 }
 
 std::string describe_status(int status) {
@@ -69,15 +155,44 @@ void Launcher::start(const ParticipantSpec& spec, const std::string& bus_url, in
   std::vector<char*> argv;
   for (auto& a : args) argv.push_back(a.data());
   argv.push_back(nullptr);
+  std::vector<std::string> env = child_environment(key_fd_);
+  std::vector<char*> envp;
+  for (auto& e : env) envp.push_back(e.data());
+  envp.push_back(nullptr);
+  const int key_fd = key_fd_;
+  // The participant's stdout and stderr through a line relay (see relay_lines), unless the
+  // master writes to a terminal (where a participant's own progress line stays live).
+  int out_pipe[2] = {-1, -1}, err_pipe[2] = {-1, -1};
+  const bool relay = relay_lines_ && ::pipe2(out_pipe, O_CLOEXEC) == 0 && ::pipe2(err_pipe, O_CLOEXEC) == 0;
+  pid_t relay_pid = -1;
+  if (relay) {
+    relay_pid = fork();
+    if (relay_pid == 0) {
+      ::close(out_pipe[1]);
+      ::close(err_pipe[1]);
+      run_line_relay(out_pipe[0], err_pipe[0]);
+    }
+  }
+  auto close_pipes = [&] {
+    for (int fd : {out_pipe[0], out_pipe[1], err_pipe[0], err_pipe[1]})
+      if (fd >= 0) ::close(fd);
+  };
   const pid_t parent = getpid();
-  const pid_t pid = fork();
-  if (pid < 0) throw std::runtime_error("cannot start participant " + spec.name + ": fork failed");
+  const pid_t pid = relay && relay_pid < 0 ? -1 : fork();
+  if (pid < 0) {
+    close_pipes();
+    throw std::runtime_error("cannot start participant " + spec.name + ": fork failed");
+  }
   if (pid == 0) {
     prctl(PR_SET_PDEATHSIG, SIGTERM);  // no orphans if the master dies
     if (getppid() != parent) _exit(1);
-    execv(argv[0], argv.data());
+    if (relay && (dup2(out_pipe[1], STDOUT_FILENO) < 0 || dup2(err_pipe[1], STDERR_FILENO) < 0)) _exit(126);
+    if (key_fd >= 0 && fcntl(key_fd, F_SETFD, 0) != 0) _exit(126);  // inherited across exec
+    execve(argv[0], argv.data(), envp.data());
     _exit(127);
   }
+  close_pipes();
+  if (relay_pid > 0) relays_.push_back(relay_pid);
   children_.push_back({spec.name, pid});
 }
 
@@ -119,7 +234,7 @@ void Launcher::stop(double grace, double term_grace) {
     }
     return true;
   };
-  if (wait_all(grace)) return;
+  if (wait_all(grace)) return wait_for_relays();
   // Still running: ask them to stop (the participants finish their outputs on SIGTERM), all at
   // once, and give them term_grace to do it before they are killed.
   for (auto& c : children_)
@@ -128,7 +243,7 @@ void Launcher::stop(double grace, double term_grace) {
                 << ") did not exit within " << grace << " s of the end; sending SIGTERM\n";
       kill(c.pid, SIGTERM);
     }
-  if (wait_all(term_grace)) return;
+  if (wait_all(term_grace)) return wait_for_relays();
   for (auto& c : children_)
     if (!c.exited) {
       std::cerr << "cosim_master: participant '" << c.name << "' (pid " << c.pid
@@ -139,6 +254,24 @@ void Launcher::stop(double grace, double term_grace) {
       c.exited = true;
       c.status = status;
     }
+  wait_for_relays();
+}
+
+void Launcher::wait_for_relays() {
+  // A relay ends once its participant (and whatever inherited its output) has exited; a
+  // descendant that lives on keeps it, and it is left to finish by itself.
+  const cosim::Stopwatch waited;
+  for (auto it = relays_.begin(); it != relays_.end();) {
+    int status = 0;
+    const pid_t r = waitpid(*it, &status, WNOHANG);
+    if (r == *it || r < 0) {
+      it = relays_.erase(it);
+    } else if (waited.seconds() > 2.0) {
+      ++it;
+    } else {
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+  }
 }
 
 std::string Launcher::exit_description(const std::string& name) const {

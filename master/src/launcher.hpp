@@ -3,6 +3,7 @@
 #pragma once
 
 #include <sys/types.h>
+#include <unistd.h>
 
 #include <map>
 #include <string>
@@ -18,6 +19,14 @@ class Launcher {
   // Starts `spec.launch` with --name, --bus and --session appended (it joins only that
   // session); raises ConfigError if the program is not found.
   void start(const ParticipantSpec& spec, const std::string& bus_url, int64_t session);
+  // The participants started from now on inherit `fd` (an open key file, run_key.hpp) and find
+  // it as COSIM_KEY_FILE=/proc/self/fd/<fd> in their environment ($COSIM_KEY is removed there).
+  // -1: they inherit the master's environment as it is.
+  void share_key(int fd) { key_fd_ = fd; }
+  // Whether the participants started from now on write through a line relay: every line they
+  // write reaches the master's stdout or stderr whole, in one write(), so lines of several
+  // processes sharing one log never interleave mid-line. Default: when stderr is not a terminal.
+  void relay_lines(bool on) { relay_lines_ = on; }
   // Raises cosim::LinkError naming a launched participant that has exited.
   void check() ;
   // Waits up to `grace` seconds for the participants to exit, then sends SIGTERM to those
@@ -29,8 +38,13 @@ class Launcher {
   std::string exit_description(const std::string& name) const;
 
  private:
+  void wait_for_relays();
+
   struct Child { std::string name; pid_t pid; bool exited = false; int status = 0; };
   std::vector<Child> children_;
+  std::vector<pid_t> relays_;  // the line relays of the participants' output
+  bool relay_lines_ = !isatty(STDERR_FILENO);
+  int key_fd_ = -1;
 };
 
 std::string find_program(const std::string& program);

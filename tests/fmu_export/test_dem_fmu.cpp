@@ -7,6 +7,9 @@
 #include <cosim/trajectory.hpp>
 #include <cosim/yaml_config.hpp>
 
+#include <fcntl.h>
+#include <unistd.h>
+
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -327,7 +330,9 @@ double cosim_error(int inner) {
   const std::string h5 = harness::temp_path("_H" + std::to_string(inner) + ".h5");
   const int code = harness::run_master({"time.end=" + std::to_string(kEnd), "time.macro_step=" + std::to_string(inner * kDt),
                                         "participants.soil.parameters.fmu=" + std::string(FMU_DIR) + "/dem_fmu.fmu",
-                                        "participants.soil.parameters.start.bus_url=" + inner_bus_url()},
+                                        "participants.soil.parameters.start.bus_url=" + inner_bus_url(),
+                                        // dem_service, started here, has no key: nor has the FMU's inner bus
+                                        "bus.authenticate=false"},
                                        h5, 300, "tests/fmu_export/dem_fmu_cosim.yaml");
   EXPECT_EQ(code, 0) << harness::read_text(h5 + ".log") << harness::read_text(dem.log);
   EXPECT_EQ(harness::wait_for(dem, 30), 0) << "dem_service ends with the FMU's session\n" << harness::read_text(dem.log);
@@ -363,4 +368,33 @@ TEST(DemFmuUnderCosimMaster, LongerMacroStepStaysWithinTheNativeError) {
   // prediction). The adapter passes the same polynomial's position and velocity derivatives;
   // the orientation is held over each step (quaternion derivatives are not passed).
   EXPECT_LT(e, 1.5 * 3.9e-3);
+}
+
+// What the FMU's bus layer prints itself (here: the unsealed announces of a dem_service without
+// the key, which it drops) is prefixed "dem_fmu:", the program it runs in, not "cosim_master:".
+TEST(DemFmu, ItsBusMessagesAreItsOwn) {
+  const std::string captured = harness::temp_path("_stderr.log");
+  Library lib("dem_fmu");
+  DemService dem;  // no key
+  std::fflush(stderr);
+  const int saved = ::dup(STDERR_FILENO);
+  const int file = ::open(captured.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  ASSERT_GE(file, 0);
+  ::dup2(file, STDERR_FILENO);
+  setenv("COSIM_KEY", cosim::auth::new_key_hex().c_str(), 1);
+  fmi2Status init;
+  {
+    Instance f(lib, "dem_fmu", "prefix");
+    configure(f, 2.0);
+    init = f.initialize(0, kEnd);
+  }
+  unsetenv("COSIM_KEY");
+  std::fflush(stderr);
+  ::dup2(saved, STDERR_FILENO);
+  ::close(saved);
+  ::close(file);
+  EXPECT_EQ(init, fmi2Error);
+  const std::string text = harness::read_text(captured);
+  EXPECT_NE(text.find("dem_fmu: dropped an unsealed message on COSIM_ANNOUNCE"), std::string::npos) << text;
+  EXPECT_EQ(text.find("cosim_master:"), std::string::npos) << text;
 }

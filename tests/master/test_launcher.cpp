@@ -2,10 +2,18 @@
 // finish its outputs (term_grace) before it is killed; one that ignores SIGTERM is killed.
 #include <gtest/gtest.h>
 
+#include <fcntl.h>
+#include <unistd.h>
+
 #include <chrono>
+#include <cosim/auth.hpp>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
 #include <thread>
 
 #include "launcher.hpp"
+#include "run_key.hpp"
 
 namespace {
 
@@ -58,4 +66,87 @@ TEST(Launcher, ParticipantIgnoringSigtermIsKilledAfterTermGrace) {
   EXPECT_EQ(launcher.exit_description("stubborn"), "was killed by signal 9");
   EXPECT_GT(took, 0.4);
   EXPECT_LT(took, 3.0);
+}
+
+// share_key: a launched participant finds the key as COSIM_KEY_FILE, a file only its owner can
+// read that it inherited (not a path anyone can open, not on its command line), and no
+// $COSIM_KEY of the master's environment.
+TEST(Launcher, SharedKeyIsInheritedAsAPrivateFileAndNothingElse) {
+  const cosim::auth::Key key = cosim::auth::parse_key_hex(cosim::auth::new_key_hex(), "test");
+  const int fd = master::key_as_unnamed_file(key);
+  ASSERT_GE(fd, 0);
+  const std::string out = std::string(TEST_TMP_DIR) + "/launcher_key.txt";
+  std::remove(out.c_str());
+  setenv("COSIM_KEY", "00", 1);
+  master::Launcher launcher;
+  launcher.share_key(fd);
+  launcher.start(shell("keyed", "{ echo \"$COSIM_KEY_FILE\"; stat -L -c %a \"$COSIM_KEY_FILE\"; cat \"$COSIM_KEY_FILE\"; "
+                                "echo \"${COSIM_KEY:-unset}\"; cat /proc/$$/cmdline | tr '\\0' ' '; echo; } > " + out),
+                 "udpm://239.255.76.67:7667?ttl=0", 1);
+  launcher.stop(10.0);
+  unsetenv("COSIM_KEY");
+  EXPECT_EQ(master::key_hex(cosim::auth::read_key_file("/proc/self/fd/" + std::to_string(fd))), master::key_hex(key));
+  ::close(fd);
+  EXPECT_EQ(launcher.exit_description("keyed"), "exited with code 0");
+  std::ifstream in(out);
+  std::string path, mode, hex, env_key, cmdline;
+  std::getline(in, path);
+  std::getline(in, mode);
+  std::getline(in, hex);
+  std::getline(in, env_key);
+  std::getline(in, cmdline);
+  EXPECT_EQ(path.rfind("/proc/self/fd/", 0), 0u) << path;
+  EXPECT_EQ(mode, "600");
+  EXPECT_EQ(hex, master::key_hex(key));
+  EXPECT_EQ(env_key, "unset");
+  EXPECT_EQ(cmdline.find(hex), std::string::npos) << cmdline;
+}
+
+// Participants that write their lines in pieces (an unbuffered stderr does: one write per <<)
+// at the same time into the log the master writes to: every line arrives whole. Without the
+// relay, the pieces of the two writers interleave ("mass1cosim_master: ...").
+TEST(Launcher, LinesOfParticipantsSharingTheMastersLogArriveWhole) {
+  const std::string log = std::string(TEST_TMP_DIR) + "/launcher_lines.log";
+  const int file = ::open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  ASSERT_GE(file, 0);
+  std::fflush(stderr);
+  const int saved_err = ::dup(STDERR_FILENO), saved_out = ::dup(STDOUT_FILENO);
+  ::dup2(file, STDERR_FILENO);
+  ::dup2(file, STDOUT_FILENO);
+  // Each line: its writer's name, then 20 pieces, each its own write() (printf is a shell
+  // builtin), the newline last; to stderr and stdout alike.
+  auto script = [](const std::string& who) {
+    return "i=0; while [ $i -lt 150 ]; do printf '" + who + ":' >&2; j=0; while [ $j -lt 20 ]; do printf ' " + who +
+           "' >&2; j=$((j+1)); done; printf '\\n' >&2; printf '" + who + "-out\\n'; i=$((i+1)); done";
+  };
+  {
+    master::Launcher launcher;
+    launcher.relay_lines(true);
+    launcher.start(shell("a", script("aa")), "udpm://239.255.76.67:7667?ttl=0", 1);
+    launcher.start(shell("b", script("bb")), "udpm://239.255.76.67:7667?ttl=0", 1);
+    launcher.stop(30.0);
+    EXPECT_EQ(launcher.exit_description("a"), "exited with code 0");
+  }
+  ::dup2(saved_err, STDERR_FILENO);
+  ::dup2(saved_out, STDOUT_FILENO);
+  ::close(saved_err);
+  ::close(saved_out);
+  ::close(file);
+  std::string whole_a = "aa:", whole_b = "bb:";
+  for (int j = 0; j < 20; ++j) whole_a += " aa", whole_b += " bb";
+  std::ifstream in(log);
+  std::string line;
+  int a = 0, b = 0, a_out = 0, b_out = 0, broken = 0;
+  while (std::getline(in, line)) {
+    if (line == whole_a) ++a;
+    else if (line == whole_b) ++b;
+    else if (line == "aa-out") ++a_out;
+    else if (line == "bb-out") ++b_out;
+    else if (++broken <= 3) ADD_FAILURE() << "a line cut by another writer: '" << line << "'";
+  }
+  EXPECT_EQ(broken, 0);
+  EXPECT_EQ(a, 150);
+  EXPECT_EQ(b, 150);
+  EXPECT_EQ(a_out, 150);
+  EXPECT_EQ(b_out, 150);
 }

@@ -136,6 +136,7 @@ struct Oscillator {
   std::string csv_of(const std::string& h5) const { return h5 + ".csv"; }
   std::vector<std::string> sets(const std::string& h5) const {
     return {"bus.url=" + url, "participants.mass1.launch=null", "participants.mass2.launch=null",
+            "bus.authenticate=false",
             "participants.mass2.timeout=0.3", "time.end=5", "checkpoints.every=0.05",
             "output.progress=off"};
   }
@@ -309,7 +310,7 @@ TEST(Resume, DemCoSimulationAfterAKilledDemServiceEqualsAnUninterruptedRun) {
   const std::string folder = h5 + ".checkpoints";
   fs::remove_all(folder);
   const std::vector<std::string> sets{
-      "bus.url=" + url, "participants.dem.launch=null", "participants.tool.launch=null",
+      "bus.url=" + url, "participants.dem.launch=null", "participants.tool.launch=null", "bus.authenticate=false",
       "participants.dem.timeout=1", "time.end=0.02", "time.macro_step=5e-5",
       "checkpoints.every=1e-3", "output.progress=off"};
   auto start = [&](const std::string& log) {
@@ -420,7 +421,7 @@ TEST(Resume, RefusesWhatCannotBeResumedNamingWhy) {
     auto m2 = harness::spawn({harness::bin("oscillator_participant"), "--side", "mass2", "--bus", url, "--wait", "60"},
                              stopped + ".mass2.log");
     auto master = harness::spawn(master_args("configs/oscillator.yaml", stopped,
-                                              {"bus.url=" + url, "participants.mass1.launch=null",
+                                              {"bus.url=" + url, "participants.mass1.launch=null", "bus.authenticate=false",
                                                "participants.mass2.launch=null", "participants.mass2.timeout=0.3",
                                                "time.end=100", "checkpoints.every=0.01", "output.csv=",
                                                "output.progress=off"}),

@@ -104,7 +104,7 @@ class Rig : public ::testing::Test {
     }
     std::vector<std::string> args{harness::bin("cosim_master"), harness::source(config), "--output", r.h5,
                                   "--set", "bus.url=" + kUrl, "--set", "output.csv=", "--set",
-                                  "output.progress=off"};
+                                  "output.progress=off", "--set", "bus.authenticate=false"};
     for (const auto& p : participants) args.insert(args.end(), {"--set", "participants." + p.first + ".launch=null"});
     for (const auto& o : overrides) args.insert(args.end(), {"--set", o});
     const cosim::Stopwatch wall;

@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <cstring>
+#include <regex>
 
 #include "harness.hpp"
 
@@ -114,7 +115,8 @@ TEST(MultiProcess, KilledParticipantIsNamedAndCompletedStepsAreKept) {
                            h5 + ".mass2.log");
   auto master = harness::spawn(
       {harness::bin("cosim_master"), harness::source("configs/oscillator.yaml"), "--output", h5, "--set",
-       "bus.url=" + url, "--set", "participants.mass1.launch=null", "--set", "participants.mass2.launch=null",
+       "bus.url=" + url, "--set", "participants.mass1.launch=null", "--set", "participants.mass2.launch=null", "--set",
+       "bus.authenticate=false",
        "--set", "participants.mass2.timeout=0.3", "--set", "participants.mass2.retries=2", "--set",
        "time.end=200", "--set", "output.csv=", "--set", "output.progress=off"},
       h5 + ".log");
@@ -136,6 +138,50 @@ TEST(MultiProcess, KilledParticipantIsNamedAndCompletedStepsAreKept) {
   EXPECT_EQ(t.size(), x.size());
   for (double v : x) ASSERT_TRUE(std::isfinite(v));
   EXPECT_EQ(harness::read_string(h5, "status").rfind("stopped: participant 'mass2'", 0), 0u);
+}
+
+// mass2 killed within its first 0.25 s in the session, before its first heartbeat: the master
+// names what it last heard from it, its last answered step (not "no heartbeat ever" as though
+// it had never been there, nor only an older heartbeat's step).
+TEST(MultiProcess, ParticipantKilledBeforeItsFirstHeartbeatIsNamedWithItsLastReply) {
+  const std::string url = harness::bus_url();
+  const std::string h5 = harness::temp_path(".h5");
+  auto m1 = harness::spawn({harness::bin("oscillator_participant"), "--side", "mass1", "--bus", url, "--wait", "60"},
+                           h5 + ".mass1.log");
+  auto m2 = harness::spawn({harness::bin("oscillator_participant"), "--side", "mass2", "--bus", url, "--wait", "60"},
+                           h5 + ".mass2.log");
+  auto master = harness::spawn(
+      {harness::bin("cosim_master"), harness::source("configs/oscillator.yaml"), "--output", h5, "--set",
+       "bus.url=" + url, "--set", "participants.mass1.launch=null", "--set", "participants.mass2.launch=null",
+       "--set", "bus.authenticate=false", "--set", "participants.mass2.timeout=0.3", "--set",
+       "participants.mass2.retries=2", "--set", "time.end=200", "--set", "output.csv=", "--set",
+       "output.progress=off"},
+      h5 + ".log");
+  const cosim::Stopwatch waited;
+  while (harness::read_text(h5 + ".mass2.log").find("joined session") == std::string::npos && waited.seconds() < 60)
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  std::this_thread::sleep_for(std::chrono::milliseconds(20));  // a few steps, well before 0.25 s
+  kill(m2.pid, SIGKILL);
+  const int code = harness::wait_for(master, 30);
+  harness::wait_for(m2, 5);
+  harness::wait_for(m1, 10);
+  const std::string log = harness::read_text(h5 + ".log");
+  EXPECT_EQ(code, 1) << log;
+  const auto at = log.find("participant 'mass2' stopped answering");
+  ASSERT_NE(at, std::string::npos) << log;
+  const std::string message = log.substr(at, log.find('\n', at) - at);
+  EXPECT_EQ(message.find("no heartbeat ever"), std::string::npos) << message;
+  // What it last answered: "last reply T s ago (step N)" with N the last recorded step, or "no
+  // reply to any step" when it died before its first.
+  const std::size_t rows = harness::read_dataset(h5, "time").size();
+  std::smatch m;
+  if (std::regex_search(message, m, std::regex("last reply [0-9.e-]+ s ago \\(step ([0-9]+)\\)"))) {
+    ASSERT_GT(rows, 0u) << message;
+    EXPECT_EQ(std::stoul(m[1]), rows - 2) << message;  // rows: the initial row and one per step
+  } else {
+    EXPECT_NE(message.find("no reply to any step"), std::string::npos) << message;
+    EXPECT_LE(rows, 1u) << message;
+  }
 }
 
 struct BadConfig {
@@ -216,7 +262,8 @@ TEST(MultiProcess, TwoFreeParticipantsWithOneNameAreAnErrorNamingBoth) {
   auto master = harness::spawn({harness::bin("cosim_master"), harness::source("configs/oscillator.yaml"), "--output",
                                 h5, "--set", "bus.url=" + url, "--set", "participants.mass1.launch=null",
                                 "--set", "participants.mass2.launch=null", "--set", "output.csv=",
-                                "--set", "output.progress=off", "--set", "time.end=0.05"},
+                                "--set", "output.progress=off", "--set", "time.end=0.05", "--set",
+                                "bus.authenticate=false"},
                                h5 + ".log");
   const pid_t first = parts[0].pid, second = parts[1].pid;
   const int code = harness::wait_for(master, 30);
@@ -241,7 +288,8 @@ TEST(MultiProcess, InterruptedMasterWritesItsStatusAndStopsTheParticipants) {
                            h5 + ".mass2.log");
   auto master = harness::spawn(
       {harness::bin("cosim_master"), harness::source("configs/oscillator.yaml"), "--output", h5, "--set",
-       "bus.url=" + url, "--set", "participants.mass1.launch=null", "--set", "participants.mass2.launch=null",
+       "bus.url=" + url, "--set", "participants.mass1.launch=null", "--set", "participants.mass2.launch=null", "--set",
+       "bus.authenticate=false",
        "--set", "time.end=200", "--set", "output.csv=", "--set", "output.progress=off"},
       h5 + ".log");
   // let the run record steps (about 2000 per second here; the file cannot be read while the

@@ -1,0 +1,90 @@
+// Coupling algorithms: what decides, step after step, which participants exchange what and how
+// far time advances. CoSimulation (cosimulation.hpp) offers the participants through the
+// Coupling interface below: open a macro step, let groups of participants step over it (once,
+// or again from its start: an iteration), close it. An algorithm owns the step loop, the
+// start-up iterations and the macro step; today's is the explicit fixed step in the Jacobi or
+// Gauss-Seidel order (FixedStepAlgorithm). Implicit coupling (iterations until the coupling
+// residual is small, the participants rolled back to the step's start between them, Aitken or
+// quasi-Newton acceleration of the inputs) and an adaptive macro step are further
+// implementations of the same interface (docs/config.md#coupling-algorithms).
+#pragma once
+
+#include <cosim/link.hpp>
+
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "config.hpp"
+
+namespace master {
+
+// What an algorithm drives. Between open_step and close_step, each call to exchange is one
+// round trip of a group of participants over the open step; an iteration above 0 repeats the
+// step from its start (every participant of the run then has can_repeat).
+class Coupling {
+ public:
+  virtual ~Coupling() = default;
+  // Opens macro step `step` over [t0, t1].
+  virtual void open_step(int64_t step, TimePoint t0, TimePoint t1) = 0;
+  // Sends every participant of `group` its inputs over the open step (the predictors' polynomials
+  // from what they hold now) and hands their replies to the predictors. `checkpoint`: the
+  // participants save their state after this exchange (the step's last iteration only).
+  virtual void exchange(const std::vector<std::string>& group, int iteration, bool checkpoint) = 0;
+  // Closes the open step after `iterations` iterations (the record's count); `checkpoint`: the
+  // participants confirmed a checkpoint in it. Builds the step's record for the observers.
+  virtual void close_step(int iterations, bool checkpoint) = 0;
+  // Whether the participants save a checkpoint after step `step` (checkpoints.every).
+  virtual bool checkpoint_due(int64_t step) const = 0;
+};
+
+// What the handshake told the master, for CouplingAlgorithm::initialize.
+struct AlgorithmSetup {
+  const std::map<std::string, cosim::ParticipantInfo>* participants = nullptr;
+  int max_order = 0;  // the highest predictor order among the connections
+};
+
+// libcosim's shape (setup, initialize, do_step returning the step taken), with the loop here.
+class CouplingAlgorithm {
+ public:
+  virtual ~CouplingAlgorithm() = default;
+  virtual std::string name() const = 0;
+  // Before the handshake: takes what it needs from the config; raises ConfigError naming a key.
+  virtual void setup(const Config& config) = 0;
+  // After the handshake: checks the participants can do what the algorithm will ask of them
+  // (repeat a step, ...); raises ConfigError naming the key and the fix.
+  virtual void initialize(const AlgorithmSetup& setup) = 0;
+  // Macro step `step` from `t`: drives `coupling` from open_step to close_step and returns the
+  // step taken (t advances by it; a whole multiple of every participant's inner step).
+  virtual Duration do_step(Coupling& coupling, int64_t step, TimePoint t) = 0;
+
+  // The step loop: do_step from step `first_step` at `t` until t_end is reached.
+  void run(Coupling& coupling, int64_t first_step, TimePoint t, TimePoint t_end);
+};
+
+// The explicit fixed-step scheme: every macro step once, Jacobi (all participants in one
+// group, in parallel) or Gauss-Seidel (one group per participant, in `order`). The first
+// steps, whose predictors hold too few samples for their order, are iterated
+// startup_iterations times more when every participant can repeat a step.
+class FixedStepAlgorithm final : public CouplingAlgorithm {
+ public:
+  std::string name() const override;
+  void setup(const Config& config) override;
+  void initialize(const AlgorithmSetup& setup) override;
+  Duration do_step(Coupling& coupling, int64_t step, TimePoint t) override;
+  const std::vector<std::vector<std::string>>& groups() const { return groups_; }
+
+ private:
+  Scheme scheme_ = Scheme::Jacobi;
+  Duration macro_step_{};
+  int startup_iterations_ = 0;
+  std::vector<std::vector<std::string>> groups_;  // participants stepping together, in turn
+  int max_order_ = 0;
+  bool can_iterate_ = false;  // every participant can repeat a step
+};
+
+// The algorithm a config asks for (today: FixedStepAlgorithm for either scheme), not set up yet.
+std::unique_ptr<CouplingAlgorithm> make_algorithm(const Config& config);
+
+}  // namespace master
