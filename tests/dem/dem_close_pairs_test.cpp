@@ -62,12 +62,9 @@ TEST(dem_ClosePairs, DifferingArraysNamesTheArrays) {
 }
 
 TEST(dem_ClosePairs, SameBitsAsEveryCandidate) {
-  const bool vector_available = dem::detail::pair_rows_vector_available();
-  for (const bool vector : {false, true}) {
-    if (vector && !vector_available) continue;
+  for (const dem::EngineOptions::PairKernel kernel : demtest::pair_kernels()) {
     dem::EngineOptions options;
-    options.pair_kernel =
-        vector ? dem::EngineOptions::PairKernel::vector : dem::EngineOptions::PairKernel::scalar;
+    options.pair_kernel = kernel;
     for (const int threads : {1, 2}) {
       dem::State reference = lattice_state();
       {
@@ -96,7 +93,7 @@ TEST(dem_ClosePairs, SameBitsAsEveryCandidate) {
         EXPECT_LT(engine.close_share(), 0.9) << margin;
         EXPECT_EQ(dem::differing_arrays(reference, st), "")
             << "margin " << margin << ", " << threads << " thread(s), "
-            << (vector ? "vector" : "scalar") << " kernel";
+            << demtest::kernel_name(kernel) << " kernel";
       }
     }
   }
@@ -108,12 +105,9 @@ TEST(dem_ClosePairs, SameBitsAsEveryCandidate) {
 // dropped at listing, if the sleeping integration stops tracking the displacements since the
 // listing, or if the vector kernel's row loop writes a copy without its home.
 TEST(dem_ClosePairs, SameBitsAsEveryCandidateWithSleepers) {
-  const bool vector_available = dem::detail::pair_rows_vector_available();
-  for (const bool vector : {false, true}) {
-    if (vector && !vector_available) continue;
+  for (const dem::EngineOptions::PairKernel kernel : demtest::pair_kernels()) {
     dem::EngineOptions options;
-    options.pair_kernel =
-        vector ? dem::EngineOptions::PairKernel::vector : dem::EngineOptions::PairKernel::scalar;
+    options.pair_kernel = kernel;
     for (const int threads : {1, 2}) {
       dem::State result[2];
       std::int64_t sleeper_steps[2] = {0, 0};
@@ -141,7 +135,7 @@ TEST(dem_ClosePairs, SameBitsAsEveryCandidateWithSleepers) {
       EXPECT_GT(sleeper_steps[0], 200000);  // of 1,800,000 particle-steps
       EXPECT_EQ(sleeper_steps[0], sleeper_steps[1]);
       EXPECT_EQ(dem::differing_arrays(result[0], result[1]), "")
-          << threads << " thread(s), " << (vector ? "vector" : "scalar") << " kernel";
+          << threads << " thread(s), " << demtest::kernel_name(kernel) << " kernel";
     }
   }
 }
