@@ -164,8 +164,7 @@ void BroadPhase::set_grid(Vec3 lo, Vec3 hi, std::size_t n, double h) {
 }
 
 bool BroadPhase::grid_matches(const State& s) const {
-  return grid_state_ == &s && grid_size_ == s.size() && grid_rebuilds_ == s.rebuilds &&
-         grid_built_at_ == s.step - s.steps_since_rebuild;
+  return grid_stamp_.matches(s, kGridFields);
 }
 
 // The grid of the last broad phase from the positions it binned (State::x_at_rebuild, which are
@@ -192,16 +191,12 @@ bool BroadPhase::restore_grid(const Scene& scene, const State& s) {
     ++cell_start_[c + 1];
   }
   for (std::size_t c = 0; c + 1 < cell_start_.size(); ++c) cell_start_[c + 1] += cell_start_[c];
-  grid_state_ = &s;
-  grid_size_ = n;
-  grid_rebuilds_ = s.rebuilds;
-  grid_built_at_ = s.step - s.steps_since_rebuild;
+  grid_stamp_.take(s);
   return true;
 }
 
 void BroadPhase::build(const Scene& scene, State& s,
                        const std::vector<std::vector<Vec3>>& tool_vertices, int threads) {
-  const std::size_t n = s.size();
   const int T = std::max(1, threads);
   threads_ = T;
   const double skin = scene.skin_distance();
@@ -230,10 +225,7 @@ void BroadPhase::build(const Scene& scene, State& s,
   s.steps_since_rebuild = 0;
   s.lists_valid = true;
   ++s.rebuilds;
-  grid_state_ = &s;
-  grid_size_ = n;
-  grid_rebuilds_ = s.rebuilds;
-  grid_built_at_ = s.step;
+  grid_stamp_.take(s);  // steps_since_rebuild is 0: built at this step
 }
 
 void BroadPhase::make_grid(const State& s, int T, double rmax, double skin) {

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "cosim/timer.hpp"
+#include "dem/list_stamp.hpp"
 #include "dem/scene.hpp"
 #include "dem/state.hpp"
 
@@ -116,9 +117,9 @@ class BroadPhase {
   double inv_h_ = 1;
   long nx_ = 0, ny_ = 0, nz_ = 0;
   // Which broad phase the grid is of: the state, its size, s.rebuilds and the step it ran at.
-  const State* grid_state_ = nullptr;
-  std::size_t grid_size_ = 0;
-  std::int64_t grid_rebuilds_ = -1, grid_built_at_ = -1;
+  ListStamp grid_stamp_;
+  static constexpr unsigned kGridFields =
+      ListStamp::state | ListStamp::size | ListStamp::rebuilds | ListStamp::built_at;
   void set_grid(Vec3 lo, Vec3 hi, std::size_t n, double h);
   // The grid's cell along one axis of coordinate v, clamped to [0, nmax) (NaN: 0).
   long cell_coord(double v, double l, long nmax) const {
