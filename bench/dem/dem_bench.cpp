@@ -27,6 +27,13 @@
 
 namespace {
 
+// The engine's performance options, filled once from the environment as dem_run does
+// (DEM_PAIR_KERNEL, DEM_PAIR_CHUNKS; a bad value stops the bench).
+const dem::EngineOptions& bench_engine_options() {
+  static const dem::EngineOptions options = dem::EngineOptions::from_environment();
+  return options;
+}
+
 constexpr double kR = 0.005;
 
 using bench::kTile;  // larger beds are tiles of the settled 10k bed (bench/common/tiled_bed.hpp)
@@ -84,7 +91,7 @@ dem::State settled_bed(long n, const std::string& cache) {
     r.seed = 42;
     dem::fill_region(scene, r, st);
   }
-  dem::Engine engine(scene);
+  dem::Engine engine(scene, bench_engine_options());
   std::fprintf(stderr, "settling %ld particles (cached in %s) ...\n", n, file.c_str());
   const auto res = dem::settle(engine, st, 1e-7, max_time, [&](const dem::SettleResult& p) {
     if (st.step % 5000 == 0)
@@ -141,7 +148,7 @@ int main(int argc, char** argv) {
         dem::Scene scene = bench_scene(n, threads, interval);
         dem::State st = bed;
         st.lists_valid = false;  // lists are rebuilt for this thread count
-        dem::Engine engine(scene);
+        dem::Engine engine(scene, bench_engine_options());
         for (int k = 0; k < 20; ++k) engine.step(st);  // warm-up: lists, caches, buffers
         const long long early0 = st.early_rebuilds;
         engine.timing().reset();

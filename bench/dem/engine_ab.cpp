@@ -30,6 +30,13 @@
 
 namespace {
 
+// The engine's performance options, filled once from the environment as dem_run does
+// (DEM_PAIR_KERNEL, DEM_PAIR_CHUNKS; a bad value stops the bench).
+const dem::EngineOptions& bench_engine_options() {
+  static const dem::EngineOptions options = dem::EngineOptions::from_environment();
+  return options;
+}
+
 void usage() {
   std::fprintf(stderr,
                "usage: engine_ab CONFIG [--set KEY=VALUE ...] --a KEY=VALUE [--a ...] --b "
@@ -112,7 +119,8 @@ int main(int argc, char** argv) {
                    v[0].rc.state.size(), v[1].rc.state.size());
       return 2;
     }
-    dem::Engine engine_a(v[0].rc.scene), engine_b(v[1].rc.scene);
+    dem::Engine engine_a(v[0].rc.scene, bench_engine_options()),
+        engine_b(v[1].rc.scene, bench_engine_options());
     dem::Engine* engines[2] = {&engine_a, &engine_b};
     int b_faster = 0, blocks = 0;
     for (long done = 0; done < steps; done += block, ++blocks) {

@@ -158,9 +158,11 @@ int main(int argc, char** argv) {
         std::vector<dem::detail::PairRemote> remote;
         dem::detail::PairRowStats st;
         if (v == 0)
-          version_a::dem::detail::pair_rows(p, bounds[t], bounds[t + 1], remote, st, true);
+          version_a::dem::detail::pair_rows(p, bounds[t], bounds[t + 1], remote, st,
+                                            ::dem::detail::Kernel::vector);
         else
-          version_b::dem::detail::pair_rows(p, bounds[t], bounds[t + 1], remote, st, true);
+          version_b::dem::detail::pair_rows(p, bounds[t], bounds[t + 1], remote, st,
+                                            ::dem::detail::Kernel::vector);
       }
       ms[v].push_back(
           std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() * 1e3);

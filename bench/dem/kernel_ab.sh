@@ -46,10 +46,34 @@ src=dem_service/src/pair_kernel.cpp hdr=dem_service/include/dem/pair_kernel.hpp
 get() {  # get REV PATH OUT
   if [ "$1" = worktree ]; then cp "$2" "$3"; else git show "$1:$2" > "$3"; fi
 }
+# The kernel's private parts beside it (pair_kernel_parts.hpp, pair_kernel_chunks.inc) are put
+# in its text, so that each version is one source; the emulated kernel (a test's, another file)
+# is left out: a stub stands for it.
+inline_local() {  # inline_local REV FILE
+  local rev=$1 file=$2 inc name
+  while inc=$(grep -m1 -o '^#include "[a-z_0-9]*\.\(hpp\|inc\)"' "$file"); do
+    name=${inc#\#include \"}
+    name=${name%\"}
+    get "$rev" "dem_service/src/$name" "$tmp/part" || { echo "kernel_ab: no $name at $rev" >&2; exit 2; }
+    sed -i '/^#pragma once/d' "$tmp/part"
+    sed -i -e "\|^#include \"$name\"|{r $tmp/part" -e 'd}' "$file"
+  done
+  if grep -q pair_rows_emulated "$file"; then
+    cat >> "$file" <<'STUB'
+namespace dem::detail {
+void pair_rows_emulated(const PairRows&, const PairSleep*, std::size_t, std::size_t, std::size_t,
+                        std::vector<PairRemote>&, PairRowStats&) {
+  std::abort();
+}
+}  // namespace dem::detail
+STUB
+  fi
+}
 for v in a b; do
   rev=$rev_a; [ $v = b ] && rev=$rev_b
   get "$rev" "$src" "$tmp/kernel_$v.cpp" || { echo "kernel_ab: no $src at $rev" >&2; exit 2; }
   get "$rev" "$hdr" "$tmp/header_$v.hpp" || { echo "kernel_ab: no $hdr at $rev" >&2; exit 2; }
+  inline_local "$rev" "$tmp/kernel_$v.cpp"
 done
 # The harness compiles both against the current header: their interfaces must agree (compared
 # without comments and blank lines).

@@ -48,6 +48,9 @@
 
 namespace {
 
+// The engine's performance options (--pair-kernel), filled once in main.
+dem::EngineOptions g_engine_options;
+
 using namespace bench;  // the shared scene's parameters (bench/common/anchor.hpp)
 using bench::kTile;  // beds above 10k are tiles of the settled 10k bed (bench/common/tiled_bed.hpp)
 constexpr double kGasFraction = 0.1;  // solid volume fraction of the gas
@@ -155,7 +158,7 @@ std::string base(const std::string& dir, const std::string& kind, long n) {
 void settle(const Box& b, dem::State& st, double max_time) {
   // Frictionless: with friction and no rotation, landing spheres stay stacked in columns.
   const dem::Scene scene = make_scene(b, 1, 5, false);  // 1 thread: fine on a busy machine
-  dem::Engine engine(scene);
+  dem::Engine engine(scene, g_engine_options);
   std::fprintf(stderr, "settling %ld particles for up to %.2f s ...\n", b.n, max_time);
   const auto res = dem::settle(engine, st, 1e-7, max_time, [&](const dem::SettleResult& p) {
     if (st.step % 5000 == 0)
@@ -274,7 +277,7 @@ int run(const std::string& kind, long n, const std::string& dir, int threads, in
   const Box b = read_box(base(dir, kind, n) + ".box");
   const dem::Scene scene = make_scene(b, threads, interval);
   dem::State st = load(dir, kind, n);
-  dem::Engine engine(scene);
+  dem::Engine engine(scene, g_engine_options);
   for (int k = 0; k < 20; ++k) engine.step(st);  // warm-up, like LAMMPS `run 20` before
   const auto rebuilds0 = st.rebuilds;
   engine.timing().reset();
@@ -312,7 +315,7 @@ int trace(const std::string& kind, long n, const std::string& dir, int threads, 
   const Box b = read_box(base(dir, kind, n) + ".box");
   const dem::Scene scene = make_scene(b, threads, interval);
   dem::State st = load(dir, kind, n);
-  dem::Engine engine(scene);
+  dem::Engine engine(scene, g_engine_options);
   const long per = std::lround(every / kDt), total = std::lround(duration / kDt);
   for (long k = 0;; ++k) {
     if (k % per == 0) {
@@ -369,7 +372,8 @@ int main(int argc, char** argv) {
                    kernel.c_str());
       return 2;
     }
-    dem::detail::use_vector_pairs(kernel == "vector");
+    g_engine_options.pair_kernel = kernel == "vector" ? dem::EngineOptions::PairKernel::vector
+                                                      : dem::EngineOptions::PairKernel::scalar;
     // How idle OpenMP threads wait, as dem_run and dem_service do (scene.thread_wait; may
     // execute this program again, once, with the OpenMP wait variables set).
     YAML::Node scene_node;

@@ -51,6 +51,13 @@
 
 namespace {
 
+// The engine's performance options, filled once from the environment as dem_run does
+// (DEM_PAIR_KERNEL, DEM_PAIR_CHUNKS; a bad value stops the bench).
+const dem::EngineOptions& bench_engine_options() {
+  static const dem::EngineOptions options = dem::EngineOptions::from_environment();
+  return options;
+}
+
 // The bed's parameters: the LAMMPS side-by-side's (bench/common/anchor.hpp; checked against
 // the .box).
 using namespace bench;
@@ -257,7 +264,7 @@ int run(const std::string& dir, int threads, int interval, int steps, int warmup
   const dem::Scene scene = make_scene(box, dir, threads, interval, shift);
   dem::State st = dem::load_checkpoint(dir + "/tool_bed.h5");
   st.tool_pose.assign(scene.tools.size(), {});
-  dem::Engine engine(scene);
+  dem::Engine engine(scene, bench_engine_options());
   auto advance = [&] {
     for (std::size_t m = 0; m < scene.tools.size(); ++m)
       st.tool_pose[m] = scene.tools[m].motion.evaluate(st.step * scene.dt);

@@ -20,6 +20,7 @@
 #include "dem/engine.hpp"
 #include "dem/output.hpp"
 #include "dem/stability.hpp"
+#include "dem/thread_wait.hpp"
 
 namespace {
 
@@ -165,7 +166,8 @@ int run(int argc, char** argv) {
   for (const auto& s : sets) cosim::config::apply_override(root, s);
   // May execute dem_run again (once) with the OpenMP wait variables set: before any output.
   const std::string wait = dem::apply_thread_wait(dem::read_thread_wait(root), argv);
-  dem::read_pair_kernel_environment();  // a bad DEM_PAIR_KERNEL stops the run before any work
+  // The engine's performance options, once (a bad DEM_PAIR_KERNEL stops the run before any work).
+  const dem::EngineOptions engine_options = dem::EngineOptions::from_environment();
   std::fprintf(stderr, "dem_run: idle threads wait %s\n", wait.c_str());
   const std::string base = std::filesystem::path(config_path).parent_path().string();
   dem::RunConfig rc = dem::load_config(root, base);
@@ -179,8 +181,11 @@ int run(int argc, char** argv) {
   std::fprintf(stderr, "dem_run: %zu particles, %zu walls, %zu tools, dt %.3g s (largest safe %.3g s)\n",
                s.size(), scene.walls.size(), scene.tools.size(), scene.dt,
                dem::largest_safe_dt(scene));
+  // Where the OpenMP threads may run (their affinity masks): every core they were given.
+  std::fprintf(stderr, "dem_run: %s\n",
+               dem::describe_thread_cpus(dem::thread_cpus(std::max(1, scene.threads))).c_str());
 
-  dem::Engine engine(scene);
+  dem::Engine engine(scene, engine_options);
   if (rc.settle.enabled) {
     set_tool_poses(scene, s);
     const cosim::Stopwatch settle_wall;

@@ -3,6 +3,7 @@
 // The DEM soil as a co-simulation participant: one kinematic input and one wrench output per
 // tool of CONFIG.yaml (the dem_run schema plus `service`, docs/dem_service.md). The master's
 // `parameters` for this participant amend the config as --set does.
+#include <algorithm>
 #include <cstdio>
 #include <iostream>
 #include <new>
@@ -12,6 +13,7 @@
 #include "dem/config.hpp"
 #include "dem/engine.hpp"
 #include "dem/service.hpp"
+#include "dem/thread_wait.hpp"
 
 namespace {
 
@@ -31,8 +33,13 @@ int run(int argc, char** argv) {
   // May execute dem_service again (once) with the OpenMP wait variables set: before the bus.
   const std::string wait = dem::apply_thread_wait(dem::read_thread_wait(args.config), argv);
   std::cerr << "dem_service: idle threads wait " << wait << "\n";
-  dem::read_pair_kernel_environment();  // a bad DEM_PAIR_KERNEL stops it before the bus
-  dem::ServiceModel model(args.config, args.config_dir, args.config_path);
+  // The engine's performance options, once (a bad DEM_PAIR_KERNEL stops it before the bus).
+  const dem::EngineOptions engine = dem::EngineOptions::from_environment();
+  dem::ServiceModel model(args.config, args.config_dir, args.config_path, engine);
+  // Where the OpenMP threads may run (their affinity masks): every core they were given.
+  int threads = 1;
+  if (const YAML::Node t = args.config["scene"]["threads"]) threads = std::max(1, t.as<int>());
+  std::cerr << "dem_service: " << dem::describe_thread_cpus(dem::thread_cpus(threads)) << "\n";
   const int code =
       cosim::run_participant(model, "dem", static_cast<int>(args.rest.size()), args.rest.data());
   model.finish(std::cerr);

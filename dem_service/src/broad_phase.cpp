@@ -110,12 +110,9 @@ namespace {
 using detail::RowData;
 using detail::RowHits;
 
-// Chosen once at start; tests switch it (detail::use_vector_row_test).
-std::atomic<RowHits> row_hits_choice{detail::choose_row_hits(true)};
-
 }  // namespace
 
-void detail::use_vector_row_test(bool vector) { row_hits_choice = choose_row_hits(vector); }
+void BroadPhase::use_vector_row_test(bool vector) { vector_row_test_ = vector; }
 
 
 template <class T>
@@ -167,8 +164,7 @@ void BroadPhase::set_grid(Vec3 lo, Vec3 hi, std::size_t n, double h) {
 }
 
 bool BroadPhase::grid_matches(const State& s) const {
-  return grid_state_ == &s && grid_size_ == s.size() && grid_rebuilds_ == s.rebuilds &&
-         grid_built_at_ == s.step - s.steps_since_rebuild;
+  return grid_stamp_.matches(s, kGridFields);
 }
 
 // The grid of the last broad phase from the positions it binned (State::x_at_rebuild, which are
@@ -195,22 +191,45 @@ bool BroadPhase::restore_grid(const Scene& scene, const State& s) {
     ++cell_start_[c + 1];
   }
   for (std::size_t c = 0; c + 1 < cell_start_.size(); ++c) cell_start_[c + 1] += cell_start_[c];
-  grid_state_ = &s;
-  grid_size_ = n;
-  grid_rebuilds_ = s.rebuilds;
-  grid_built_at_ = s.step - s.steps_since_rebuild;
+  grid_stamp_.take(s);
   return true;
 }
 
 void BroadPhase::build(const Scene& scene, State& s,
                        const std::vector<std::vector<Vec3>>& tool_vertices, int threads) {
-  const std::size_t n = s.size();
   const int T = std::max(1, threads);
   threads_ = T;
   const double skin = scene.skin_distance();
-  const double rmax = scene.r_max();
   cosim::Stopwatch watch;
+  make_grid(s, T, scene.r_max(), skin);
+  stages_.lap(stage::grid, watch);
+  const auto [p0, p1] = sort_by_cell(s, T);
+  stages_.lap(stage::sort, watch);
+  const bool had_list = permute_state(s, p0, p1);
+  stages_.lap(stage::permute, watch);
+  list_pairs(s, T, skin);
+  stages_.lap(stage::pair_list, watch);
+  if (had_list) carry_history(s, T);
+  stages_.lap(stage::history, watch);
+  list_mesh_candidates(scene, s, tool_vertices, T, skin);
+  stages_.lap(stage::mesh_candidates, watch);
 
+  // --- wall masks, reference positions for the guard, boundary history slots.
+  boundary_slots(scene, s, skin);
+  s.tool_pose_at_rebuild = s.tool_pose;
+  stages_.lap(stage::wall_masks, watch);
+  s.max_displacement = 0;
+  s.second_displacement = 0;
+  s.pair_row_offset.clear();  // the lists by partner: built again when sleeping needs them
+  s.pair_row.clear();
+  s.steps_since_rebuild = 0;
+  s.lists_valid = true;
+  ++s.rebuilds;
+  grid_stamp_.take(s);  // steps_since_rebuild is 0: built at this step
+}
+
+void BroadPhase::make_grid(const State& s, int T, double rmax, double skin) {
+  const std::size_t n = s.size();
   // --- grid: bounding box of the particles (min and max are exact, so any thread count
   // gives the same box); cells at least one candidate distance wide, so the 27 surrounding
   // cells hold every candidate.
@@ -227,16 +246,19 @@ void BroadPhase::build(const Scene& scene, State& s,
   Vec3 lo{lx, ly, lz}, hi{hx, hy, hz};
   if (n == 0) lo = hi = Vec3{};
   set_grid(lo, hi, n, 2 * rmax + skin);
-  const long nx = nx_, ny = ny_, nz = nz_;
-  const long ncells = nx * ny * nz;
-  stages_.lap(stage::grid, watch);
+  box_lo_ = lo;
+  box_hi_ = hi;
+}
 
+std::pair<std::size_t, std::size_t> BroadPhase::sort_by_cell(const State& s, int T) {
+  const std::size_t n = s.size();
   // --- sort: stable counting sort of particles by cell (cells numbered x fastest).
   cell_of_.resize(n);
 #pragma omp parallel for schedule(static) num_threads(T)
   for (std::size_t i = 0; i < n; ++i) {
     cell_of_[i] = static_cast<std::int32_t>(cell_index(s.x[i]));
   }
+  const long ncells = nx_ * ny_ * nz_;
   cell_start_.assign(static_cast<std::size_t>(ncells) + 1, 0);
   for (std::size_t i = 0; i < n; ++i) ++cell_start_[cell_of_[i] + 1];
   for (long c = 0; c < ncells; ++c) cell_start_[c + 1] += cell_start_[c];
@@ -248,8 +270,11 @@ void BroadPhase::build(const Scene& scene, State& s,
   std::size_t p0 = 0, p1 = n;
   while (p0 < n && order_[p0] == static_cast<std::int32_t>(p0)) ++p0;
   while (p1 > p0 && order_[p1 - 1] == static_cast<std::int32_t>(p1 - 1)) --p1;
-  stages_.lap(stage::sort, watch);
+  return {p0, p1};
+}
 
+bool BroadPhase::permute_state(State& s, std::size_t p0, std::size_t p1) {
+  const std::size_t n = s.size();
   // --- permute: every per-particle array (State's field list) into the new order, only in
   // the window. The old pair list keeps its old indices, to carry the history over.
   const bool had_list = s.lists_valid && s.pair_offset.size() == n + 1;
@@ -265,8 +290,11 @@ void BroadPhase::build(const Scene& scene, State& s,
     });
     permute(cell_of_, p0, p1);  // cell_of_ in the new order, for the stencil
   }
-  stages_.lap(stage::permute, watch);
+  return had_list;
+}
 
+void BroadPhase::list_pairs(State& s, int T, double skin) {
+  const std::size_t n = s.size();
   // --- pair list: half list (j > i), built per thread over contiguous ranges; each thread
   // writes its rows into the shared list at its offset, so the list is the same for any
   // thread count.
@@ -283,7 +311,8 @@ void BroadPhase::build(const Scene& scene, State& s,
   pz_.resize(n);
   pr_.resize(n);
   const RowData rd{px_.data(), py_.data(), pz_.data(), pr_.data()};
-  const RowHits row_hits = row_hits_choice.load(std::memory_order_relaxed);
+  const RowHits row_hits = detail::choose_row_hits(vector_row_test_);
+  const long nx = nx_, ny = ny_, nz = nz_;
 #pragma omp parallel num_threads(T)
   {
     const int t = omp_get_thread_num();
@@ -363,12 +392,14 @@ void BroadPhase::build(const Scene& scene, State& s,
               s.pair_spring.begin() + thread_base_[t] + used, Vec3{});
     J.swap(thread_j_[t]);
   }
-  stages_.lap(stage::pair_list, watch);
+}
 
+void BroadPhase::carry_history(State& s, int T) {
+  const std::size_t n = s.size();
   // --- history: carry the tangential springs of pairs in contact over to the new list. Only
   // non-zero springs are looked up: most candidates are not touching. Each old pair maps to
   // at most one new entry, so the parallel writes never collide.
-  if (had_list) {
+  {
     new_index_.resize(n);
 #pragma omp parallel for schedule(static) num_threads(T)
     for (std::size_t p = 0; p < n; ++p) new_index_[order_[p]] = static_cast<std::int32_t>(p);
@@ -388,11 +419,18 @@ void BroadPhase::build(const Scene& scene, State& s,
       }
     }
   }
-  stages_.lap(stage::history, watch);
+}
 
+void BroadPhase::list_mesh_candidates(const Scene& scene, State& s,
+                                      const std::vector<std::vector<Vec3>>& tool_vertices, int T,
+                                      double skin) {
+  const std::size_t n = s.size();
+  const double rmax = scene.r_max();
   // --- mesh candidates: each triangle visits the cells its box (grown by the largest radius
   // and the skin) overlaps. Threads take contiguous triangle ranges and their lists are joined
   // in thread order: the same list as one thread makes.
+  const long nx = nx_, ny = ny_, nz = nz_;
+  const Vec3 lo = box_lo_, hi = box_hi_;
   tri_candidates_.clear();
   const double margin = rmax + skin;
   thread_tri_.resize(T);
@@ -452,23 +490,6 @@ void BroadPhase::build(const Scene& scene, State& s,
     s.tri_tool[k] = c.tool;
     s.tri_index[k] = c.tri;
   }
-  stages_.lap(stage::mesh_candidates, watch);
-
-  // --- wall masks, reference positions for the guard, boundary history slots.
-  boundary_slots(scene, s, skin);
-  s.tool_pose_at_rebuild = s.tool_pose;
-  stages_.lap(stage::wall_masks, watch);
-  s.max_displacement = 0;
-  s.second_displacement = 0;
-  s.pair_row_offset.clear();  // the lists by partner: built again when sleeping needs them
-  s.pair_row.clear();
-  s.steps_since_rebuild = 0;
-  s.lists_valid = true;
-  ++s.rebuilds;
-  grid_state_ = &s;
-  grid_size_ = n;
-  grid_rebuilds_ = s.rebuilds;
-  grid_built_at_ = s.step;
 }
 
 // Walls within r + skin of each particle (one bit per wall; all bits if > 32 walls), the

@@ -57,8 +57,12 @@ ToolPose tool_pose_from(const cosim::Kinematics& k) {
   return p;
 }
 
-ServiceModel::ServiceModel(YAML::Node root, std::string base_dir, std::string config_path)
-    : root_(YAML::Clone(root)), base_dir_(std::move(base_dir)), config_path_(std::move(config_path)) {
+ServiceModel::ServiceModel(YAML::Node root, std::string base_dir, std::string config_path,
+                           const EngineOptions& engine)
+    : root_(YAML::Clone(root)),
+      base_dir_(std::move(base_dir)),
+      config_path_(std::move(config_path)),
+      engine_options_(engine) {
   build(YAML::Clone(root_), "config", true);  // fail at start-up, not when the master connects
 }
 
@@ -106,7 +110,7 @@ void ServiceModel::configure(const YAML::Node& parameters, const cosim::RunInfo&
   pristine_ = false;
   run_ = run;
   const Scene& scene = rc_->scene;
-  engine_ = std::make_unique<Engine>(scene);
+  engine_ = std::make_unique<Engine>(scene, engine_options_);
   out_.reset();
   finished_ = false;
   const OutputOptions& o = rc_->output;

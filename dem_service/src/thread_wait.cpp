@@ -1,11 +1,16 @@
 #include "dem/thread_wait.hpp"
 
+#include <omp.h>
+#include <sched.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <set>
+#include <vector>
 
 namespace dem {
 
@@ -26,7 +31,80 @@ std::string describe(ThreadWait w) {
   return "spin (libgomp's default: waiting threads spin up to 300000 iterations, then sleep)";
 }
 
+// The CPUs of all OpenMP places (libgomp made them from the affinity mask the process started
+// with), or none when no place list is in force (no binding asked for).
+std::vector<int> place_cpus() {
+  std::set<int> cpus;
+  const int places = omp_get_num_places();
+  for (int p = 0; p < places; ++p) {
+    const int n = omp_get_place_num_procs(p);
+    if (n <= 0) continue;
+    std::vector<int> ids(static_cast<std::size_t>(n));
+    omp_get_place_proc_ids(p, ids.data());
+    cpus.insert(ids.begin(), ids.end());
+  }
+  return {cpus.begin(), cpus.end()};
+}
+
+// With OMP_PROC_BIND set, libgomp binds the initial thread to the first place when it loads,
+// and a re-executed program inherits that one place as its whole affinity mask: its places,
+// and so all its threads, would be that one core. Before the re-execution the mask is widened
+// back to every CPU of the places, the CPUs the program was given. Without binding there is no
+// place list and the mask is left as it is (libgomp did not narrow it).
+void restore_affinity_for_reexec() {
+  const std::vector<int> cpus = place_cpus();
+  if (cpus.empty()) return;
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  for (const int c : cpus)
+    if (c >= 0 && c < CPU_SETSIZE) CPU_SET(c, &set);
+  if (::sched_setaffinity(0, sizeof set, &set) != 0)
+    std::fprintf(stderr,
+                 "warning: could not restore the CPU affinity before re-executing (%s); with "
+                 "OMP_PROC_BIND set, the OpenMP threads may share one CPU\n",
+                 std::strerror(errno));
+}
+
 }  // namespace
+
+std::vector<ThreadCpus> thread_cpus(int threads) {
+  std::vector<ThreadCpus> out(static_cast<std::size_t>(std::max(1, threads)));
+#pragma omp parallel num_threads(static_cast<int>(out.size()))
+  {
+    const int t = omp_get_thread_num();
+    if (t < static_cast<int>(out.size())) {
+      ThreadCpus& c = out[static_cast<std::size_t>(t)];
+      cpu_set_t set;
+      CPU_ZERO(&set);
+      if (::sched_getaffinity(0, sizeof set, &set) == 0)
+        for (int k = 0; k < CPU_SETSIZE; ++k)
+          if (CPU_ISSET(k, &set)) c.allowed.push_back(k);
+      c.now = ::sched_getcpu();
+    }
+  }
+  return out;
+}
+
+std::string describe_thread_cpus(const std::vector<ThreadCpus>& threads) {
+  std::string s;
+  for (std::size_t t = 0; t < threads.size(); ++t) {
+    if (t) s += "; ";
+    s += "thread " + std::to_string(t) + " on CPUs ";
+    const std::vector<int>& a = threads[t].allowed;
+    // Ranges: 0-3,6
+    for (std::size_t k = 0; k < a.size();) {
+      std::size_t e = k;
+      while (e + 1 < a.size() && a[e + 1] == a[e] + 1) ++e;
+      if (k) s += ",";
+      s += std::to_string(a[k]);
+      if (e > k) s += "-" + std::to_string(a[e]);
+      k = e + 1;
+    }
+    if (a.empty()) s += "?";
+    s += " (running on " + std::to_string(threads[t].now) + ")";
+  }
+  return s;
+}
 
 const char* thread_wait_name(ThreadWait w) {
   switch (w) {
@@ -94,6 +172,7 @@ std::string apply_thread_wait(ThreadWait want, char** argv) {
   const std::string old = old_guard ? old_guard : "spin";
   for (const auto& v : p.unset) ::unsetenv(v.c_str());
   for (const auto& [k, v] : p.set) ::setenv(k.c_str(), v.c_str(), 1);
+  restore_affinity_for_reexec();
   std::fflush(nullptr);
   ::execv("/proc/self/exe", argv);
   const int err = errno;  // execv returned: the runtime keeps what it loaded with

@@ -426,14 +426,14 @@ TEST(dem_BroadPhase, RunIsBitIdenticalWithScalarAndVectorRowTest) {
   if (!dem::detail::row_hits_vector_available())
     GTEST_SKIP() << "this processor has no AVX-512F/VL: only the scalar test can run here";
   auto run = [](bool vector) {
-    dem::detail::use_vector_row_test(vector);
+    dem::EngineOptions options;
+    options.vector_row_test = vector;
     auto [scene, st] = random_scene(5, 0.4, 23, 0.3);
-    dem::Engine engine(scene);
+    dem::Engine engine(scene, options);
     for (int k = 0; k < 800; ++k) {
       st.tool_pose[0] = scene.tools[0].motion.evaluate(st.step * scene.dt);
       engine.step(st);
     }
-    dem::detail::use_vector_row_test(true);
     return st;
   };
   const State a = run(true), b = run(false);

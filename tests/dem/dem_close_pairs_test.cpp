@@ -62,15 +62,14 @@ TEST(dem_ClosePairs, DifferingArraysNamesTheArrays) {
 }
 
 TEST(dem_ClosePairs, SameBitsAsEveryCandidate) {
-  const bool vector_available = dem::detail::pair_rows_vector_available();
-  for (const bool vector : {false, true}) {
-    if (vector && !vector_available) continue;
-    dem::detail::use_vector_pairs(vector);
+  for (const dem::EngineOptions::PairKernel kernel : demtest::pair_kernels()) {
+    dem::EngineOptions options;
+    options.pair_kernel = kernel;
     for (const int threads : {1, 2}) {
       dem::State reference = lattice_state();
       {
         const dem::Scene scene = lattice_scene(threads, 0.0);
-        dem::Engine engine(scene);
+        dem::Engine engine(scene, options);
         std::int64_t contact_steps = 0;  // touching pairs, summed over the steps
         for (int k = 0; k < 1200; ++k) {
           engine.step(reference);
@@ -82,7 +81,7 @@ TEST(dem_ClosePairs, SameBitsAsEveryCandidate) {
       for (const double margin : {0.05, 0.2}) {
         const dem::Scene scene = lattice_scene(threads, margin);
         dem::State st = lattice_state();
-        dem::Engine engine(scene);
+        dem::Engine engine(scene, options);
         std::int64_t used_steps = 0;
         for (int k = 0; k < 1200; ++k) {
           engine.step(st);
@@ -94,11 +93,10 @@ TEST(dem_ClosePairs, SameBitsAsEveryCandidate) {
         EXPECT_LT(engine.close_share(), 0.9) << margin;
         EXPECT_EQ(dem::differing_arrays(reference, st), "")
             << "margin " << margin << ", " << threads << " thread(s), "
-            << (vector ? "vector" : "scalar") << " kernel";
+            << demtest::kernel_name(kernel) << " kernel";
       }
     }
   }
-  dem::detail::use_vector_pairs(true);
 }
 
 // With sleepers (scene.sleep) the close pairs change no result either: the creeping grains fall
@@ -107,10 +105,9 @@ TEST(dem_ClosePairs, SameBitsAsEveryCandidate) {
 // dropped at listing, if the sleeping integration stops tracking the displacements since the
 // listing, or if the vector kernel's row loop writes a copy without its home.
 TEST(dem_ClosePairs, SameBitsAsEveryCandidateWithSleepers) {
-  const bool vector_available = dem::detail::pair_rows_vector_available();
-  for (const bool vector : {false, true}) {
-    if (vector && !vector_available) continue;
-    dem::detail::use_vector_pairs(vector);
+  for (const dem::EngineOptions::PairKernel kernel : demtest::pair_kernels()) {
+    dem::EngineOptions options;
+    options.pair_kernel = kernel;
     for (const int threads : {1, 2}) {
       dem::State result[2];
       std::int64_t sleeper_steps[2] = {0, 0};
@@ -122,7 +119,7 @@ TEST(dem_ClosePairs, SameBitsAsEveryCandidateWithSleepers) {
         scene.sleep.tool_distance = 0;
         scene.sleep.close_pairs = true;  // off by default with sleeping
         dem::State st = lattice_state();
-        dem::Engine engine(scene);
+        dem::Engine engine(scene, options);
         for (int k = 0; k < 1200; ++k) {
           engine.step(st);
           sleeper_steps[margin > 0] += engine.sleeping();
@@ -138,10 +135,9 @@ TEST(dem_ClosePairs, SameBitsAsEveryCandidateWithSleepers) {
       EXPECT_GT(sleeper_steps[0], 200000);  // of 1,800,000 particle-steps
       EXPECT_EQ(sleeper_steps[0], sleeper_steps[1]);
       EXPECT_EQ(dem::differing_arrays(result[0], result[1]), "")
-          << threads << " thread(s), " << (vector ? "vector" : "scalar") << " kernel";
+          << threads << " thread(s), " << demtest::kernel_name(kernel) << " kernel";
     }
   }
-  dem::detail::use_vector_pairs(true);
 }
 
 // With sleeping on, close pairs are listed only when scene.sleep.close_pairs asks for them.

@@ -69,11 +69,14 @@ struct BlockRun {
   std::int64_t contact_steps = 0, sleeper_steps = 0, tool_contact_steps = 0;
 };
 
-BlockRun run(dem::Scene scene, int steps) {
+BlockRun run(dem::Scene scene, int steps,
+             dem::EngineOptions::PairKernel kernel = dem::EngineOptions::PairKernel::vector) {
   BlockRun r;
   r.state = blocks_state();
   r.state.tool_pose.resize(scene.tools.size());
-  dem::Engine engine(scene);
+  dem::EngineOptions options;
+  options.pair_kernel = kernel;
+  dem::Engine engine(scene, options);
   for (int k = 0; k < steps; ++k) {
     engine.step(r.state);
     r.contact_steps += engine.contact_stats().particle_contacts;
@@ -143,16 +146,13 @@ TEST(dem_PairBlocks, EveryPartnerInItsBlockOrTheNext) {
 }
 
 TEST(dem_PairBlocks, SameBitsOnOneTwoAndThreeThreads) {
-  const bool vector_available = dem::detail::pair_rows_vector_available();
-  for (const bool vector : {false, true}) {
-    if (vector && !vector_available) continue;
-    dem::detail::use_vector_pairs(vector);
+  for (const dem::EngineOptions::PairKernel kernel : demtest::pair_kernels()) {
     for (const double margin : {0.0, 0.1}) {
       BlockRun one;
       for (const int threads : {1, 2, 3}) {
         dem::Scene scene = blocks_scene(threads);
         scene.close_margin = margin;
-        BlockRun r = run(scene, 400);
+        BlockRun r = run(scene, 400, kernel);
         EXPECT_GE(r.blocks, 6u);
         EXPECT_GT(r.contact_steps, 40000);  // about 160 touching pairs per step
         EXPECT_GT(r.tool_contact_steps, 1000);  // floor and plate contacts
@@ -163,7 +163,7 @@ TEST(dem_PairBlocks, SameBitsOnOneTwoAndThreeThreads) {
         }
         EXPECT_EQ(dem::differing_arrays(one.state, r.state), "")
             << threads << " threads against 1, margin " << margin << ", "
-            << (vector ? "vector" : "scalar") << " kernel";
+            << demtest::kernel_name(kernel) << " kernel";
         // The forces on the plate and the floor, every step: summed per chunk, then in order.
         ASSERT_EQ(r.plate.size(), one.plate.size());
         for (std::size_t k = 0; k < r.plate.size(); ++k) {
@@ -175,14 +175,10 @@ TEST(dem_PairBlocks, SameBitsOnOneTwoAndThreeThreads) {
       }
     }
   }
-  dem::detail::use_vector_pairs(true);
 }
 
 TEST(dem_PairBlocks, SameBitsOnOneAndTwoThreadsWithSleepers) {
-  const bool vector_available = dem::detail::pair_rows_vector_available();
-  for (const bool vector : {false, true}) {
-    if (vector && !vector_available) continue;
-    dem::detail::use_vector_pairs(vector);
+  for (const dem::EngineOptions::PairKernel kernel : demtest::pair_kernels()) {
     BlockRun r[2];
     for (const int threads : {1, 2}) {
       dem::Scene scene = blocks_scene(threads);
@@ -191,13 +187,12 @@ TEST(dem_PairBlocks, SameBitsOnOneAndTwoThreadsWithSleepers) {
       scene.sleep.steps = 20;
       scene.sleep.tool_distance = 0;
       scene.tools.clear();  // its neighbourhood would keep the lattice awake
-      r[threads - 1] = run(scene, 400);
+      r[threads - 1] = run(scene, 400, kernel);
     }
     EXPECT_GT(r[0].sleeper_steps, 100000);
     EXPECT_EQ(dem::differing_arrays(r[0].state, r[1].state), "")
-        << (vector ? "vector" : "scalar") << " kernel";
+        << demtest::kernel_name(kernel) << " kernel";
   }
-  dem::detail::use_vector_pairs(true);
 }
 
 // Blocks against ranges: the same pairs, summed in another order. After one step from the same

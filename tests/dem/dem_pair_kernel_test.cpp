@@ -25,6 +25,7 @@
 namespace {
 
 using dem::Vec3;
+using dem::detail::Kernel;
 using dem::detail::PairRemote;
 using dem::detail::PairRows;
 using dem::detail::PairRowStats;
@@ -173,11 +174,24 @@ PairRows start(const Rows& in, Result& out, const dem::ContactLaw& law, double d
 }
 
 Result run(const Rows& in, const dem::ContactLaw& law, double dt, std::size_t a0, std::size_t a1,
-           bool vector) {
+           Kernel kernel, bool branch_free_chunks = dem::detail::branch_free_chunks_default()) {
   Result out;
-  const PairRows p = start(in, out, law, dt);
-  dem::detail::pair_rows(p, a0, a1, out.remote, out.stats, vector);
+  PairRows p = start(in, out, law, dt);
+  p.branch_free_chunks = branch_free_chunks;
+  dem::detail::pair_rows(p, a0, a1, out.remote, out.stats, kernel);
   return out;
+}
+
+// The chunk kernel's implementations held to the scalar loop's bits: its source with the lanes
+// emulated in portable code everywhere, and the AVX-512 one where the processor has it. No
+// test skips: without AVX-512 the emulated lanes still check the vector path.
+std::vector<Kernel> chunk_kernels() {
+  std::vector<Kernel> k{Kernel::emulated};
+  if (dem::detail::pair_rows_vector_available()) k.push_back(Kernel::vector);
+  return k;
+}
+const char* name(Kernel k) {
+  return k == Kernel::vector ? "vector" : k == Kernel::emulated ? "emulated" : "scalar";
 }
 
 std::vector<dem::ContactLaw> laws() {
@@ -210,12 +224,9 @@ std::vector<dem::ContactLaw> laws() {
 }
 
 TEST(dem_PairKernel, VectorAndScalarGiveTheSameBits) {
-  if (!dem::detail::pair_rows_vector_available())
-    GTEST_SKIP() << "this processor has no AVX-512: only the scalar pair forces run here";
   const double dt = 1e-4;
   std::mt19937_64 rng(7);
   std::int64_t contacts = 0, rows_seen = 0, remotes = 0;
-  const bool default_chunks = dem::detail::branch_free_chunks_in_use();
   for (const int sizes : {0, 1, 2}) {
     for (const dem::ContactLaw& law : laws()) {
       for (int rep = 0; rep < 6; ++rep) {
@@ -224,15 +235,15 @@ TEST(dem_PairKernel, VectorAndScalarGiveTheSameBits) {
         const Rows rows = make_rows(rng, 600, sizes, dt, rep % 3);
         // A thread's range in the middle: the partners beyond it go to the remote list.
         const std::size_t a0 = 40, a1 = 420;
-        const Result s = run(rows, law, dt, a0, a1, false);
+        const Result s = run(rows, law, dt, a0, a1, Kernel::scalar);
         // The stream kernel's two ways with the spring's turn and the friction cap: every
         // chunk without a branch, or only the chunks that need them (the processor's default
         // is one of them).
         const bool branch_free = rep % 2 == 0;
-        dem::detail::use_branch_free_chunks(branch_free);
-        const Result v = run(rows, law, dt, a0, a1, true);
-        dem::detail::use_branch_free_chunks(default_chunks);
         SCOPED_TRACE(branch_free ? "branch-free chunks" : "branching chunks");
+        for (const Kernel kernel : chunk_kernels()) {
+        SCOPED_TRACE(name(kernel));
+        const Result v = run(rows, law, dt, a0, a1, kernel, branch_free);
         for (std::size_t i = 0; i < rows.x.size(); ++i)
           ASSERT_TRUE(same_bits(s.force[i], v.force[i]))
               << "force of particle " << i << " (sizes " << sizes << ")";
@@ -246,6 +257,7 @@ TEST(dem_PairKernel, VectorAndScalarGiveTheSameBits) {
         ASSERT_EQ(s.stats.contacts, v.stats.contacts);
         ASSERT_TRUE(same_bits(s.stats.max_overlap, v.stats.max_overlap));
         ASSERT_TRUE(same_bits(s.stats.max_overlap_ratio, v.stats.max_overlap_ratio));
+        }
         contacts += s.stats.contacts;
         remotes += static_cast<std::int64_t>(s.remote.size());
         rows_seen += static_cast<std::int64_t>(a1 - a0);
@@ -268,8 +280,6 @@ TEST(dem_PairKernel, VectorAndScalarGiveTheSameBits) {
 // forces, springs, the forces handed on, the statistics and the set of sleepers to wake
 // agree bit for bit.
 TEST(dem_PairKernel, WithSleepersVectorAndScalarGiveTheSameBits) {
-  if (!dem::detail::pair_rows_vector_available())
-    GTEST_SKIP() << "this processor has no AVX-512: only the scalar pair forces run here";
   const double dt = 1e-4;
   std::mt19937_64 rng(21);
   std::uniform_real_distribution<double> U01(0, 1);
@@ -299,41 +309,44 @@ TEST(dem_PairKernel, WithSleepersVectorAndScalarGiveTheSameBits) {
             if (run == 16 && i >= a0 + 15 && i < a1) ++streamed_runs;
           }
         }
-        const bool default_chunks = dem::detail::branch_free_chunks_in_use();
-        dem::detail::use_branch_free_chunks(sizes % 2 == 0);
-        Result res[2];
-        std::vector<std::uint8_t> woken[2];
-        for (const bool vector : {false, true}) {
-          Result& out = res[vector];
-          const PairRows p = start(rows, out, law, dt);
-          woken[vector].assign(n, 0);
+        std::vector<Kernel> kernels{Kernel::scalar};
+        for (const Kernel k : chunk_kernels()) kernels.push_back(k);
+        std::vector<Result> res(kernels.size());
+        std::vector<std::vector<std::uint8_t>> woken(kernels.size());
+        for (std::size_t q = 0; q < kernels.size(); ++q) {
+          Result& out = res[q];
+          PairRows p = start(rows, out, law, dt);
+          p.branch_free_chunks = sizes % 2 == 0;
+          woken[q].assign(n, 0);
           std::vector<std::int32_t> remote_wake;
           dem::detail::PairSleep sl;
           sl.rest = rest.data();
           sl.steps = 200;
           sl.wake_speed2 = 0.03 * 0.03;
           sl.awake_partners = counts ? awake_partners.data() : nullptr;
-          sl.wake = woken[vector].data();
+          sl.wake = woken[q].data();
           sl.remote_wake = &remote_wake;
-          dem::detail::pair_rows_sleep(p, sl, a0, a1, out.remote, out.stats, vector);
-          for (const std::int32_t q : remote_wake) woken[vector][q] = 1;
+          dem::detail::pair_rows_sleep(p, sl, a0, a1, out.remote, out.stats, kernels[q]);
+          for (const std::int32_t r : remote_wake) woken[q][r] = 1;
         }
-        dem::detail::use_branch_free_chunks(default_chunks);
+        for (std::size_t v = 1; v < kernels.size(); ++v) {
+        SCOPED_TRACE(name(kernels[v]));
         for (std::size_t i = 0; i < n; ++i) {
-          ASSERT_TRUE(same_bits(res[0].force[i], res[1].force[i])) << "force of particle " << i;
-          ASSERT_EQ(woken[0][i], woken[1][i]) << "wake of particle " << i;
-          wakes += woken[0][i];
+          ASSERT_TRUE(same_bits(res[0].force[i], res[v].force[i])) << "force of particle " << i;
+          ASSERT_EQ(woken[0][i], woken[v][i]) << "wake of particle " << i;
+          if (v == 1) wakes += woken[0][i];
         }
         for (std::size_t k = 0; k < rows.spring.size(); ++k)
-          ASSERT_TRUE(same_bits(res[0].spring[k], res[1].spring[k])) << "spring of pair " << k;
-        ASSERT_EQ(res[0].remote.size(), res[1].remote.size());
+          ASSERT_TRUE(same_bits(res[0].spring[k], res[v].spring[k])) << "spring of pair " << k;
+        ASSERT_EQ(res[0].remote.size(), res[v].remote.size());
         for (std::size_t q = 0; q < res[0].remote.size(); ++q) {
-          ASSERT_EQ(res[0].remote[q].j, res[1].remote[q].j);
-          ASSERT_TRUE(same_bits(res[0].remote[q].f, res[1].remote[q].f));
+          ASSERT_EQ(res[0].remote[q].j, res[v].remote[q].j);
+          ASSERT_TRUE(same_bits(res[0].remote[q].f, res[v].remote[q].f));
         }
-        ASSERT_EQ(res[0].stats.contacts, res[1].stats.contacts);
-        ASSERT_TRUE(same_bits(res[0].stats.max_overlap, res[1].stats.max_overlap));
-        ASSERT_TRUE(same_bits(res[0].stats.max_overlap_ratio, res[1].stats.max_overlap_ratio));
+        ASSERT_EQ(res[0].stats.contacts, res[v].stats.contacts);
+        ASSERT_TRUE(same_bits(res[0].stats.max_overlap, res[v].stats.max_overlap));
+        ASSERT_TRUE(same_bits(res[0].stats.max_overlap_ratio, res[v].stats.max_overlap_ratio));
+        }
         contacts += res[0].stats.contacts;
       }
     }
@@ -345,14 +358,17 @@ TEST(dem_PairKernel, WithSleepersVectorAndScalarGiveTheSameBits) {
 }
 
 // A bed settling under gravity with walls, polydisperse, through the engine on 1 and 2 threads:
-// every array of State after the run is the same with either kernel.
+// every array of State after the run is the same with the scalar loop, the emulated chunk kernel
+// (any processor) and the AVX-512 one (where the processor has it).
 TEST(dem_PairKernel, WholeRunsAreTheSameWithEitherKernel) {
-  if (!dem::detail::pair_rows_vector_available())
-    GTEST_SKIP() << "this processor has no AVX-512: only the scalar pair forces run here";
+  using PK = dem::EngineOptions::PairKernel;
+  std::vector<PK> kernels{PK::scalar, PK::emulated};  // the emulated lanes run everywhere
+  if (dem::detail::pair_rows_vector_available()) kernels.push_back(PK::vector);
   for (const int threads : {1, 2}) {
-    dem::State result[2];
-    for (const bool vector : {false, true}) {
-      dem::detail::use_vector_pairs(vector);
+    std::vector<dem::State> result(kernels.size());
+    for (std::size_t q = 0; q < kernels.size(); ++q) {
+      dem::EngineOptions options;
+      options.pair_kernel = kernels[q];
       dem::Scene scene = demtest::one_species_scene(0.8e-3, 1.2e-3);
       scene.threads = threads;
       scene.broad_phase_interval = 10;
@@ -371,17 +387,17 @@ TEST(dem_PairKernel, WholeRunsAreTheSameWithEitherKernel) {
             st, {1.5e-3 + 2.5e-3 * (k % 11), 2.5e-3 * ((k / 11) % 11), 1.5e-3 + 2.5e-3 * (k / 121)},
             {0.05 * (U01(rng) - 0.5), 0.05 * (U01(rng) - 0.5), -0.2}, r);
       }
-      dem::Engine engine(scene);
+      dem::Engine engine(scene, options);
       for (int k = 0; k < 1500; ++k) engine.step(st);
       EXPECT_GT(engine.contact_stats().particle_contacts, 200);
-      result[vector] = st;
+      result[q] = st;
     }
-    dem::detail::use_vector_pairs(true);
+    for (std::size_t v = 1; v < kernels.size(); ++v) {
     int arrays = 0;
     dem::for_each_array(result[0], [&](const char* name, const auto& a, dem::Field) {
       const char* other = nullptr;
       std::size_t bytes = 0;
-      dem::for_each_array(result[1], [&](const char* n2, const auto& b, dem::Field) {
+      dem::for_each_array(result[v], [&](const char* n2, const auto& b, dem::Field) {
         if (std::strcmp(name, n2) == 0) {
           other = reinterpret_cast<const char*>(b.data());
           bytes = b.size() * sizeof(b[0]);
@@ -389,10 +405,11 @@ TEST(dem_PairKernel, WholeRunsAreTheSameWithEitherKernel) {
       });
       ASSERT_EQ(bytes, a.size() * sizeof(a[0])) << name;
       EXPECT_TRUE(bytes == 0 || std::memcmp(a.data(), other, bytes) == 0)
-          << name << " differs on " << threads << " threads";
+          << name << " differs on " << threads << " threads, kernel " << static_cast<int>(kernels[v]);
       ++arrays;
     });
     EXPECT_GT(arrays, 20);
+    }
   }
 }
 

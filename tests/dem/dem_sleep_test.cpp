@@ -363,17 +363,16 @@ TEST(dem_Sleep, SameThreadCountIsBitIdenticalWithSleepers) {
 TEST(dem_Sleep, SkippingTheRowsOfSleepersChangesNoBit) {
   for (int threads : {1, 2}) {
     Pile a = make_pile(threads, true), b = make_pile(threads, true);
-    dem::Engine ea(a.scene), eb(b.scene);
+    dem::EngineOptions every_row;
+    every_row.sleeper_row_skip = false;
+    dem::Engine ea(a.scene), eb(b.scene, every_row);
     std::int64_t mixed = 0;  // steps with sleepers and awake particles together
     auto run = [&](int steps) {
       for (int k = 0; k < steps; ++k) {
-        dem::detail::use_sleeper_row_skip(true);
         ea.step(a.st);
-        dem::detail::use_sleeper_row_skip(false);
         eb.step(b.st);
         mixed += ea.sleeping() > 0 && ea.sleeping() < static_cast<std::int64_t>(a.st.size());
       }
-      dem::detail::use_sleeper_row_skip(true);
     };
     run(20000);
     for (Pile* p : {&a, &b}) add(p->st, {0.001, 0.002, 0.12}, {0.2, 0, -1}, kR);
@@ -392,7 +391,7 @@ TEST(dem_Sleep, SkippingTheRowsOfSleepersChangesNoBit) {
 }
 
 // A sleeper does not move, so the integration notes its displacement since the broad phase
-// once, when it falls asleep, instead of every step (Engine::SleeperTally). The guard's two
+// once, when it falls asleep, instead of every step (the Sleepers tally). The guard's two
 // largest displacements must still cover every particle: equal to the ones counted over all
 // particles until someone wakes (a woken one stays counted with the displacement it slept
 // with, an upper bound, until the next broad phase), never below them. Through a pile falling
@@ -473,13 +472,12 @@ TEST(dem_Sleep, SkippingBlocksOfSleepersFarFromToolsChangesNoBit) {
         p->st.tool_pose.resize(1);
         p->st.tool_pose[0].position = {1, 0, 1};
       }
-      dem::Engine ea(a.scene), eb(b.scene);
+      dem::EngineOptions every_sleeper;
+      every_sleeper.sleeper_blocks = false;
+      dem::Engine ea(a.scene), eb(b.scene, every_sleeper);
       auto step_both = [&] {
-        dem::detail::use_sleeper_blocks(true);
         ea.step(a.st);
-        dem::detail::use_sleeper_blocks(false);
         eb.step(b.st);
-        dem::detail::use_sleeper_blocks(true);
       };
       while (ea.sleeping() < 150 && a.st.step * a.scene.dt < 2.0) step_both();
       ASSERT_EQ(ea.sleeping(), 150) << what;

@@ -11,6 +11,20 @@
 
 namespace demtest {
 
+// The pair kernels a bit-identity test runs the engine with: the scalar loop, the AVX-512 chunk
+// kernel's source with its lanes emulated (any processor), and the AVX-512 kernel itself where
+// the processor has it. None is skipped for want of AVX-512.
+inline std::vector<dem::EngineOptions::PairKernel> pair_kernels() {
+  using K = dem::EngineOptions::PairKernel;
+  std::vector<K> k{K::scalar, K::emulated};
+  if (dem::detail::pair_rows_vector_available()) k.push_back(K::vector);
+  return k;
+}
+inline const char* kernel_name(dem::EngineOptions::PairKernel k) {
+  using K = dem::EngineOptions::PairKernel;
+  return k == K::vector ? "vector" : k == K::emulated ? "emulated" : "scalar";
+}
+
 using dem::Vec3;
 
 inline dem::ContactLaw law_n_per_m(double k, double e, bool clip, double mu = 0.0,

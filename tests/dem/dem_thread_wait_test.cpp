@@ -2,12 +2,14 @@
 // runs with the OpenMP wait settings the policy asks for (libgomp prints the settings it loaded
 // with when OMP_DISPLAY_ENV is set; dem_run re-executes itself to change them).
 #include <gtest/gtest.h>
+#include <sched.h>
 #include <unistd.h>
 
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <regex>
+#include <set>
 #include <sstream>
 
 #include "cosim/yaml_config.hpp"
@@ -140,6 +142,69 @@ TEST(dem_ThreadWait, DemRunRunsWithThePolicysSettings) {
   const std::regex begin("OPENMP DISPLAY ENVIRONMENT BEGIN");
   EXPECT_EQ(std::distance(std::sregex_iterator(out.begin(), out.end(), begin), std::sregex_iterator()), 2)
       << out;
+  fs::remove_all(fs::temp_directory_path() / ("dem_thread_wait_" + std::to_string(::getpid())));
+}
+
+// The CPUs each OpenMP thread may run on, and the one it ran on, from dem_run's start-up line
+// "dem_run: thread 0 on CPUs 0-1 (running on 1); thread 1 on CPUs 0-1 (running on 0)".
+struct SeenThread {
+  std::set<int> allowed;
+  int now = -1;
+};
+std::vector<SeenThread> seen_threads(const std::string& out) {
+  std::vector<SeenThread> seen;
+  const std::regex re(R"(thread (\d+) on CPUs ([0-9,\-]+) \(running on (-?\d+)\))");
+  for (auto it = std::sregex_iterator(out.begin(), out.end(), re); it != std::sregex_iterator(); ++it) {
+    SeenThread t;
+    std::stringstream list((*it)[2].str());
+    std::string part;
+    while (std::getline(list, part, ',')) {
+      const std::size_t dash = part.find('-');
+      const int a = std::stoi(part.substr(0, dash));
+      const int b = dash == std::string::npos ? a : std::stoi(part.substr(dash + 1));
+      for (int c = a; c <= b; ++c) t.allowed.insert(c);
+    }
+    t.now = std::stoi((*it)[3].str());
+    seen.push_back(t);
+  }
+  return seen;
+}
+
+// With or without OpenMP binding variables (as batch schedulers set them), dem_run's two
+// threads may together run on every CPU the program was given; bound to one CPU each
+// (OMP_PLACES=threads), they run on two different ones. Before the fix the re-execution that
+// applies the wait policy inherited the first place libgomp had bound the initial thread to,
+// and both threads ran on CPU 0. Both with the re-execution (passive) and without it (spin).
+TEST(dem_ThreadWait, ThreadsUseEveryCoreTheyWereGiven) {
+  cpu_set_t mask;
+  CPU_ZERO(&mask);
+  ASSERT_EQ(::sched_getaffinity(0, sizeof mask, &mask), 0);
+  std::set<int> given;
+  for (int c = 0; c < CPU_SETSIZE; ++c)
+    if (CPU_ISSET(c, &mask)) given.insert(c);
+  ASSERT_FALSE(given.empty());
+  for (const std::string env : {"", "OMP_PROC_BIND=close OMP_PLACES=cores",
+                                "OMP_PROC_BIND=close OMP_PLACES=threads", "OMP_PROC_BIND=spread"}) {
+    for (const char* wait : {"passive", "spin"}) {
+      const std::string out = run_dem_run(env, wait);
+      const std::vector<SeenThread> seen = seen_threads(out);
+      ASSERT_EQ(seen.size(), 2u) << env << ", " << wait << ":\n" << out;
+      std::set<int> together;
+      for (const SeenThread& t : seen) {
+        together.insert(t.allowed.begin(), t.allowed.end());
+        EXPECT_TRUE(t.allowed.count(t.now)) << env << ", " << wait << ": ran outside its mask";
+      }
+      EXPECT_EQ(together, given) << "with '" << env << "', thread_wait " << wait
+                                 << ", the threads may not use every CPU given:\n" << out;
+      if (env.find("OMP_PLACES=threads") != std::string::npos && given.size() >= 2) {
+        // One CPU each, and not the same one.
+        EXPECT_EQ(seen[0].allowed.size(), 1u) << out;
+        EXPECT_EQ(seen[1].allowed.size(), 1u) << out;
+        EXPECT_NE(seen[0].allowed, seen[1].allowed) << out;
+        EXPECT_NE(seen[0].now, seen[1].now) << out;
+      }
+    }
+  }
   fs::remove_all(fs::temp_directory_path() / ("dem_thread_wait_" + std::to_string(::getpid())));
 }
 

@@ -6,9 +6,11 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 #include "cosim/timer.hpp"
+#include "dem/list_stamp.hpp"
 #include "dem/scene.hpp"
 #include "dem/state.hpp"
 
@@ -62,9 +64,6 @@ std::int32_t row_hits_vector(const RowData& d, Vec3 xa, double ra, double skin, 
                              const std::int32_t* row_begin, const std::int32_t* row_end,
                              int rows, std::int32_t* out, std::int32_t& touching);
 bool row_hits_vector_available();
-// Which test the broad phase uses from now on: the vector one where available (the default) or
-// the scalar one everywhere (tests compare whole runs with both).
-void use_vector_row_test(bool vector);
 }  // namespace detail
 
 class BroadPhase {
@@ -72,6 +71,10 @@ class BroadPhase {
   // tool_vertices[m]: world positions of tool m's mesh vertices at the current pose.
   void build(const Scene& scene, State& s, const std::vector<std::vector<Vec3>>& tool_vertices,
              int threads);
+
+  // Which distance test the pair list uses: the vector one where available (the default) or the
+  // scalar one everywhere (EngineOptions::vector_row_test; the same lists).
+  void use_vector_row_test(bool vector);
 
   // Wall-clock seconds per stage of build(), summed over all builds.
   const cosim::Timer& stages() const { return stages_; }
@@ -114,9 +117,9 @@ class BroadPhase {
   double inv_h_ = 1;
   long nx_ = 0, ny_ = 0, nz_ = 0;
   // Which broad phase the grid is of: the state, its size, s.rebuilds and the step it ran at.
-  const State* grid_state_ = nullptr;
-  std::size_t grid_size_ = 0;
-  std::int64_t grid_rebuilds_ = -1, grid_built_at_ = -1;
+  ListStamp grid_stamp_;
+  static constexpr unsigned kGridFields =
+      ListStamp::state | ListStamp::size | ListStamp::rebuilds | ListStamp::built_at;
   void set_grid(Vec3 lo, Vec3 hi, std::size_t n, double h);
   // The grid's cell along one axis of coordinate v, clamped to [0, nmax) (NaN: 0).
   long cell_coord(double v, double l, long nmax) const {
@@ -146,11 +149,22 @@ class BroadPhase {
   std::vector<std::vector<TriCandidate>> thread_tri_;  // per thread, joined in thread order
   std::vector<std::int32_t> tri_count_;
   int threads_ = 1;
+  bool vector_row_test_ = true;
 
   // a[p0..p1) = a[order_[p]] for p in [p0, p1): the window of the order that changed.
   template <class T>
   void permute(std::vector<T>& a, std::size_t p0, std::size_t p1);
+  // The stages of build(), in order (their rows in stages()).
+  void make_grid(const State& s, int T, double rmax, double skin);  // grid, particles' box
+  std::pair<std::size_t, std::size_t> sort_by_cell(const State& s, int T);  // changed window
+  bool permute_state(State& s, std::size_t p0, std::size_t p1);  // true: an old list to carry
+  void list_pairs(State& s, int T, double skin);
+  void carry_history(State& s, int T);
+  void list_mesh_candidates(const Scene& scene, State& s,
+                            const std::vector<std::vector<Vec3>>& tool_vertices, int T,
+                            double skin);
   void boundary_slots(const Scene& scene, State& s, double skin);
+  Vec3 box_lo_{}, box_hi_{};  // the particles' box at the last build (make_grid)
 };
 
 }  // namespace dem

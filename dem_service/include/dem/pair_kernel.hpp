@@ -16,6 +16,19 @@
 
 namespace dem::detail {
 
+// Which implementation runs the rows; all three give the same bits. scalar: one candidate at a
+// time. vector: the AVX-512 chunk kernel where the processor has it (pair_rows_vector_available),
+// else the scalar loop. emulated: the chunk kernel's source with its AVX-512 lane operations
+// emulated in portable C++ (src/simd512_emulation.hpp), on any processor; slow, for the tests
+// that hold the vector path to the scalar loop's bits where CI has no AVX-512.
+enum class Kernel { scalar, vector, emulated };
+
+// The processor's choice for PairRows::branch_free_chunks: branch-free on AMD, where 512-bit
+// divisions are cheap (an AMD EPYC VM: 0.93x of the pair forces branch-free); branching where
+// they are dear (an Intel Xeon VM: 0.935x with the branch). docs/performance.md, "Divisions
+// where they are dear". EngineOptions::pair_chunks overrides it.
+bool branch_free_chunks_default();
+
 // A force on a particle of a later thread's range: applied after the parallel loop, in
 // thread order, so the sums do not depend on scheduling.
 struct PairRemote {
@@ -45,6 +58,10 @@ struct PairRows {
   std::size_t direct_end = 0;
   ContactLaw law;
   double dt = 0;
+  // The vector stream kernel (every particle awake) computes the spring's turn and the friction
+  // cap in every chunk without a branch (true), or only in chunks that need them (false). The
+  // same bits either way; the default follows the processor (branch_free_chunks_default()).
+  bool branch_free_chunks = branch_free_chunks_default();
 };
 
 struct PairRowStats {
@@ -56,10 +73,9 @@ struct PairRowStats {
 // Rows i in [a0, a1): force[i] gains the sum of its pairs' forces (in pair order), each
 // partner j < a1 (or PairRows::direct_end) loses its pair's force directly, a later partner is
 // appended to `remote` (in pair order). Springs of active pairs advance; springs of pairs out
-// of contact are cleared. `vector` asks for the AVX-512 version (used only if
-// pair_rows_vector_available()).
+// of contact are cleared. `kernel` picks the implementation (the same bits).
 void pair_rows(const PairRows& p, std::size_t a0, std::size_t a1, std::vector<PairRemote>& remote,
-               PairRowStats& stats, bool vector);
+               PairRowStats& stats, Kernel kernel);
 
 // Sleeping (Scene::sleep): the rules of the pair loop with sleepers. A pair of two sleepers
 // computes nothing (its spring stays); awake against asleep, the force acts on the awake
@@ -76,16 +92,8 @@ struct PairSleep {
   std::vector<std::int32_t>* remote_wake = nullptr;  // sleepers to wake beyond a1
 };
 void pair_rows_sleep(const PairRows& p, const PairSleep& sleep, std::size_t a0, std::size_t a1,
-                     std::vector<PairRemote>& remote, PairRowStats& stats, bool vector);
+                     std::vector<PairRemote>& remote, PairRowStats& stats, Kernel kernel);
 
 bool pair_rows_vector_available();
-
-// The stream kernel (every particle awake) computes the spring's turn and the friction cap in
-// every chunk without a branch (true), or only in chunks that need them (false). The default
-// follows the processor (branch-free on AMD, where 512-bit divisions are cheap); the
-// environment's DEM_PAIR_CHUNKS (read_pair_kernel_environment) and tests switch it. The same
-// bits either way.
-void use_branch_free_chunks(bool branch_free);
-bool branch_free_chunks_in_use();
 
 }  // namespace dem::detail

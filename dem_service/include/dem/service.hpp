@@ -34,8 +34,10 @@ class ServiceModel final : public cosim::Model {
  public:
   // root: the DEM config (the dem_run schema plus `service`), after --set; base_dir resolves its
   // relative paths. The config is checked here in full, so a bad file fails at start-up.
-  // config_path (if given) is the file root came from: no output may overwrite it.
-  ServiceModel(YAML::Node root, std::string base_dir, std::string config_path = {});
+  // config_path (if given) is the file root came from: no output may overwrite it. engine: how
+  // each run's Engine computes (dem_service fills it once from its environment).
+  ServiceModel(YAML::Node root, std::string base_dir, std::string config_path = {},
+               const EngineOptions& engine = {});
   ~ServiceModel() override;
 
   void configure(const YAML::Node& parameters, const cosim::RunInfo& run) override;
@@ -75,6 +77,7 @@ class ServiceModel final : public cosim::Model {
   std::string base_dir_, config_path_;
   std::unique_ptr<RunConfig> rc_;
   std::unique_ptr<Engine> engine_;
+  EngineOptions engine_options_;
   std::unique_ptr<RunOutput> out_;
   ServiceOptions options_;
   cosim::Duration inner_step_{};

@@ -10,6 +10,11 @@
 // environment gave it re-executes itself once (execv of /proc/self/exe, same arguments) with the
 // variables set, marked by DEM_THREAD_WAIT_APPLIED so it happens once. A user who sets
 // OMP_WAIT_POLICY or GOMP_SPINCOUNT himself wins: the config's policy is then not applied.
+//
+// With OMP_PROC_BIND set, libgomp binds the initial thread to the first OpenMP place when it
+// loads; the re-executed program would inherit that single place as its whole affinity mask and
+// run every thread on one core. The re-execution therefore first widens the mask back to all the
+// places' CPUs (the CPUs the program was given).
 #pragma once
 
 #include <string>
@@ -67,5 +72,17 @@ struct ThreadWaitInForce {
   ThreadWait policy = ThreadWait::spin;
 };
 ThreadWaitInForce thread_wait_in_force();
+
+// The CPUs each of `threads` OpenMP threads may run on (its affinity mask) and the one it was
+// running on when asked, from one parallel region: that the threads use every core they were
+// given, with or without OMP_PROC_BIND / OMP_PLACES (apply_thread_wait's re-execution restores
+// the mask libgomp narrowed to the first place).
+struct ThreadCpus {
+  std::vector<int> allowed;  // sched_getaffinity, ascending
+  int now = -1;              // sched_getcpu
+};
+std::vector<ThreadCpus> thread_cpus(int threads);
+// "thread 0 on CPUs 0 (running on 0); thread 1 on CPUs 1 (running on 1)" for the start-up log.
+std::string describe_thread_cpus(const std::vector<ThreadCpus>& threads);
 
 }  // namespace dem

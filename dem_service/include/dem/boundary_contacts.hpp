@@ -1,0 +1,56 @@
+// Wall and mesh (tool) contacts: each particle with a boundary slot block (the broad phase
+// handed them out) gathers its walls and the mesh features of its triangle candidates, keeps
+// or hands on the tangential springs of its slot block, and sums the forces on itself, on each
+// wall and on each tool. The particles are cut into chunks, a number that depends on the
+// blocks alone; each chunk sums its tools' and walls' forces on its own, is run by the thread
+// that claims it first, and the chunks' sums are added in chunk order: the same bits on any
+// thread count.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "dem/engine_types.hpp"
+#include "dem/mesh_contact.hpp"
+#include "dem/scene.hpp"
+#include "dem/state.hpp"
+#include "dem/tool_geometry.hpp"
+
+namespace dem {
+
+class BoundaryContacts {
+ public:
+  explicit BoundaryContacts(const Scene& scene, int max_threads);
+
+  // Adds the wall and mesh forces of this step to force[i] (sleepers have none) on T threads;
+  // busy[t] gains thread t's working seconds. Throws SimulationError naming the particle that
+  // touches more than kBoundarySlots features.
+  void forces(State& s, const ToolGeometry& tools, Vec3* force, int T, double* busy);
+
+  const std::vector<Wrench>& tool_wrenches() const { return tool_wrench_; }
+  const std::vector<Vec3>& wall_forces() const { return wall_force_; }
+  const ContactStats& thread_stats(int t) const { return thread_stats_[t]; }
+
+  // Mesh contacts after feature selection at the current positions (for tests).
+  struct MeshContact {
+    std::int64_t particle;
+    int tool;
+    std::uint64_t key;
+    Vec3 point;
+  };
+  std::vector<MeshContact> mesh_contacts(const State& s, const ToolGeometry& tools) const;
+  std::size_t bytes() const;
+
+ private:
+  const Scene& scene_;
+  std::vector<Wrench> chunk_tool_wrench_;  // per chunk of slot blocks and tool
+  std::vector<Vec3> chunk_wall_force_;     // per chunk and wall
+  std::vector<std::int64_t> chunk_claim_;  // the pass in which a chunk was claimed
+  std::int64_t chunk_pass_ = 0;
+  std::vector<ContactStats> thread_stats_;  // per thread
+  std::vector<Wrench> tool_wrench_;
+  std::vector<Vec3> wall_force_;
+  void sum_chunks(std::size_t C);
+};
+
+}  // namespace dem

@@ -1,0 +1,41 @@
+// How the engine computes, where the choice changes speed but never a result (every option
+// below gives the same bits; tests compare whole runs both ways). Not part of the physical
+// Scene: the apps (dem_run, dem_service, the benches) fill it once and hand it to each Engine.
+#pragma once
+
+namespace dem {
+
+struct EngineOptions {
+  // The pair forces: the AVX-512 kernel where the processor has it (vector), or the scalar
+  // loop everywhere. Kept: the scalar loop is the reference the vector kernel's bit-equality
+  // tests compare against, and bench/dem/kernel_ab.sh times one against the other.
+  // emulated: the vector kernel's source with its lanes emulated in portable code (any
+  // processor, several times slower): for the tests that hold the vector path to the scalar
+  // loop's bits where the processor has no AVX-512.
+  enum class PairKernel { vector, scalar, emulated };
+  PairKernel pair_kernel = PairKernel::vector;
+  // The vector stream kernel's chunks: without a branch for the spring's turn and the friction
+  // cap (branch-free), or only where a lane needs them (branching). The processor's default is
+  // branch-free on AMD, branching elsewhere (docs/performance.md, "Divisions where they are
+  // dear"). Kept: which is faster depends on the processor, and the tests cover both.
+  enum class PairChunks { processor, branch_free, branching };
+  PairChunks pair_chunks = PairChunks::processor;
+  // The broad phase's distance test: 8 candidates at a time with AVX-512 where the processor
+  // has it, or the scalar test everywhere. Kept: the broad-phase test compares whole runs.
+  bool vector_row_test = true;
+  // Sleeping's shortcuts: the pair loop reads a sleeper's row only when it holds an awake
+  // partner, and the integration skips the tool test for a block of 64 sleepers beyond every
+  // tool's neighbourhood. Settled (always on in the apps); kept as switches only for the tests
+  // that prove each shortcut changes no bit (dem_Sleep.SkippingTheRowsOfSleepersChangesNoBit,
+  // dem_Sleep.SkippingBlocksOfSleepersFarFromToolsChangesNoBit), which need the long way to
+  // compare against.
+  bool sleeper_row_skip = true;
+  bool sleeper_blocks = true;
+
+  // The apps' spelling, from the environment: DEM_PAIR_KERNEL (vector | scalar) and
+  // DEM_PAIR_CHUNKS (branch-free | branching); unset: the defaults. Throws std::invalid_argument
+  // naming the variable and its values for anything else.
+  static EngineOptions from_environment();
+};
+
+}  // namespace dem

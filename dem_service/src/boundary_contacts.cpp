@@ -1,0 +1,275 @@
+#include "dem/boundary_contacts.hpp"
+
+#include <omp.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <sstream>
+
+#include "cosim/stopwatch.hpp"
+#include "dem/contact_law.hpp"
+#include "dem/pair_blocks.hpp"
+
+namespace dem {
+namespace {
+
+// One wall or mesh contact of a particle, before forces.
+struct Contact {
+  std::uint64_t key;
+  Vec3 point;   // contact point on the body
+  Vec3 normal;  // from the body towards the particle centre
+  double overlap;
+  Vec3 body_velocity;  // body velocity at the contact point
+};
+
+constexpr int kMaxHits = 256;  // triangles touching one sphere at once, per tool
+constexpr std::size_t kBoundaryChunks = 64;  // chunks of slot blocks (see the header)
+
+// Wall and mesh contacts of particle i after feature selection. Returns the count, or -1 if
+// more than kBoundarySlots contacts (or kMaxHits triangle hits) exist.
+// dt > 0 widens the test by the distance the contact window can reach (see contact_force);
+// dt = 0 gives the geometric contacts.
+int gather(const Scene& scene, const State& s, std::size_t i,
+           const std::vector<std::vector<Vec3>>& tool_vertices, Contact* out, TriangleHit* hits,
+           double dt) {
+  const Vec3 xi = s.x[i];
+  const double r = s.radius[i];
+  const double speed = norm(s.u[i]);
+  int nc = 0;
+  const std::uint32_t mask = s.wall_mask[i];
+  for (std::size_t w = 0; w < scene.walls.size(); ++w) {
+    if (w < 32 && !(mask & (1u << w))) continue;
+    const Wall& wall = scene.walls[w];
+    const double gap = dot(xi - wall.point, wall.normal);
+    if (gap < r + 0.5 * dt * speed) {
+      if (nc == kBoundarySlots) return -1;
+      out[nc++] = {contact_key(FeatureKind::wall, static_cast<std::uint32_t>(w), 0),
+                   xi - gap * wall.normal, wall.normal, r - gap, Vec3{}};
+    }
+  }
+  const std::int32_t k0 = s.tri_offset[i], k1 = s.tri_offset[i + 1];
+  for (std::int32_t k = k0; k < k1;) {
+    const std::int32_t m = s.tri_tool[k];
+    const Mesh& mesh = scene.tools[m].mesh;
+    const Vec3* wv = tool_vertices[m].data();
+    const ToolPose& tp = s.tool_pose[m];
+    const double reach = r + 0.5 * dt * (speed + norm(tp.velocity) +
+                                         norm(tp.angular_velocity) * mesh.bounding_radius);
+    int nh = 0;
+    for (; k < k1 && s.tri_tool[k] == m; ++k) {
+      const TriangleHit h = closest_on_triangle(mesh, wv, s.tri_index[k], xi);
+      if (h.dist2 < reach * reach) {
+        if (nh == kMaxHits) return -1;
+        hits[nh++] = h;
+      }
+    }
+    nh = select_mesh_contacts(mesh, hits, nh);
+    const ToolPose& pose = s.tool_pose[m];
+    for (int h = 0; h < nh; ++h) {
+      if (nc == kBoundarySlots) return -1;
+      const double d = std::sqrt(hits[h].dist2);
+      Vec3 n;
+      if (d > 1e-12 * r) {
+        n = (1.0 / d) * (xi - hits[h].point);
+      } else {  // centre on the surface: fall back to the face normal
+        const auto& T = mesh.triangles[hits[h].triangle];
+        const Vec3 fn = cross(wv[T[1]] - wv[T[0]], wv[T[2]] - wv[T[0]]);
+        n = (1.0 / norm(fn)) * fn;
+      }
+      const Vec3 arm = hits[h].point - pose.position;
+      out[nc++] = {contact_key(hits[h].kind, static_cast<std::uint32_t>(m),
+                               static_cast<std::uint32_t>(hits[h].feature)),
+                   hits[h].point, n, r - d, pose.velocity + cross(pose.angular_velocity, arm)};
+    }
+  }
+  return nc;
+}
+
+bool shares_vertex(const Scene& scene, std::uint64_t a, std::uint64_t b) {
+  if (key_kind(a) == FeatureKind::wall || key_kind(b) == FeatureKind::wall) return false;
+  if (key_body(a) != key_body(b)) return false;
+  const Mesh& mesh = scene.tools[key_body(a)].mesh;
+  std::int32_t va[3], vb[3];
+  const int na = feature_vertices(mesh, key_kind(a), key_feature(a), va);
+  const int nb = feature_vertices(mesh, key_kind(b), key_feature(b), vb);
+  for (int p = 0; p < na; ++p)
+    for (int q = 0; q < nb; ++q)
+      if (va[p] == vb[q]) return true;
+  return false;
+}
+
+// The springs of particle i's nc new contacts from its nold old ones (slot block at `base`): the
+// same feature keeps its spring; a sphere sliding from a face onto an edge or vertex (or on to
+// the next face) keeps its tangential spring: the new feature inherits from an adjacent one that
+// just ended.
+void carry_springs(const Scene& scene, const State& s, std::size_t base, const Contact* cs,
+                   int nc, int nold, Vec3* spring) {
+  std::uint64_t old_key[kBoundarySlots];
+  Vec3 old_spring[kBoundarySlots];
+  bool used[kBoundarySlots] = {}, matched[kBoundarySlots] = {};
+  // The whole block, a fixed size: a copy of nold entries became a rep movs, slow to start.
+  std::memcpy(old_key, &s.slot_key[base], sizeof old_key);
+  std::memcpy(old_spring, &s.slot_spring[base], sizeof old_spring);
+  for (int c = 0; c < nc; ++c)
+    for (int o = 0; o < nold; ++o)
+      if (!used[o] && old_key[o] == cs[c].key) {
+        spring[c] = old_spring[o];
+        used[o] = matched[c] = true;
+        break;
+      }
+  for (int c = 0; c < nc; ++c) {
+    if (matched[c]) continue;
+    spring[c] = Vec3{};
+    for (int o = 0; o < nold; ++o)
+      if (!used[o] && shares_vertex(scene, old_key[o], cs[c].key)) {
+        spring[c] = old_spring[o];
+        used[o] = true;
+        break;
+      }
+  }
+}
+
+}  // namespace
+
+BoundaryContacts::BoundaryContacts(const Scene& scene, int max_threads) : scene_(scene) {
+  thread_stats_.assign(static_cast<std::size_t>(max_threads), ContactStats{});
+  tool_wrench_.resize(scene.tools.size());
+  wall_force_.resize(scene.walls.size());
+}
+
+void BoundaryContacts::forces(State& s, const ToolGeometry& tools, Vec3* force, int T,
+                              double* busy) {
+  const ContactLaw& law = scene_.particle_wall;
+  const double dt = scene_.dt;
+  const std::size_t ntools = scene_.tools.size(), nwalls = scene_.walls.size();
+  std::fill(thread_stats_.begin(), thread_stats_.end(), ContactStats{});
+  if (ntools == 0 && nwalls == 0) return;
+  std::int64_t overflow = -1;
+  // Only particles with a slot block can touch a wall or a tool; they are cut into chunks.
+  const std::size_t nb = s.slot_particle.size();
+  const std::size_t C = std::max<std::size_t>(1, std::min(kBoundaryChunks, nb));
+  chunk_tool_wrench_.assign(C * ntools, Wrench{});
+  chunk_wall_force_.assign(C * nwalls, Vec3{});
+  if (chunk_claim_.size() < C) chunk_claim_.resize(C, 0);
+  const std::int64_t pass = ++chunk_pass_;
+#pragma omp parallel num_threads(T)
+  {
+    const int t = omp_get_thread_num();
+    const cosim::Stopwatch watch;
+    Contact cs[kBoundarySlots];
+    TriangleHit hits[kMaxHits];
+    std::int64_t my_overflow = -1;
+    ContactStats my_stats;
+    const bool sleep_on = scene_.sleep.enabled;
+    const std::int32_t S = scene_.sleep.steps;
+    // Each thread walks the chunks as it walks the pair blocks (on two threads one up from the
+    // first, one down from the last) and runs those it claims first: a thread keeps its part of
+    // the particles from step to step.
+    std::int64_t* const CLAIM = chunk_claim_.data();
+    for (const std::int32_t walked : detail::pair_block_walk(static_cast<std::int32_t>(C), t, T)) {
+      const std::size_t chunk = static_cast<std::size_t>(walked);
+      if (!claim_first(CLAIM, chunk, pass)) continue;
+      Wrench* const tw = chunk_tool_wrench_.data() + chunk * ntools;
+      Vec3* const wf = chunk_wall_force_.data() + chunk * nwalls;
+      const std::size_t k0 = nb * chunk / C, k1 = nb * (chunk + 1) / C;
+      for (std::size_t k = k0; k < k1; ++k) {
+        const std::size_t i = static_cast<std::size_t>(s.slot_particle[k]);
+        // A sleeper has no wall or mesh forces; its boundary history stays as it was.
+        if (sleep_on && s.rest_steps[i] >= S) continue;
+        // Nothing near and nothing remembered.
+        if (s.wall_mask[i] == 0 && s.tri_offset[i] == s.tri_offset[i + 1] && s.slot_count[i] == 0)
+          continue;
+        const int nc = gather(scene_, s, i, tools.vertices, cs, hits, dt);
+        if (nc < 0) {
+          if (my_overflow < 0) my_overflow = static_cast<std::int64_t>(i);
+          continue;
+        }
+        const int nold = s.slot_count[i];
+        if (nc == 0 && nold == 0) continue;
+        const std::size_t base = k * kBoundarySlots;  // this particle's block
+        Vec3 spring[kBoundarySlots];
+        carry_springs(scene_, s, base, cs, nc, nold, spring);
+        const double ri = s.radius[i], mi = s.mass[i];
+        const ContactCoefficients coef = coefficients(law, ri, mi);
+        Vec3 fi{};
+        int active = 0;
+        for (int c = 0; c < nc; ++c) {
+          Vec3 f;
+          if (!contact_force(law, coef, cs[c].overlap, cs[c].normal, s.u[i] - cs[c].body_velocity,
+                             spring[c], dt, f))
+            continue;
+          ++my_stats.boundary_contacts;
+          my_stats.max_overlap = std::max(my_stats.max_overlap, cs[c].overlap);
+          my_stats.max_overlap_ratio = std::max(my_stats.max_overlap_ratio, cs[c].overlap / ri);
+          fi += f;
+          const std::uint32_t body = key_body(cs[c].key);
+          if (key_kind(cs[c].key) == FeatureKind::wall) {
+            wf[body] -= f;
+          } else {
+            tw[body].force -= f;
+            tw[body].torque -= cross(cs[c].point - s.tool_pose[body].position, f);
+          }
+          s.slot_key[base + active] = cs[c].key;
+          s.slot_spring[base + active] = spring[c];
+          ++active;
+        }
+        s.slot_count[i] = static_cast<std::uint8_t>(active);
+        force[i] += fi;
+      }
+    }
+    thread_stats_[t] = my_stats;
+    busy[t] += watch.seconds();
+#pragma omp critical(dem_overflow)
+    if (my_overflow >= 0 && (overflow < 0 || my_overflow < overflow)) overflow = my_overflow;
+  }
+  if (overflow >= 0) {
+    const std::size_t i = static_cast<std::size_t>(overflow);
+    std::ostringstream msg;
+    msg << "step " << s.step << " (t = " << s.step * scene_.dt << " s): particle id " << s.id[i]
+        << " at (" << s.x[i].x << ", " << s.x[i].y << ", " << s.x[i].z << ") touches more than "
+        << kBoundarySlots << " walls and mesh features at once; the tool mesh is probably finer "
+        << "than the particles (coarsen it) or the particle was pushed through it (lower dt)";
+    throw SimulationError(msg.str());
+  }
+  sum_chunks(C);
+}
+
+// The chunks' sums in chunk order.
+void BoundaryContacts::sum_chunks(std::size_t C) {
+  const std::size_t ntools = scene_.tools.size(), nwalls = scene_.walls.size();
+  for (std::size_t m = 0; m < ntools; ++m) {
+    Wrench w{};
+    for (std::size_t c = 0; c < C; ++c) {
+      w.force += chunk_tool_wrench_[c * ntools + m].force;
+      w.torque += chunk_tool_wrench_[c * ntools + m].torque;
+    }
+    tool_wrench_[m] = w;
+  }
+  for (std::size_t w = 0; w < nwalls; ++w) {
+    Vec3 f{};
+    for (std::size_t c = 0; c < C; ++c) f += chunk_wall_force_[c * nwalls + w];
+    wall_force_[w] = f;
+  }
+}
+
+std::vector<BoundaryContacts::MeshContact> BoundaryContacts::mesh_contacts(
+    const State& s, const ToolGeometry& tools) const {
+  std::vector<MeshContact> out;
+  Contact cs[kBoundarySlots];
+  std::vector<TriangleHit> hits(kMaxHits);
+  for (std::size_t i = 0; i + 1 < s.tri_offset.size(); ++i) {
+    const int nc = gather(scene_, s, i, tools.vertices, cs, hits.data(), 0.0);
+    for (int c = 0; c < nc; ++c)
+      if (key_kind(cs[c].key) != FeatureKind::wall)
+        out.push_back({s.id[i], static_cast<int>(key_body(cs[c].key)), cs[c].key, cs[c].point});
+  }
+  return out;
+}
+
+std::size_t BoundaryContacts::bytes() const {
+  return chunk_claim_.capacity() * sizeof(std::int64_t) +
+         chunk_tool_wrench_.capacity() * sizeof(Wrench) + chunk_wall_force_.capacity() * sizeof(Vec3);
+}
+
+}  // namespace dem

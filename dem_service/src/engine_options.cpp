@@ -1,0 +1,34 @@
+#include "dem/engine_options.hpp"
+
+#include <cstdlib>
+#include <cstring>
+#include <stdexcept>
+#include <string>
+
+namespace dem {
+
+EngineOptions EngineOptions::from_environment() {
+  EngineOptions o;
+  if (const char* v = std::getenv("DEM_PAIR_KERNEL")) {
+    if (std::strcmp(v, "vector") == 0)
+      o.pair_kernel = PairKernel::vector;
+    else if (std::strcmp(v, "scalar") == 0)
+      o.pair_kernel = PairKernel::scalar;
+    else
+      throw std::invalid_argument(std::string("environment DEM_PAIR_KERNEL=") + v +
+                                  ": use vector (the default) or scalar, or unset it");
+  }
+  if (const char* v = std::getenv("DEM_PAIR_CHUNKS")) {
+    if (std::strcmp(v, "branch-free") == 0)
+      o.pair_chunks = PairChunks::branch_free;
+    else if (std::strcmp(v, "branching") == 0)
+      o.pair_chunks = PairChunks::branching;
+    else
+      throw std::invalid_argument(std::string("environment DEM_PAIR_CHUNKS=") + v +
+                                  ": use branch-free or branching, or unset it (the processor "
+                                  "picks)");
+  }
+  return o;
+}
+
+}  // namespace dem
