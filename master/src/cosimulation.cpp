@@ -184,6 +184,40 @@ void CoSimulation::open_step(int64_t step, TimePoint t0, TimePoint t1) {
   open_->rec.t_start = t0;
   open_->rec.t_end = t1;
   open_->sent.resize(config_.connections.size());
+  open_->end.resize(config_.connections.size());
+}
+
+cosim::Value CoSimulation::end_value(std::size_t i) const {
+  if (!open_) throw std::logic_error("end_value outside a macro step");
+  if (open_->end.at(i)) return *open_->end[i];
+  const auto p = predictors_.at(i).predict(open_->rec.t_start, open_->rec.t_end);
+  return config_.connections[i].use == Use::Average ? p.mean() : p.evaluate(1.0);
+}
+
+void CoSimulation::set_end_value(std::size_t i, const cosim::Value& value) {
+  if (!open_) throw std::logic_error("set_end_value outside a macro step");
+  const auto& k = config_.connections.at(i);
+  cosim::Value v = value;
+  const auto kind = setup_.participants.at(k.from.participant).initial_outputs.at(k.from.signal).kind;
+  if (kind == SignalKind::Kinematics) {  // a mix of unit quaternions: back onto the unit sphere
+    auto q = Kinematics::from_value(v);
+    double n = 0;
+    for (double e : q.orientation) n += e * e;
+    n = std::sqrt(n);
+    if (n > 0)
+      for (double& e : q.orientation) e /= n;
+    v = q.to_value();
+  }
+  if (k.use == Use::Average)
+    predictors_[i].record_mean(open_->rec.t_start, open_->rec.t_end, v);
+  else
+    predictors_[i].record(open_->rec.t_end, v);
+  open_->end[i] = std::move(v);
+}
+
+void CoSimulation::set_residuals(std::vector<double> residuals) {
+  if (!open_) throw std::logic_error("set_residuals outside a macro step");
+  open_->rec.coupling_residuals = std::move(residuals);
 }
 
 void CoSimulation::exchange(const std::vector<std::string>& group, int iteration, bool checkpoint) {
@@ -208,10 +242,13 @@ void CoSimulation::exchange(const std::vector<std::string>& group, int iteration
     for (std::size_t i = 0; i < config_.connections.size(); ++i) {
       const auto& k = config_.connections[i];
       if (k.from.participant != name) continue;
-      if (k.use == Use::Average)  // the mean over this step: interpolation from now on
+      if (k.use == Use::Average) {  // the mean over this step: interpolation from now on
         predictors_[i].record_mean(t0, t1, answers[g].average->at(k.from.signal).value);
-      else
+        s.end[i] = answers[g].average->at(k.from.signal).value;
+      } else {
         predictors_[i].record(t1, answers[g].outputs.at(k.from.signal).value);
+        s.end[i] = answers[g].outputs.at(k.from.signal).value;
+      }
     }
   }
 }

@@ -42,6 +42,8 @@ struct StepRecord {
   int64_t step_index = 0;
   TimePoint t_start{}, t_end{};
   int iterations = 1;
+  // Implicit coupling: per coupling.convergence entry, |r| of the step's last iteration (else empty).
+  std::vector<double> coupling_residuals;
   std::map<std::string, cosim::Signals> outputs;
   std::map<std::string, std::vector<std::pair<std::string, double>>> diagnostics;
   std::vector<ConnectionRecord> connections;  // in config order
@@ -117,6 +119,9 @@ class CoSimulation final : private Coupling {
     StepRecord rec;
     std::vector<cosim::InputPolynomial> sent;       // per connection, the last one sent
     std::map<std::string, cosim::Signals> averages;  // participants asked for interval averages
+    // Per connection, the value in place at the step's end once an exchange or the algorithm
+    // has set one (else the prediction stands).
+    std::vector<std::optional<cosim::Value>> end;
   };
 
   // Coupling
@@ -124,6 +129,9 @@ class CoSimulation final : private Coupling {
   void exchange(const std::vector<std::string>& group, int iteration, bool checkpoint) override;
   void close_step(int iterations, bool checkpoint) override;
   bool checkpoint_due(int64_t step) const override;
+  cosim::Value end_value(std::size_t connection) const override;
+  void set_end_value(std::size_t connection, const cosim::Value& value) override;
+  void set_residuals(std::vector<double> residuals) override;
 
   std::vector<cosim::step_request_t> requests(const std::vector<std::string>& group, int64_t step,
                                        int iteration, TimePoint t0, TimePoint t1, bool checkpoint);

@@ -37,6 +37,16 @@ class Coupling {
   virtual void close_step(int iterations, bool checkpoint) = 0;
   // Whether the participants save a checkpoint after step `step` (checkpoints.every).
   virtual bool checkpoint_due(int64_t step) const = 0;
+
+  // Implicit coupling. Per connection (config order), the value at the open step's end that is
+  // in place for it now: the source's answer of the latest exchange that stepped it, one set by
+  // set_end_value, or else the prediction (use: end: the polynomial at the end; use: average:
+  // its mean). The fallbacks raise: an algorithm that needs these runs on a CoSimulation.
+  virtual cosim::Value end_value(std::size_t connection) const;
+  // Replaces the value in place at the step's end (the next exchange interpolates to it).
+  virtual void set_end_value(std::size_t connection, const cosim::Value& value);
+  // The open step's convergence residuals (one per coupling.convergence entry), for its record.
+  virtual void set_residuals(std::vector<double> residuals);
 };
 
 // What the handshake told the master, for CouplingAlgorithm::initialize.
@@ -84,7 +94,43 @@ class FixedStepAlgorithm final : public CouplingAlgorithm {
   bool can_iterate_ = false;  // every participant can repeat a step
 };
 
-// The algorithm a config asks for (today: FixedStepAlgorithm for either scheme), not set up yet.
+// Implicit coupling (coupling.type: implicit): every macro step iterated, in the Jacobi or
+// Gauss-Seidel order, until each coupling.convergence measure is met (at least min_iterations,
+// at most max_iterations), every participant repeating the step from its start in each
+// iteration after the first. Between iterations the fed-back connections' end values (Jacobi:
+// every connection; Gauss-Seidel: those into a participant that steps no later than their
+// source) are set by the acceleration. The first steps (predictor history too short) take at
+// least 1 + startup_iterations iterations, as the explicit scheme's start-up does.
+class ImplicitAlgorithm final : public CouplingAlgorithm {
+ public:
+  ImplicitAlgorithm();
+  ~ImplicitAlgorithm() override;
+  std::string name() const override;
+  void setup(const Config& config) override;
+  void initialize(const AlgorithmSetup& setup) override;
+  Duration do_step(Coupling& coupling, int64_t step, TimePoint t) override;
+
+  const std::vector<std::size_t>& fed_back() const { return fed_back_; }
+  int64_t steps() const { return steps_; }
+  int64_t total_iterations() const { return total_iterations_; }
+  int64_t unconverged_steps() const { return unconverged_; }
+
+ private:
+  Scheme scheme_ = Scheme::Jacobi;
+  Duration macro_step_{};
+  int startup_iterations_ = 0;
+  CouplingSpec spec_;
+  std::vector<std::string> connection_names_;  // `to` of each connection
+  std::vector<std::vector<std::string>> groups_;
+  std::vector<std::size_t> fed_back_;  // connections the acceleration sets
+  std::vector<double> scale_;          // per fed-back connection: the largest rms value seen
+  std::unique_ptr<class Acceleration> acceleration_;
+  int max_order_ = 0;
+  int64_t steps_ = 0, total_iterations_ = 0, unconverged_ = 0;
+};
+
+// The algorithm a config asks for (FixedStepAlgorithm, or ImplicitAlgorithm for coupling.type:
+// implicit), not set up yet.
 std::unique_ptr<CouplingAlgorithm> make_algorithm(const Config& config);
 
 }  // namespace master
