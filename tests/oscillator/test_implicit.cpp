@@ -278,3 +278,31 @@ TEST(Implicit, ConvergenceMeasuresStopWhereTheirDefinitionsSay) {
   EXPECT_LT(both.mean_iterations(), tight.mean_iterations());
   EXPECT_GE(rr.mean_iterations(), 2.0);  // the first iteration's ratio is 1 by definition
 }
+
+// cosim_master and the participants as processes over LCM: every iteration after the first
+// rolls the participants back over the bus; the record holds the iterations per step and the
+// residual of each convergence measure (docs/output.md#implicit-coupling), and equals the
+// in-process run bit for bit.
+TEST(Implicit, OverLcmTheRecordHoldsIterationsAndResiduals) {
+  const auto o = join(implicit("gauss_seidel", kIqn, "[{connection: mass1.force, measure: relative, limit: 1.0e-8}]", 0),
+                      {"time.end=0.5", "time.macro_step=0.01", "participants.mass1.parameters.inner_step=1.0e-4",
+                       "participants.mass2.parameters.inner_step=1.0e-4"});
+  const std::string h5 = harness::temp_path(".h5");
+  ASSERT_EQ(harness::run_master(o, h5, 300), 0) << harness::read_text(h5 + ".log");
+  const auto iterations = harness::read_dataset(h5, "timing/iterations");
+  const auto residual = harness::read_dataset(h5, "coupling/residual");
+  const auto force = harness::read_dataset(h5, "participants/mass2/outputs/force");
+  ASSERT_EQ(iterations.size(), 51u);
+  ASSERT_EQ(residual.size(), 51u);
+  EXPECT_TRUE(std::isnan(residual[0]));  // row 0: t_start
+  auto in_process = o;
+  in_process.insert(in_process.end(), {"output.file=", "output.csv="});
+  const auto r = run(harness::oscillator_config(in_process));
+  for (std::size_t i = 1; i < iterations.size(); ++i) {
+    EXPECT_GE(iterations[i], 2) << i;
+    EXPECT_EQ(iterations[i], r.iterations[i - 1]) << i;
+    EXPECT_LE(residual[i], 1e-8 * std::abs(force[i])) << i;
+    EXPECT_EQ(residual[i], r.residuals[i - 1][0]) << i;
+    EXPECT_EQ(force[i], r.s.force[i]) << i;
+  }
+}
