@@ -15,10 +15,10 @@ build=build-fuzz
 if [ ! -f "$build/CMakeCache.txt" ]; then
   CC=clang CXX=clang++ cmake -S . -B "$build" -DCOSIM_FUZZ=ON -DCMAKE_BUILD_TYPE=Debug >/dev/null
 fi
-cmake --build "$build" -j"$(nproc)" --target fuzz_messages fuzz_config fuzz_stl fuzz_seeds
+cmake --build "$build" -j"$(nproc)" --target fuzz_messages fuzz_datagrams fuzz_config fuzz_stl fuzz_seeds
 mkdir -p "$build/corpus"
-for t in messages config stl; do mkdir -p "$build/corpus/$t"; done
-"$build/bin/fuzz_seeds" "$build/corpus/messages"
+for t in messages datagrams config stl; do mkdir -p "$build/corpus/$t"; done
+"$build/bin/fuzz_seeds" "$build/corpus/messages" "$build/corpus/datagrams"
 # Seeds: the committed corpus (hand-written seeds and every crash found so far, as regression
 # cases) and, for the config reader, the project's own configs with the selector byte in front.
 for f in configs/oscillator.yaml configs/wheel_loader.yaml configs/hauler.yaml; do
@@ -30,7 +30,7 @@ done
 export ASAN_OPTIONS=detect_leaks=0:abort_on_error=1
 export UBSAN_OPTIONS=print_stacktrace=1
 status=0
-for t in messages config stl; do
+for t in messages datagrams config stl; do
   args=(-rss_limit_mb=2048 -malloc_limit_mb=512 -timeout=10 -max_len=65536 -seed=1
         -artifact_prefix="$build/crash-$t-")
   if [ "$mode" = long ]; then

@@ -17,10 +17,11 @@ run() {  # $1: output file, then the environment changes for `env`
   shift
   env "$@" ./build/bin/cosim_master configs/oscillator.yaml --output "$file" \
     --set time.end=5 --set time.macro_step=5e-4 --set output.csv= --set output.progress=off \
-    --set "bus.url=udpm://239.255.76.67:7691?ttl=0" 2> "$file.log" || { cat "$file.log"; exit 1; }
+    --set "bus.url=udpm://239.255.76.67:7691?ttl=0" --set "bus.authenticate=${authenticate:-true}" \
+    2> "$file.log" || { cat "$file.log"; exit 1; }
 }
 for i in $(seq "$runs"); do
-  run "$out/plain_$i.h5" -u COSIM_KEY -u COSIM_KEY_FILE
+  authenticate=false run "$out/plain_$i.h5" -u COSIM_KEY -u COSIM_KEY_FILE
   run "$out/keyed_$i.h5" -u COSIM_KEY_FILE COSIM_KEY="$key"
 done
 /usr/bin/python3 - "$out" "$runs" <<'PY'

@@ -1,9 +1,12 @@
 #!/usr/bin/env bash
 # Loss recovery across hosts: the oscillator (configs/oscillator.yaml, 2000 macro steps, both
 # halves started by hand) across the three namespaces of tests/netns/rig.sh, through
-# netns_relay with the same impairment on every link. Prints the wall time, its ratio to the
-# lossless run with the same 1 ms delay (and to the run without any impairment), and the
-# resends. Root only.
+# netns_relay with the same impairment on every link: none (the clean run, the anchor), 5 % and
+# 20 % loss, each with 1 % duplication and 5 % reordering. Each row twice: with the protocol's
+# redundancy (every request and fresh reply sent twice, the default) and without it
+# (COSIM_BUS_COPIES=1 for every process). Prints the wall time, its ratio to the clean run with
+# redundancy, the resends, and the frames the relay received from the hosts (the redundancy's
+# cost on a clean run). Root only; not in CI.
 # Usage: sudo bash bench/bus/netns_loss.sh [REPEATS]   (env SEED: the relay's seed, default 1)
 set -euo pipefail
 cd "$(dirname "$0")/../.."
@@ -18,38 +21,42 @@ out=$(mktemp -d)
 trap 'bash tests/netns/rig.sh down $p; rm -rf "$out"' EXIT
 bash tests/netns/rig.sh up $p
 
-# run TAG SPEC: one co-simulation; prints "wall resends"
+# run TAG COPIES SPEC: one co-simulation; prints "wall resends frames"
 run() {
-  local tag=$1 spec=$2
+  local tag=$1 copies=$2 spec=$3
   ip netns exec ${p}sw "$bin/netns_relay" --seed "${SEED:-1}" ${p}a1:$spec ${p}b1:$spec ${p}c1:$spec 2>"$out/$tag.relay" &
   local relay=$!
   sleep 0.3
-  ip netns exec ${p}b "$bin/oscillator_participant" --side mass1 --bus "$url" --wait 60 2>"$out/$tag.m1" &
+  COSIM_BUS_COPIES=$copies ip netns exec ${p}b "$bin/oscillator_participant" --side mass1 --bus "$url" --wait 60 2>"$out/$tag.m1" &
   local m1=$!
-  ip netns exec ${p}c "$bin/oscillator_participant" --side mass2 --bus "$url" --wait 60 2>"$out/$tag.m2" &
+  COSIM_BUS_COPIES=$copies ip netns exec ${p}c "$bin/oscillator_participant" --side mass2 --bus "$url" --wait 60 2>"$out/$tag.m2" &
   local m2=$!
   local start end
   start=$(date +%s.%N)
-  ip netns exec ${p}a "$bin/cosim_master" configs/oscillator.yaml --output "$out/$tag.h5" --set "bus.url=$url" \
-    --set participants.mass1.launch=null --set participants.mass2.launch=null --set bus.authenticate=false --set output.csv= \
-    --set output.progress=off 2>"$out/$tag.log" || { echo "run $tag failed:" >&2; tail -3 "$out/$tag.log" >&2; }
+  COSIM_BUS_COPIES=$copies ip netns exec ${p}a "$bin/cosim_master" configs/oscillator.yaml --output "$out/$tag.h5" \
+    --set "bus.url=$url" --set participants.mass1.launch=null --set participants.mass2.launch=null \
+    --set bus.authenticate=false --set output.csv= --set output.progress=off 2>"$out/$tag.log" \
+    || { echo "run $tag failed:" >&2; tail -3 "$out/$tag.log" >&2; }
   end=$(date +%s.%N)
   wait $m1 $m2 || true
   kill $relay; wait $relay || true
-  local resent
+  local resent frames
   resent=$(sed -n 's/^cosim_master: \([0-9]*\) request(s) resent.*/\1/p' "$out/$tag.log")
-  echo "$(echo "$end - $start" | bc) ${resent:-?}"
+  frames=$(sed -n 's/.*: received \([0-9]*\),.*/\1/p' "$out/$tag.relay" | paste -sd+ | bc)
+  echo "$(echo "$end - $start" | bc) ${resent:-?} ${frames:-?}"
 }
 
-printf "%-44s %8s %8s %8s %8s\n" "impairment on every link" "wall s" "/delay" "/none" "resends"
+printf "%-36s %-12s %8s %8s %8s %8s\n" "impairment on every link" "redundancy" "wall s" "/clean" "resends" "frames"
 for r in $(seq "$repeats"); do
-  read -r none _ < <(run none "loss=0")
-  read -r base _ < <(run base "delay=0.001")
-  printf "%-44s %8.2f %8.2f %8.2f %8s\n" "none" "$none" "$(echo "$none / $base" | bc -l)" 1 0
-  printf "%-44s %8.2f %8.2f %8.2f %8s\n" "1 ms delay" "$base" 1 "$(echo "$base / $none" | bc -l)" 0
+  read -r clean resent frames < <(run clean2 2 "loss=0")
+  printf "%-36s %-12s %8.2f %8.2f %8s %8s\n" "none (clean)" "2 copies" "$clean" 1 "$resent" "$frames"
+  read -r wall resent frames < <(run clean1 1 "loss=0")
+  printf "%-36s %-12s %8.2f %8.2f %8s %8s\n" "none (clean)" "off" "$wall" "$(echo "$wall / $clean" | bc -l)" "$resent" "$frames"
   for loss in 0.05 0.20; do
-    read -r wall resent < <(run "l$loss" "loss=$loss,dup=0.01,reorder=0.05,delay=0.001")
-    printf "%-44s %8.2f %8.2f %8.2f %8s\n" "$loss loss, 0.01 dup, 0.05 reorder, 1 ms delay" "$wall" \
-      "$(echo "$wall / $base" | bc -l)" "$(echo "$wall / $none" | bc -l)" "$resent"
+    for copies in 2 1; do
+      read -r wall resent frames < <(run "l$loss-$copies" $copies "loss=$loss,dup=0.01,reorder=0.05")
+      printf "%-36s %-12s %8.2f %8.2f %8s %8s\n" "$loss loss, 0.01 dup, 0.05 reorder" \
+        "$([ $copies = 2 ] && echo "2 copies" || echo off)" "$wall" "$(echo "$wall / $clean" | bc -l)" "$resent" "$frames"
+    done
   done
 done

@@ -2,6 +2,11 @@
 
 #include <cosim/bus.hpp>
 #include <cosim/configure_t.hpp>
+#include <cosim/heartbeat_t.hpp>
+#include <cosim/ready_t.hpp>
+#include <cosim/step_reply_t.hpp>
+#include <cosim/step_request_t.hpp>
+#include <cosim/terminate_t.hpp>
 #include <cosim/sealed_bus.hpp>
 #include <sodium.h>
 #include <sys/time.h>
@@ -22,7 +27,8 @@ namespace {
 constexpr std::uint32_t kSync = 0xEDA1DA01u;
 constexpr std::size_t kHeaderBytes = 28;
 constexpr int32_t kMaxChannel = 63;                 // LCM's limit on channel names
-constexpr int32_t kMaxData = 256 * 1024 * 1024;     // far above any message of this protocol
+constexpr int64_t kMaxData = static_cast<int64_t>(cosim::kMaxMessageBytes);  // the bus's own bound
+constexpr int kDroppedLines = 3;                     // logged; the rest are counted
 constexpr const char* kMagicLine = "cosim bus log 1";
 
 std::uint32_t be32(const unsigned char* p) {
@@ -54,7 +60,11 @@ int64_t read_lcm_log(const std::string& path, const std::function<void(LogEvent&
     std::FILE* f;
     ~Closer() { std::fclose(f); }
   } closer{f};
-  std::fseek(f, 0, SEEK_END);
+  return read_lcm_log(f, path, fn);
+}
+
+int64_t read_lcm_log(std::FILE* f, const std::string& path, const std::function<void(LogEvent&)>& fn) {
+  if (std::fseek(f, 0, SEEK_END) != 0) throw LogError("cannot read the log '" + path + "': it cannot be sought");
   const long size_l = std::ftell(f);
   std::fseek(f, 0, SEEK_SET);
   const uint64_t size = size_l < 0 ? 0 : static_cast<uint64_t>(size_l);
@@ -89,11 +99,12 @@ int64_t read_lcm_log(const std::string& path, const std::function<void(LogEvent&
     e.number = static_cast<int64_t>(be64(h + 4));
     e.timestamp_us = static_cast<int64_t>(be64(h + 12));
     const auto channel_len = static_cast<int32_t>(be32(h + 20));
-    const auto data_len = static_cast<int32_t>(be32(h + 24));
+    const auto data_len = static_cast<int64_t>(static_cast<int32_t>(be32(h + 24)));
     if (channel_len <= 0 || channel_len > kMaxChannel || data_len < 0 || data_len > kMaxData)
       throw LogError("the log '" + path + "' is corrupt: " + where() + " has a channel length of " +
                      std::to_string(channel_len) + " and a data length of " + std::to_string(data_len) +
-                     " bytes (LCM channels have 1 to 63 characters); the file was changed or damaged");
+                     " bytes (LCM channels have 1 to 63 characters, messages at most " +
+                     std::to_string(kMaxData) + " bytes); the file was changed or damaged");
     const uint64_t end = offset + kHeaderBytes + static_cast<uint64_t>(channel_len) + static_cast<uint64_t>(data_len);
     if (end > size)
       throw LogError("the log '" + path + "' is truncated: " + where() + " needs " +
@@ -173,15 +184,28 @@ std::string LogDigest::hex() const {
 
 // ---------------------------------------------------------------------------------------------
 
+namespace {
+// The recorder listens and cannot ask again: a datagram its socket buffer has no room for (its
+// receive thread starved on a loaded host, a burst of redundant copies) is lost from the log. A
+// multicast URL without recv_buf_size gets 4 MiB (the kernel caps it at net.core.rmem_max).
+std::string recorder_url(const std::string& url) {
+  if (url.rfind("udpm://", 0) != 0 || url.find("recv_buf_size=") != std::string::npos) return url;
+  return url + (url.find('?') == std::string::npos ? "?" : "&") + "recv_buf_size=4194304";
+}
+}  // namespace
+
 BusRecorder::BusRecorder(const std::string& path, const std::string& url, int64_t session,
                          const std::optional<cosim::auth::Key>& key, const std::string& effective_config)
-    : path_(path), session_(session), lcm_(url) {
+    : path_(path), session_(session), lcm_(recorder_url(url)) {
   if (!lcm_.good()) throw std::runtime_error("--record: cannot open the bus '" + url + "'");
   file_ = std::make_unique<lcm::LogFile>(path, "w");
   if (!file_->good())
     throw std::runtime_error("--record: cannot create the log '" + path + "': " + std::strerror(errno) +
                              " (check that its folder exists and is writable)");
-  if (key) sealer_.emplace(*key, cosim::envelope_sender("recorder", session));
+  if (key) {
+    sealer_.emplace(*key, cosim::envelope_sender("recorder", session));
+    opener_.emplace(*key);
+  }
   // Everything of the session; the configures of participants started by hand travel on their
   // instance's channel (checked for this session in on_configure).
   lcm_.subscribe("COSIM_" + cosim::id_hex(session) + "_.*", &BusRecorder::on_message, this)
@@ -220,7 +244,8 @@ void BusRecorder::write(const std::string& channel, const void* data, std::size_
   digest_.add(channel, data, size);
   ++events_;
   if (utime - last_flush_us_ > 500000) {  // a crash loses at most half a second
-    std::fflush(file_->getFilePtr());
+    if (std::fflush(file_->getFilePtr()) != 0)
+      throw std::runtime_error("--record: cannot write to the log '" + path_ + "': " + std::strerror(errno));
     last_flush_us_ = utime;
   }
 }
@@ -235,12 +260,89 @@ void BusRecorder::write_record(const std::string& text) {
   }
 }
 
+// The transport edge of the recording: a buffer whose size cannot be real is counted and never
+// written (its bytes are made up; LCM 1.3.1 reports about 4 GB for a truncated datagram).
+bool BusRecorder::admit(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
+  if (!file_ || failed_) return false;
+  if (rbuf && cosim::wire_size_ok(rbuf->data, rbuf->data_size)) return true;
+  ++truncated_;
+  refuse(channel, "a truncated datagram (LCM reports " + std::to_string(rbuf ? rbuf->data_size : 0) +
+                      " bytes: it ended inside its header)", truncated_);
+  return false;
+}
+
+// A few lines per kind (truncated, refused); the rest are counted.
+void BusRecorder::refuse(const std::string& channel, const std::string& why, int64_t nth) {
+  if (nth > kDroppedLines) return;
+  const std::string line = "cosim_master: --record: dropped " + why + " on " + channel +
+                           "; not written to the log" +
+                           (nth == kDroppedLines ? " [further ones of this kind are counted, not logged]" : "") + "\n";
+  std::fputs(line.c_str(), stderr);  // one write: participants may share the master's log
+}
+
+namespace {
+template <class M>
+bool decodes(const std::uint8_t* data, std::size_t size) {
+  M m;
+  return m.decode(data, 0, static_cast<int>(size)) == static_cast<int>(size);
+}
+bool ends_with(const std::string& s, const char* tail) {
+  const std::size_t n = std::strlen(tail);
+  return s.size() >= n && s.compare(s.size() - n, n, tail) == 0;
+}
+}  // namespace
+
+// With a key: authentic, of the session, not seen before (what a replay checks of every
+// message). Without: decodes as the message its channel carries (what a replay decodes).
+bool BusRecorder::genuine(const std::string& channel, const std::uint8_t* data, std::size_t size,
+                          int64_t sealed_for) {
+  if (opener_) {
+    const auto o = opener_->open(channel, {sealed_for}, data, size);
+    if (o.verdict == cosim::auth::Verdict::ok) return true;
+    ++refused_;
+    ++refused_by_[cosim::auth::to_string(o.verdict)];
+    refuse(channel, std::string("a message that is ") + cosim::auth::to_string(o.verdict), refused_);
+    return false;
+  }
+  bool ok = false;
+  if (ends_with(channel, "_REQ")) ok = decodes<cosim::step_request_t>(data, size);
+  else if (ends_with(channel, "_REP")) ok = decodes<cosim::step_reply_t>(data, size);
+  else if (ends_with(channel, "_RDY")) ok = decodes<cosim::ready_t>(data, size);
+  else if (ends_with(channel, "_CFG")) ok = decodes<cosim::configure_t>(data, size);
+  else if (ends_with(channel, "_HB")) ok = decodes<cosim::heartbeat_t>(data, size);
+  else if (ends_with(channel, "_END")) ok = decodes<cosim::terminate_t>(data, size);
+  if (ok) return true;
+  ++refused_;
+  ++refused_by_["not decodable"];
+  refuse(channel, "a message that does not decode as this channel's", refused_);
+  return false;
+}
+
+void BusRecorder::write_received(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
+  try {
+    write(channel, rbuf->data, rbuf->data_size, rbuf->recv_utime);
+  } catch (const std::exception& e) {
+    failed_ = e.what();  // raised outside LCM's C code, by poll() or finish()
+  }
+}
+
+void BusRecorder::raise_pending() {
+  if (!failed_) return;
+  const std::string what = *failed_;
+  file_.reset();
+  finished_ = true;
+  throw std::runtime_error(what);
+}
+
 void BusRecorder::on_message(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
+  if (!admit(rbuf, channel)) return;
   if (channel == log_record_channel(session_)) return;  // a played-back recording: not this run's
-  write(channel, rbuf->data, rbuf->data_size, rbuf->recv_utime);
+  if (!genuine(channel, static_cast<const std::uint8_t*>(rbuf->data), rbuf->data_size, session_)) return;
+  write_received(rbuf, channel);
 }
 
 void BusRecorder::on_configure(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
+  if (!admit(rbuf, channel)) return;
   // Only the configures of this session (the payload says; sealed ones carry it in clear).
   const auto* bytes = static_cast<const std::uint8_t*>(rbuf->data);
   const std::uint8_t* payload = bytes;
@@ -254,21 +356,31 @@ void BusRecorder::on_configure(const lcm::ReceiveBuffer* rbuf, const std::string
   cosim::configure_t c;
   if (c.decode(payload, 0, static_cast<int>(size)) != static_cast<int>(size) || c.session_id != session_)
     return;
-  write(channel, rbuf->data, rbuf->data_size, rbuf->recv_utime);
+  // Sealed before a session exists (session 0), as the participant opens it.
+  if (!genuine(channel, static_cast<const std::uint8_t*>(rbuf->data), rbuf->data_size, 0)) return;
+  write_received(rbuf, channel);
+}
+
+std::string BusRecorder::dropped_text() const {
+  if (dropped() == 0) return "";
+  std::string s = std::to_string(truncated_) + " truncated";
+  for (const auto& [why, n] : refused_by_) s += ", " + std::to_string(n) + " " + why;
+  return s;
 }
 
 void BusRecorder::poll() {
   if (!file_) return;
-  while (lcm_.handleTimeout(0) > 0) {
+  while (lcm_.handleTimeout(0) > 0 && !failed_) {
   }
+  raise_pending();
 }
 
 void BusRecorder::finish(const std::string& status, double drain_s) {
   if (!file_ || finished_) return;
   finished_ = true;
   const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(drain_s);
-  while (std::chrono::steady_clock::now() < until) lcm_.handleTimeout(10);
-  poll();
+  while (std::chrono::steady_clock::now() < until && !failed_) lcm_.handleTimeout(10);
+  poll();  // raises a write that failed in a handler
   std::string one_line = status;
   for (auto& c : one_line)
     if (c == '\n') c = ' ';
@@ -276,9 +388,15 @@ void BusRecorder::finish(const std::string& status, double drain_s) {
   const std::string digest = digest_.hex();
   write_record(std::string(kMagicLine) + "\nrecord: end\nsession: " + cosim::id_hex(session_) +
                "\nstatus: " + one_line + "\nevents: " + std::to_string(before) + "\ndigest: " + digest +
+               "\ndropped: " + std::to_string(dropped()) +
                "\nended: " + utc_now() + "\n");
-  std::fflush(file_->getFilePtr());
+  std::FILE* fp = file_->getFilePtr();
+  const bool flushed = std::fflush(fp) == 0 && !std::ferror(fp);
+  const int err = errno;
   file_.reset();
+  if (!flushed)
+    throw std::runtime_error("--record: cannot write to the log '" + path_ + "': " + std::strerror(err) +
+                             "; the recording is incomplete");
 }
 
 }  // namespace master

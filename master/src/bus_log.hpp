@@ -13,7 +13,9 @@
 #include <lcm/lcm-cpp.hpp>
 
 #include <cstdint>
+#include <cstdio>
 #include <functional>
+#include <map>
 #include <memory>
 #include <optional>
 #include <stdexcept>
@@ -44,6 +46,8 @@ struct LogEvent {
 // inside an event raise LogError (truncated or corrupt, with the event and byte offset).
 // Returns the number of events.
 int64_t read_lcm_log(const std::string& path, const std::function<void(LogEvent&)>& fn);
+// The same from an open stream (`name` in the errors); the caller closes it.
+int64_t read_lcm_log(std::FILE* f, const std::string& name, const std::function<void(LogEvent&)>& fn);
 
 // The channel of the master's own records in its recordings.
 std::string log_record_channel(int64_t session);
@@ -88,10 +92,27 @@ class BusRecorder {
   const std::string& path() const { return path_; }
   int64_t events() const { return events_; }  // written so far, records included
   int64_t session() const { return session_; }
+  // Messages not written: datagrams whose size cannot be real (cosim::wire_size_ok: truncated),
+  // and, on the session's channels, messages that are not the run's (with a key: not authentic,
+  // of another session or replayed; without: not decodable as their channel's message). The end
+  // record says how many ("dropped: N"), so that a replay of the log sees only the run.
+  int64_t dropped() const { return truncated_ + refused_; }
+  int64_t truncated() const { return truncated_; }
+  // "T truncated, N not decodable / forged / replayed ..." ("" when none were dropped).
+  std::string dropped_text() const;
 
- private:
+  // The LCM handlers (public for tests and tests/fuzz/fuzz_datagrams.cpp): every received
+  // buffer is checked before a byte of it is read or written. They never throw (they run inside
+  // LCM's C code): a write that fails is kept and raised by the next poll() or finish().
   void on_message(const lcm::ReceiveBuffer* rbuf, const std::string& channel);
   void on_configure(const lcm::ReceiveBuffer* rbuf, const std::string& channel);
+
+ private:
+  bool admit(const lcm::ReceiveBuffer* rbuf, const std::string& channel);
+  bool genuine(const std::string& channel, const std::uint8_t* data, std::size_t size, int64_t sealed_for);
+  void refuse(const std::string& channel, const std::string& why, int64_t nth);
+  void write_received(const lcm::ReceiveBuffer* rbuf, const std::string& channel);
+  void raise_pending();
   void write(const std::string& channel, const void* data, std::size_t size, int64_t utime);
   void write_record(const std::string& text);
 
@@ -103,6 +124,10 @@ class BusRecorder {
   LogDigest digest_;
   int64_t events_ = 0;
   int64_t last_flush_us_ = 0;
+  int64_t truncated_ = 0, refused_ = 0;
+  std::map<std::string, int64_t> refused_by_;  // why -> count
+  std::optional<cosim::auth::Opener> opener_;  // with a key: what is written must be authentic
+  std::optional<std::string> failed_;  // a write that failed inside a handler
   bool finished_ = false;
 };
 

@@ -28,6 +28,7 @@
 #include <iostream>
 #include <map>
 #include <memory>
+#include <new>
 #include <optional>
 
 #include <cosim/auth.hpp>
@@ -255,6 +256,7 @@ class Application {
   std::unique_ptr<cosim::Transport> transport_;
   std::unique_ptr<master::BusRecorder> bus_recorder_;  // --record
   master::replay::ReplayTransport* replay_ = nullptr;  // --replay: inside `transport_`
+  std::vector<std::unique_ptr<cosim::OutputLock>> output_locks_;  // one writer per output file
 };
 
 // The config (a new run's, or the record's for --resume) and the checkpoints' run id and
@@ -272,6 +274,11 @@ void Application::load_config() {
   }
   check_files(config_, o_.config_path, !o_.output.empty() || !o_.resume.empty(), !o_.csv.empty(), o_.record,
               o_.replay.log);
+  output_locks_ = cosim::lock_outputs(
+      {{o_.output.empty() && o_.resume.empty() ? "output.file" : "--output", config_.output.file},
+       {o_.csv.empty() ? "output.csv" : "--csv", config_.output.csv_file},
+       {"--record", o_.record}},
+      "cosim_master", std::cerr);
 }
 
 void Application::load_new_config() {
@@ -549,6 +556,11 @@ int Application::run() {
   } catch (const cosim::config::ConfigError& e) {
     std::cerr << "cosim_master: config refused: " << e.what() << "\n";
     return 2;
+  } catch (const std::bad_alloc&) {
+    close_recording("stopped: out of memory");
+    std::cerr << "cosim_master: out of memory (std::bad_alloc): the run is stopped; run it where more "
+                 "memory is free, or with fewer or shorter outputs\n";
+    return 1;
   } catch (const std::exception& e) {
     close_recording(std::string("stopped: ") + e.what());
     std::cerr << "cosim_master: error: " << e.what() << "\n";

@@ -131,9 +131,10 @@ bool Recording::played_side(const std::string& name) const {
   return false;
 }
 
-Recording load(const Options& o, const Config& config, const std::optional<cosim::auth::Key>& key) {
-  Recording r;
-  r.path = o.log;
+namespace {
+
+// Which participants run live (--replay-side) and which are played from the log.
+void split_sides(const Options& o, const Config& config, Recording& r) {
   std::vector<std::string> names;
   for (const auto& p : config.participants) names.push_back(p.name);
   for (const auto& l : o.live) {
@@ -152,18 +153,26 @@ Recording load(const Options& o, const Config& config, const std::optional<cosim
     throw ReplayError("--replay-side names every participant of the config (" + join(names) +
                       "): nothing is left to play from the log; name only the side(s) to rerun live");
 
-  // One pass over the file: the events of every session, the master's records and the digest.
+}
+
+// One pass over the file: the events of every session, the master's records and the digest.
+struct Scan {
   std::map<int64_t, std::vector<Raw>> by_session;
   std::vector<Record> records;
+  int64_t events = 0;
+};
+
+Scan scan_log(const std::string& path) {
+  Scan out;
   LogDigest digest;
-  r.events = read_lcm_log(o.log, [&](LogEvent& e) {
+  out.events = read_lcm_log(path, [&](LogEvent& e) {
     int64_t s = 0;
     std::string rest;
     const bool in_session = session_channel(e.channel, s, rest);
     if (in_session && rest == "LOG") {
-      records.push_back({e.index, s, e.data, digest.hex()});
+      out.records.push_back({e.index, s, e.data, digest.hex()});
     } else if (in_session) {
-      by_session[s].push_back({e.index, e.channel, e.data});
+      out.by_session[s].push_back({e.index, e.channel, e.data});
     } else if (instance_configure_channel(e.channel)) {
       // A configure of a participant started by hand: the session is in the (claimed) payload.
       const std::uint8_t* p = e.data.data();
@@ -173,16 +182,22 @@ Recording load(const Options& o, const Config& config, const std::optional<cosim
       }
       cosim::configure_t c;
       if (c.decode(p, 0, static_cast<int>(n)) == static_cast<int>(n) && c.session_id != 0)
-        by_session[c.session_id].push_back({e.index, e.channel, e.data});
+        out.by_session[c.session_id].push_back({e.index, e.channel, e.data});
     }
     digest.add(e.channel, e.data.data(), e.data.size());
   });
 
-  // The master's records, opened with the key when sealed.
-  struct Opened {
-    Record rec;
-    std::vector<std::pair<std::string, std::string>> kv;
-  };
+  return out;
+}
+
+// The master's records, opened with the key when sealed.
+struct Opened {
+  Record rec;
+  std::vector<std::pair<std::string, std::string>> kv;
+};
+
+std::vector<Opened> open_records(const Options& o, const std::vector<Record>& records,
+                                 const std::optional<cosim::auth::Key>& key) {
   std::vector<Opened> opened;
   std::optional<cosim::auth::Opener> record_opener;
   if (key) record_opener.emplace(*key);
@@ -211,22 +226,29 @@ Recording load(const Options& o, const Config& config, const std::optional<cosim
     opened.push_back({rec, *kv});
   }
 
-  // Which recorded run.
-  auto participants_of = [&](int64_t s) {
-    std::set<std::string> ps;
-    for (const auto& e : by_session[s]) {
-      int64_t s2;
-      std::string rest, name, kind;
-      if (session_channel(e.channel, s2, rest) && participant_channel(rest, name, kind) && kind != "CFG" &&
-          kind != "REQ")
-        ps.insert(name);
-    }
-    return ps;
-  };
+  return opened;
+}
+
+std::set<std::string> participants_of(std::map<int64_t, std::vector<Raw>>& by_session, int64_t s) {
+  std::set<std::string> ps;
+  for (const auto& e : by_session[s]) {
+    int64_t s2;
+    std::string rest, name, kind;
+    if (session_channel(e.channel, s2, rest) && participant_channel(rest, name, kind) && kind != "CFG" &&
+        kind != "REQ")
+      ps.insert(name);
+  }
+  return ps;
+}
+
+// Which recorded run: --replay-session, else the one the master's header names, else the one
+// session holding every played side.
+int64_t choose_session(const Options& o, const Recording& r, std::map<int64_t, std::vector<Raw>>& by_session,
+                       const std::vector<Opened>& opened) {
   auto describe_sessions = [&] {
     std::string s;
     for (auto& [id, evs] : by_session) {
-      const auto ps = participants_of(id);
+      const auto ps = participants_of(by_session, id);
       s += (s.empty() ? "" : "; ") + cosim::id_hex(id) + " (" +
            (ps.empty() ? std::string("no participant") : join({ps.begin(), ps.end()})) + ")";
     }
@@ -241,34 +263,34 @@ Recording load(const Options& o, const Config& config, const std::optional<cosim
                         " (--replay-session): it is the recording of another run. It holds " + describe_sessions() +
                         ". The session of a recorded run is in its HDF5 file (/bus/recording/session) and in "
                         "the master's first line ('session ...')");
-    r.session = o.session;
-  } else if (headers.size() == 1) {
-    r.session = *headers.begin();
-  } else {
-    std::vector<int64_t> candidates;
-    for (auto& [id, evs] : by_session) {
-      const auto ps = participants_of(id);
-      bool all = true;
-      for (const auto& p : r.played) all = all && ps.count(p);
-      if (all) candidates.push_back(id);
-    }
-    if (candidates.size() > 1) {
-      std::vector<std::string> ids;
-      for (auto id : candidates) ids.push_back(cosim::id_hex(id));
-      throw ReplayError("the log '" + o.log + "' holds " + std::to_string(candidates.size()) + " runs with " +
-                        join(r.played) + ": sessions " + join(ids) +
-                        "; choose one with --replay-session HEX");
-    }
-    if (candidates.empty())
-      throw ReplayError("the log '" + o.log + "' holds no recorded run with participant(s) " + join(r.played) +
-                        " to play: it holds " + describe_sessions() +
-                        ". Is it the recording of this config's run? (--replay-side names the side(s) that run "
-                        "live; every other participant of the config is played from the log)");
-    r.session = candidates.front();
+    return o.session;
   }
-  const int64_t S = r.session;
+  if (headers.size() == 1) return *headers.begin();
+  std::vector<int64_t> candidates;
+  for (auto& [id, evs] : by_session) {
+    const auto ps = participants_of(by_session, id);
+    bool all = true;
+    for (const auto& p : r.played) all = all && ps.count(p);
+    if (all) candidates.push_back(id);
+  }
+  if (candidates.size() > 1) {
+    std::vector<std::string> ids;
+    for (auto id : candidates) ids.push_back(cosim::id_hex(id));
+    throw ReplayError("the log '" + o.log + "' holds " + std::to_string(candidates.size()) + " runs with " +
+                      join(r.played) + ": sessions " + join(ids) + "; choose one with --replay-session HEX");
+  }
+  if (candidates.empty())
+    throw ReplayError("the log '" + o.log + "' holds no recorded run with participant(s) " + join(r.played) +
+                      " to play: it holds " + describe_sessions() +
+                      ". Is it the recording of this config's run? (--replay-side names the side(s) that run "
+                      "live; every other participant of the config is played from the log)");
+  return candidates.front();
+}
 
-  // The master's records of this session: complete and unchanged?
+
+// The master's records of the session: complete and unchanged?
+void check_records(const Options& o, Recording& r, const std::vector<Opened>& opened, const std::vector<Raw>& events) {
+  const int64_t S = r.session;
   const Opened* start = nullptr;
   const Opened* end = nullptr;
   for (const auto& op : opened) {
@@ -285,7 +307,7 @@ Recording load(const Options& o, const Config& config, const std::optional<cosim
                         " event(s) before it with digest " + dig + ", the file holds " +
                         std::to_string(end->rec.index) + " with digest " + end->rec.digest_before +
                         ": it was changed after recording (or damaged)");
-    for (const auto& e : by_session[S])
+    for (const auto& e : events)
       if (e.index > end->rec.index)
         throw ReplayError("the log '" + o.log + "' is corrupt: event " + std::to_string(e.index) + " (" + e.channel +
                           ") of the recorded session comes after the recording's end record: something was "
@@ -294,8 +316,12 @@ Recording load(const Options& o, const Config& config, const std::optional<cosim
     r.status = value_of(end->kv, "status");
   }
 
-  // Keyed or not: every message of the session one way.
-  auto& events = by_session[S];
+}
+
+// Every message of the session (keyed or not, one way), checked and decoded into the recording.
+void collect_messages(const Options& o, Recording& r, const std::vector<Raw>& events,
+                      const std::optional<cosim::auth::Key>& key) {
+  const int64_t S = r.session;
   std::size_t sealed = 0;
   for (const auto& e : events) sealed += cosim::auth::looks_sealed(e.data.data(), e.data.size()) ? 1 : 0;
   if (sealed != 0 && sealed != events.size())
@@ -378,8 +404,12 @@ Recording load(const Options& o, const Config& config, const std::optional<cosim
     }
   }
 
-  // Against the config: every played side is there, with the same times and parameters, and
-  // with a reply to every step the config runs.
+}
+
+// Against the config: every played side is there, with the same times and parameters, and
+// with a reply to every step the config runs.
+void check_against_config(const Options& o, const Config& config, Recording& r) {
+  const int64_t S = r.session;
   const int64_t steps = (config.t_end - config.t_start) / config.macro_step;
   std::vector<std::string> recorded_names;
   for (const auto& [n, rp] : r.participants)
@@ -439,6 +469,22 @@ Recording load(const Options& o, const Config& config, const std::optional<cosim
                         " or replay a complete recording");
     }
   }
+}
+
+}  // namespace
+
+Recording load(const Options& o, const Config& config, const std::optional<cosim::auth::Key>& key) {
+  Recording r;
+  r.path = o.log;
+  split_sides(o, config, r);
+  Scan scan = scan_log(o.log);
+  r.events = scan.events;
+  const std::vector<Opened> opened = open_records(o, scan.records, key);
+  r.session = choose_session(o, r, scan.by_session, opened);
+  const std::vector<Raw>& events = scan.by_session[r.session];
+  check_records(o, r, opened, events);
+  collect_messages(o, r, events, key);
+  check_against_config(o, config, r);
   if (r.from_master && !r.complete)
     r.notes.push_back("the log has no end record (the recording was cut off), but it holds every step this config runs");
   return r;
@@ -626,7 +672,11 @@ void RunNotes::on_finish(bool ok, const std::string& message) {
   if (recorder_) {
     recorder_->finish(ok ? "finished" : "stopped: " + message);
     std::cerr << "cosim_master: recorded " << recorder_->events() << " bus message(s) of session "
-              << cosim::id_hex(recorder_->session()) << " to " << recorder_->path() << " (LCM log)\n";
+              << cosim::id_hex(recorder_->session()) << " to " << recorder_->path() << " (LCM log)";
+    if (recorder_->dropped() > 0)
+      std::cerr << "; dropped " << recorder_->dropped() << " datagram(s) that were not the run's ("
+                << recorder_->dropped_text() << ")";
+    std::cerr << "\n";
   }
   if (replay_ && recording_) std::cerr << "cosim_master: " << summary(*recording_, replay_->report()) << "\n";
   if (h5_.empty()) return;
@@ -637,6 +687,7 @@ void RunNotes::on_finish(bool ok, const std::string& message) {
     write_text(f, "bus/recording", "file", recorder_->path());
     write_text(f, "bus/recording", "session", cosim::id_hex(recorder_->session()));
     write_number(f, "bus/recording", "events", static_cast<double>(recorder_->events()));
+    write_number(f, "bus/recording", "dropped", static_cast<double>(recorder_->dropped()));
   }
   if (replay_ && recording_) {
     const Report& rep = replay_->report();

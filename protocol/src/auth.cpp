@@ -10,6 +10,8 @@
 #include <fstream>
 #include <sstream>
 
+#include "cosim/bus.hpp"
+
 namespace cosim::auth {
 namespace {
 
@@ -112,7 +114,7 @@ std::string new_key_hex() {
 }
 
 bool looks_sealed(const std::uint8_t* data, std::size_t size) {
-  return data && size >= 4 && std::memcmp(data, kMagic, 4) == 0;
+  return data && size >= 4 && size <= kMaxMessageBytes && std::memcmp(data, kMagic, 4) == 0;
 }
 
 std::optional<std::pair<const std::uint8_t*, std::size_t>> unverified_payload(const std::uint8_t* data,
@@ -135,6 +137,10 @@ Sealer::Sealer(const Key& key, std::string sender) : key_(key), sender_(std::mov
 
 std::vector<std::uint8_t> Sealer::seal(const std::string& channel, std::int64_t session,
                                        const std::uint8_t* payload, std::size_t size) {
+  if (size > kMaxMessageBytes - kHeader - sender_.size() - kTagBytes)
+    throw AuthError("a message of " + std::to_string(size) + " bytes on " + channel +
+                    " does not fit an envelope: a message has at most " +
+                    std::to_string(kMaxMessageBytes) + " bytes on the wire");
   std::vector<std::uint8_t> out(kHeader + sender_.size() + size + kTagBytes);
   std::uint8_t* p = out.data();
   std::memcpy(p, kMagic, 4);
@@ -177,7 +183,8 @@ Opened Opener::open(const std::string& channel, const std::vector<std::int64_t>&
     o.size = 0;
     return o;
   };
-  if (!data || size < kHeader + 1 + kTagBytes || std::memcmp(data, kMagic, 4) != 0)
+  if (!data || size < kHeader + 1 + kTagBytes || size > kMaxMessageBytes ||
+      std::memcmp(data, kMagic, 4) != 0)
     return reject(Verdict::malformed);
   const std::size_t slen = data[20];
   if (slen == 0 || slen > kMaxSender || size < kHeader + slen + kTagBytes)

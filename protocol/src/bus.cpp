@@ -5,6 +5,8 @@
 #include <random>
 #include <stdexcept>
 
+#include "cosim/link.hpp"
+
 namespace cosim {
 
 std::string resolve_bus_url(const std::string& configured) {
@@ -32,6 +34,16 @@ std::string reply(int64_t s, const std::string& p) { return session_prefix(s) + 
 std::string heartbeat(int64_t s) { return session_prefix(s) + "HB"; }
 std::string terminate(int64_t s) { return session_prefix(s) + "END"; }
 }  // namespace channel
+
+int bus_copies() {
+  const char* env = std::getenv("COSIM_BUS_COPIES");
+  if (!env || !*env) return 2;
+  const std::string v = env;
+  if (v == "1") return 1;
+  if (v == "2") return 2;
+  throw std::invalid_argument("$COSIM_BUS_COPIES='" + v +
+                              "' is not allowed: 1 (no redundancy) or 2 (the default; or unset it)");
+}
 
 int64_t new_session_id() {
   std::random_device rd;

@@ -1,4 +1,5 @@
 // Master side over LCM: configure with repeats until ready, then request/reply per step.
+// Every request goes out LinkSettings::copies times (redundancy: a lost copy costs nothing).
 // A request without reply is resent after the participant's adaptive resend timeout
 // (ResendTimer: measured round trips, backoff; not while its heartbeat says it works on the
 // request); the participant answers a repeat from its cache. Whether a participant is alive is
@@ -16,6 +17,7 @@
 #include <lcm/lcm-cpp.hpp>
 #include <sstream>
 #include <thread>
+#include <tuple>
 
 #include "cosim/bus.hpp"
 #include "cosim/link.hpp"
@@ -267,7 +269,10 @@ class LcmTransport final : public Transport {
       ++stats_.dropped_by_plan;
       return;
     }
-    bus_.publish(channel::request(session_, p.request.participant), session_, p.request);
+    const int copies = std::max(1, links_.at(p.request.participant).copies);
+    for (int i = 0; i < copies; ++i)
+      bus_.publish(channel::request(session_, p.request.participant), session_, p.request);
+    stats_.redundant_copies += static_cast<uint64_t>(copies - 1);
   }
 
   // Handles messages for up to `ms`, publishes the master's heartbeat, checks liveness.
@@ -448,11 +453,15 @@ class LcmTransport final : public Transport {
       return;
     }
     const auto key = std::make_pair(r->participant, r->step_index);
-    if (faults_.drop_reply.count(key)) {
+    if (faults_.drop_reply.count(key)) {  // lost once: every copy of this answer
       faults_.drop_reply.erase(key);
       ++stats_.dropped_by_plan;
+      dropping_[r->participant] = {r->step_index, r->iteration, r->attempt};
       return;
     }
+    if (auto d = dropping_.find(r->participant);
+        d != dropping_.end() && d->second == std::make_tuple(r->step_index, r->iteration, r->attempt))
+      return;
     Pending& p = it->second;
     p.round_trip = seconds_since(p.sent);
     // Karn's rule: a reply to a request sent more than once may answer any copy.
@@ -488,6 +497,8 @@ class LcmTransport final : public Transport {
   std::set<int64_t> taken_;                              // instances another run took
   std::map<std::string, Bound> bound_;                   // name -> instance in this session
   std::optional<LinkError> fatal_;                       // found in a handler, thrown by pump
+  // A reply the fault plan loses, by participant: (step, iteration, attempt) of all its copies.
+  std::map<std::string, std::tuple<int64_t, int32_t, int32_t>> dropping_;
   SealedBus bus_;                                        // seals and opens (with a key)
   struct Refused {
     announce_t announce;  // what it claims: not authentic

@@ -14,8 +14,10 @@
 #include <lcm/lcm-cpp.hpp>
 #include <mutex>
 #include <thread>
+#include <tuple>
 
 #include "cosim/bus.hpp"
+#include "cosim/link.hpp"
 #include "cosim/participant.hpp"
 #include "cosim/number_arg.hpp"
 #include "cosim/sealed_bus.hpp"
@@ -37,6 +39,8 @@ struct Server {
   bool error = false;
   Clock::time_point last_master = Clock::now();
   lcm::Subscription* req_sub = nullptr;
+  std::optional<std::tuple<int64_t, int32_t, int32_t>> answered;  // the last request answered
+  int copies = 2;                                                  // of a fresh reply (bus_copies)
 
   // A configure comes on this instance's channel before a session exists (sealed with session
   // 0), or on the channel of the session this process was started for.
@@ -69,9 +73,16 @@ struct Server {
     last_master = Clock::now();
     auto reply = core.handle(*q);
     if (!reply) return;
-    if (reply->status != step_reply_t::OK)
+    // Redundancy (docs/protocol.md#loss-recovery-and-liveness): the master sends each request
+    // twice; the first copy heard is answered twice (bus_copies), a further copy of the same
+    // request (same step, iteration and attempt) once, from the cache.
+    const auto id = std::make_tuple(q->step_index, q->iteration, q->attempt);
+    const bool copy = answered && *answered == id;
+    if (reply->status != step_reply_t::OK && !copy)
       std::cerr << core.name() << ": step " << q->step_index << ": " << reply->message << "\n";
-    bus.publish(channel::reply(core.session(), core.name()), core.session(), *reply);
+    for (int i = 0; i < (copy ? 1 : copies); ++i)
+      bus.publish(channel::reply(core.session(), core.name()), core.session(), *reply);
+    answered = id;
   }
   void on_heartbeat(const lcm::ReceiveBuffer* rbuf, const std::string& ch) {
     heartbeat_t msg;
@@ -158,6 +169,13 @@ int run_participant(Model& model, const std::string& default_name, int argc, cha
     std::cerr << name << ": " << e.what() << "\n";
     return 2;
   }
+  int copies = 2;
+  try {
+    copies = bus_copies();
+  } catch (const std::invalid_argument& e) {
+    std::cerr << name << ": " << e.what() << "\n";
+    return 2;
+  }
   std::signal(SIGTERM, on_signal);
   std::signal(SIGINT, on_signal);
 
@@ -168,6 +186,7 @@ int run_participant(Model& model, const std::string& default_name, int argc, cha
   core.reserve_for(session);
   SealedBus bus(lcm, key, envelope_sender(name, core.instance()), name);
   Server server{lcm, bus, core};
+  server.copies = copies;
   // Configuration comes on channels of this process (its instance) or of its session only.
   lcm.subscribe(channel::configure(core.instance()), &Server::on_configure, &server);
   if (session != 0) lcm.subscribe(channel::configure(session, name), &Server::on_configure, &server);

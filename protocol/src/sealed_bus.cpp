@@ -21,6 +21,7 @@ const char* to_string(SealedBus::Heard h) {
     case SealedBus::Heard::other_session: return "other session";
     case SealedBus::Heard::replayed: return "replayed";
     case SealedBus::Heard::unreadable: return "unreadable";
+    case SealedBus::Heard::truncated: return "truncated";
   }
   return "?";
 }
@@ -41,6 +42,14 @@ SealedBus::SealedBus(lcm::LCM& lcm, std::optional<auth::Key> key, const std::str
 
 int SealedBus::publish_bytes(const std::string& channel, std::int64_t session,
                              const std::uint8_t* data, std::size_t size) {
+  // The envelope adds at most 1 + 8 + 8 + 4 + 32 + 32 bytes.
+  if (size > kMaxMessageBytes - 128) {
+    const std::string line = who_ + ": not sent: a message of " + std::to_string(size) +
+                             " bytes on " + channel + " (a message has at most " +
+                             std::to_string(kMaxMessageBytes) + " bytes on the wire)\n";
+    std::fputs(line.c_str(), stderr);
+    return -1;
+  }
   if (!sealer_) return lcm_.publish(channel, data, static_cast<unsigned>(size));
   // One lock over sealing and sending: sequence numbers leave in order.
   std::lock_guard<std::mutex> lock(mutex_);
@@ -128,6 +137,16 @@ SealedBus::Heard SealedBus::undecodable(const std::string& channel, const char* 
   return Heard::malformed;
 }
 
+SealedBus::Heard SealedBus::truncated(const std::string& channel, std::uint64_t size) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  ++stats_.counts.malformed;
+  ++stats_.truncated;
+  log(Heard::truncated, channel,
+      "a truncated datagram on " + channel + " (LCM reports " + std::to_string(size) +
+          " bytes: the datagram ended inside its header, or was damaged); nothing of it was read");
+  return Heard::truncated;
+}
+
 void SealedBus::count_accepted() {
   std::lock_guard<std::mutex> lock(mutex_);
   ++stats_.counts.accepted;
@@ -156,12 +175,13 @@ std::string auth_summary(const AuthStats& s) {
     o << "authenticated bus: " << s.counts.accepted << " message(s) accepted; dropped "
       << s.counts.malformed << " malformed, " << s.counts.forged << " forged, "
       << s.counts.other_session << " of another session, " << s.counts.replayed << " replayed";
-    return o.str();
+  } else {
+    if (s.unreadable == 0 && s.counts.malformed == 0) return "";
+    o << "unauthenticated bus (no key): ignored " << s.unreadable
+      << " sealed message(s) it cannot check and " << s.counts.malformed
+      << " that did not decode";
   }
-  if (s.unreadable == 0 && s.counts.malformed == 0) return "";
-  o << "unauthenticated bus (no key): ignored " << s.unreadable
-    << " sealed message(s) it cannot check and " << s.counts.malformed
-    << " that did not decode";
+  if (s.truncated > 0) o << "; " << s.truncated << " truncated datagram(s) among the malformed";
   return o.str();
 }
 

@@ -171,3 +171,42 @@ TEST(SealedBus, DroppedMessagesAreLoggedAFewPerVerdictAndChannel) {
 }
 
 }  // namespace
+
+// The transport edge: a buffer as LCM 1.3.1 delivers a datagram cut inside its header (a size of
+// about 4 GB, a pointer into a small buffer) is dropped before a byte of it is read, keyed or
+// not, and counted as truncated within malformed; a sealed message that does open next to it
+// is unaffected. (AddressSanitizer builds would report any read past `bytes`.)
+TEST(SealedBus, ASizeThatCannotBeRealIsDroppedUnreadAndCounted) {
+  lcm::LCM lcm("memq://");
+  ASSERT_TRUE(lcm.good());
+  const auto k = key();
+  SealedBus keyed(lcm, k, "test/1", "keyed"), plain(lcm, std::nullopt, "test/2", "plain");
+  std::vector<std::uint8_t> bytes{'C', 'S', 'A', '1', 0, 0, 0, 0};
+  for (const uint32_t size : {0xFFFFFFFFu, 0xFFFFFFE9u, static_cast<uint32_t>(cosim::kMaxMessageBytes) + 1}) {
+    lcm::ReceiveBuffer b = buffer(bytes);
+    b.data_size = size;
+    cosim::heartbeat_t h;
+    EXPECT_EQ(keyed.open(&b, "HB", {7}, h), Heard::truncated) << size;
+    EXPECT_EQ(plain.open(&b, "HB", {7}, h), Heard::truncated) << size;
+  }
+  // A size within the bound is read as before.
+  cosim::auth::Sealer sealer(k, "mass1/1");
+  std::vector<std::uint8_t> payload(static_cast<std::size_t>(beat(7, 3).getEncodedSize()));
+  beat(7, 3).encode(payload.data(), 0, static_cast<int>(payload.size()));
+  auto env = sealer.seal("HB", 7, payload.data(), payload.size());
+  lcm::ReceiveBuffer ok = buffer(env);
+  cosim::heartbeat_t h;
+  EXPECT_EQ(keyed.open(&ok, "HB", {7}, h), Heard::ok);
+  EXPECT_EQ(h.step_index, 3);
+  for (SealedBus* bus : {&keyed, &plain}) {
+    const auto st = bus->stats();
+    EXPECT_EQ(st.truncated, 3);
+    EXPECT_EQ(st.counts.malformed, 3);
+    EXPECT_NE(bus->summary().find("; 3 truncated datagram(s) among the malformed"), std::string::npos)
+        << bus->summary();
+  }
+  EXPECT_EQ(keyed.stats().counts.accepted, 1);
+  EXPECT_TRUE(cosim::wire_size_ok(bytes.data(), cosim::kMaxMessageBytes));
+  EXPECT_FALSE(cosim::wire_size_ok(nullptr, 1));
+  EXPECT_TRUE(cosim::wire_size_ok(nullptr, 0));
+}

@@ -50,7 +50,8 @@ std::optional<Key> key_from_environment();
 std::string new_key_hex();
 
 // Whether a buffer starts like an envelope (its magic), so a process without a key can tell
-// sealed traffic it cannot check from garbage.
+// sealed traffic it cannot check from garbage. Every function here that takes a buffer takes
+// one of at most cosim::kMaxMessageBytes (bus.hpp) and treats a larger size as malformed.
 bool looks_sealed(const std::uint8_t* data, std::size_t size);
 
 // The payload an envelope claims to carry, WITHOUT checking its tag: for diagnostics only
@@ -101,6 +102,10 @@ struct BusCounts {
   Counts counts;
   // Without a key: sealed messages heard, which this process cannot check (it ignores them).
   std::int64_t unreadable = 0;
+  // With or without a key: datagrams whose size cannot be real (cosim::wire_size_ok: a datagram
+  // cut inside LCM's header, which LCM 1.3.1 delivers with a size of about 4 GB), dropped before
+  // a byte of them is read. Counted in counts.malformed too.
+  std::int64_t truncated = 0;
 };
 
 // Opens messages for one receiver. A sequence number is accepted once per (sender, channel):

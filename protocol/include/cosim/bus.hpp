@@ -1,10 +1,26 @@
 // Where messages travel: the bus URL and the channel names of a session.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <string>
 
 namespace cosim {
+
+// The transport edge (docs/protocol.md#bounds-at-the-transport-edge). The most bytes one message
+// may have on the wire: LCM 1.3.1's own limit on a message it reassembles from fragments
+// (LCM_MAX_MESSAGE_SIZE, 2^28), far above any message of this protocol. LCM 1.3.1 delivers a
+// datagram that ends inside its own header (a "truncated" datagram: cut within or right after
+// the channel name) with a size of the datagram's length minus the header's, wrapped to about
+// 2^32, and a data pointer into its 64 KiB receive buffer: every byte of such a message is made
+// up. Every process checks each received buffer with wire_size_ok before it reads a byte.
+constexpr std::uint64_t kMaxMessageBytes = std::uint64_t{1} << 28;
+
+// Whether a received buffer can be a message: a size of at most kMaxMessageBytes and data
+// where there is any.
+inline bool wire_size_ok(const void* data, std::uint64_t size) {
+  return size <= kMaxMessageBytes && (data != nullptr || size == 0);
+}
 
 constexpr int32_t kProtocolVersion = 3;
 constexpr const char* kDefaultBusUrl = "udpm://239.255.76.67:7667?ttl=0";

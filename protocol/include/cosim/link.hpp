@@ -56,18 +56,31 @@ class MissingAverageError : public LinkError {
   using LinkError::LinkError;
 };
 
+// Copies of every request and fresh reply (redundancy against loss): 2, or $COSIM_BUS_COPIES
+// (1 or 2: 1 turns the redundancy off, for measuring what it costs and saves); raises
+// std::invalid_argument naming the variable for any other value.
+int bus_copies();
+
 // Per participant (config: participants.<name>.timeout, .retries; docs/protocol.md).
 // Resends are not timed by these: each participant has an adaptive resend timeout
 // (ResendTimer) measured from its round trips.
 struct LinkSettings {
-  // Liveness: a participant silent this long (no heartbeat, no reply) is declared gone.
-  double timeout_s = 2.0;
+  // Liveness: a participant silent this long (no heartbeat, no reply) is declared gone. The
+  // default tolerates a participant paused for 10 s and more (a stopped process, a swapping
+  // host); the price is that a participant started by hand whose host goes away silently is
+  // detected 12 s late (a launched one that dies is detected at once, by its exit).
+  double timeout_s = 12.0;
   // A participant that is heard from but has neither answered a request nor reported working
   // on it (busy heartbeat) for (retries + 1) x timeout_s is reported (its replies never arrive).
   int retries = 3;
   // Launched by the master with --session: configured on the session's channel. Otherwise
   // the master configures the one free instance that announces this name.
   bool launched = false;
+  // Redundancy against loss (docs/protocol.md#loss-recovery-and-liveness): every request goes
+  // out this many times back to back (the participant sends a fresh reply as many times, and
+  // answers a further copy of a request it answered from its cache, once). 1: no redundancy.
+  // The default is bus_copies(): 2, or $COSIM_BUS_COPIES for measurements.
+  int copies = bus_copies();
 };
 
 // Messages a test asks the transport to lose, once each: (participant, step_index).
@@ -87,6 +100,7 @@ struct ParticipantInfo {
 
 struct ExchangeStats {
   uint64_t resends = 0;
+  uint64_t redundant_copies = 0;  // request copies sent beyond the first (LinkSettings::copies)
   uint64_t dropped_by_plan = 0;
   uint64_t ignored_replies = 0;  // duplicates, other steps, other sessions
   // Per participant: resends, and the resend timeout base (s) and smoothed network round

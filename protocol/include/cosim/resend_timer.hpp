@@ -12,7 +12,10 @@ namespace cosim {
 
 class ResendTimer {
  public:
-  static constexpr double kFloor = 0.010;   // s: below this, scheduling jitter on a loaded host
+  // s: the shortest wait. A lost message costs about this much, so it is a few loopback round
+  // trips (45-200 us) rather than the 10 ms that scheduling hiccups of a loaded host can reach:
+  // a resend that comes too early costs one cached reply, a late one a wait per lost message.
+  static constexpr double kFloor = 0.002;
   static constexpr double kCap = 0.5;       // s: longest wait between resends (+ expected compute)
   static constexpr double kInitial = 0.25;  // s: before the first sample (one heartbeat period)
 

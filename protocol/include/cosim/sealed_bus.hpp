@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "cosim/auth.hpp"
+#include "cosim/bus.hpp"
 
 namespace cosim {
 
@@ -28,7 +29,9 @@ std::string auth_summary(const AuthStats& s);
 class SealedBus {
  public:
   // What became of a received message.
-  enum class Heard { ok, malformed, forged, other_session, replayed, unreadable };
+  // truncated: a datagram whose size cannot be real (cut inside LCM's header: see
+  // cosim::wire_size_ok), dropped before a byte of it is read.
+  enum class Heard { ok, malformed, forged, other_session, replayed, unreadable, truncated };
 
   // `sender` names this process in its envelopes (unique per process: the replay window is kept
   // per sender and channel; at most 32 characters); `who` prefixes its log lines.
@@ -49,9 +52,13 @@ class SealedBus {
   // key, when it decodes) and of one of `sessions`; anything else is counted and logged, and
   // `m` then holds what the message CLAIMS to carry if that decodes (for diagnostics such as
   // naming an unauthenticated participant: never act on it).
+  // Every handler of every channel calls this first: it is the transport edge, where a
+  // buffer whose size cannot be real is dropped and counted (truncated) before it is read.
   template <class M>
   Heard open(const lcm::ReceiveBuffer* rbuf, const std::string& channel,
              const std::vector<std::int64_t>& sessions, M& m) {
+    if (!rbuf || !wire_size_ok(rbuf->data, rbuf->data_size))
+      return truncated(channel, rbuf ? rbuf->data_size : 0);
     Payload p = open_bytes(static_cast<const std::uint8_t*>(rbuf->data), rbuf->data_size, channel,
                            sessions);
     const bool decoded = p.data && m.decode(p.data, 0, static_cast<int>(p.size)) == static_cast<int>(p.size);
@@ -74,6 +81,7 @@ class SealedBus {
   Payload open_bytes(const std::uint8_t* data, std::size_t size, const std::string& channel,
                      const std::vector<std::int64_t>& sessions);
   Heard undecodable(const std::string& channel, const char* type);
+  Heard truncated(const std::string& channel, std::uint64_t size);
   void count_accepted();
   void log(Heard heard, const std::string& channel, const std::string& detail);
 
@@ -90,7 +98,8 @@ class SealedBus {
 const char* to_string(SealedBus::Heard h);
 
 // "authenticated bus: N message(s) accepted; dropped a malformed, b forged, ..." with a key;
-// without one the sealed and undecodable messages ignored, or "" when there were none.
+// without one the sealed and undecodable messages ignored, or "" when there were none. Either
+// way followed by "; t truncated datagram(s) among the malformed" when there were any.
 std::string auth_summary(const AuthStats& s);
 
 // The envelope's sender for a process: its name (cut to 15 characters) and its instance or
