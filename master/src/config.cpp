@@ -298,6 +298,10 @@ CouplingSpec parse_coupling(const YAML::Node& n, const Config& c) {
                           "set coupling.type: implicit or remove the key");
     return out;
   }
+  if (c.checkpoints.every > Duration::zero())
+    throw ConfigError("coupling.type: implicit does not take checkpoints yet (checkpoints.every: " +
+                      number_text(cosim::to_seconds(c.checkpoints.every)) +
+                      "); set checkpoints.every: 0, or use coupling.type: explicit for a resumable run");
   const long long lo = cfg::get_int_or(n, "coupling", "min_iterations", out.min_iterations);
   const long long hi = cfg::get_int_or(n, "coupling", "max_iterations", out.max_iterations);
   if (hi < 1 || hi > 1000)

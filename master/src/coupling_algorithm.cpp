@@ -175,7 +175,8 @@ Duration ImplicitAlgorithm::do_step(Coupling& coupling, int64_t step, TimePoint 
   int k = 0;
   for (;; ++k) {
     for (std::size_t i = 0; i < n; ++i) in[i] = coupling.end_value(i);
-    // A due checkpoint is written in every iteration: the last one written is the step's result.
+    // Checkpoints are refused with implicit coupling (config.cpp): which iteration is the last
+    // is known only after it.
     for (const auto& group : groups_) coupling.exchange(group, k, checkpoint);
     for (std::size_t i = 0; i < n; ++i) out[i] = coupling.end_value(i);
     bool all = true, any_sufficient = false;

@@ -94,6 +94,7 @@ TEST(master_ImplicitConfig, BadSettingsAreRefusedNamingTheKeyAndTheFix) {
       {{"coupling.type=implicit", kConv, "coupling.acceleration={type: aitken, reuse: 3}"}, {"coupling.acceleration", "reuse"}},
       {{"coupling.type=implicit", kConv, "coupling.acceleration={type: iqn_ils, reuse: -1}"}, {"coupling.acceleration.reuse", "0 to 100"}},
       {{"coupling.type=implicit", kConv, "coupling.acceleration={type: iqn_ils, filter: 1}"}, {"coupling.acceleration.filter", "0 <= filter < 1"}},
+      {{"coupling.type=implicit", kConv, "checkpoints.every=0.01"}, {"does not take checkpoints yet", "checkpoints.every: 0"}},
   };
   for (const auto& c : cases) {
     const std::string e = error(c.sets);
