@@ -280,13 +280,51 @@ double positive_limit(const YAML::Node& n, const std::string& path, const std::s
   return v;
 }
 
+// coupling.adaptive: the macro step chosen by ECCO's PI controller.
+AdaptiveSpec parse_adaptive(const YAML::Node& n, const Config& c) {
+  AdaptiveSpec a;
+  if (!n) return a;
+  const std::string path = "coupling.adaptive";
+  if (!n.IsMap()) throw ConfigError(path + ": expected a map {min_step, max_step, abs_tolerance, ...}");
+  cfg::check_keys(n, path, {"min_step", "max_step", "abs_tolerance", "rel_tolerance", "p_gain", "i_gain",
+                            "safety", "min_change", "max_change"});
+  a.enabled = true;
+  a.min_step = cosim::seconds_to_duration(positive_limit(n, path, "min_step"), path + ".min_step");
+  a.max_step = cosim::seconds_to_duration(positive_limit(n, path, "max_step"), path + ".max_step");
+  if (a.min_step > c.macro_step || a.max_step < c.macro_step)
+    throw ConfigError(path + ": min_step " + number_text(cosim::to_seconds(a.min_step)) + " s <= time.macro_step " +
+                      number_text(cosim::to_seconds(c.macro_step)) + " s (the first step) <= max_step " +
+                      number_text(cosim::to_seconds(a.max_step)) + " s must hold");
+  auto get = [&](const char* key, double& v, double lo, double hi, bool open_lo) {
+    v = cfg::get_double_or(n, path, key, v);
+    if (!(open_lo ? v > lo : v >= lo) || !(v <= hi) || !std::isfinite(v))
+      throw ConfigError(path + "." + key + ": " + number_text(v) + " is not allowed (allowed: " +
+                        (open_lo ? "> " : ">= ") + number_text(lo) + " and <= " + number_text(hi) + ")");
+  };
+  get("abs_tolerance", a.abs_tolerance, 0, 1e30, true);
+  get("rel_tolerance", a.rel_tolerance, 0, 1, false);
+  get("p_gain", a.p_gain, 0, 2, false);
+  get("i_gain", a.i_gain, 0, 2, true);
+  get("safety", a.safety, 0, 1, true);
+  get("min_change", a.min_change, 0, 1, true);
+  get("max_change", a.max_change, 1, 100, false);
+  if (c.checkpoints.every > Duration::zero())
+    throw ConfigError(path + ": an adaptive macro step does not take checkpoints yet (checkpoints are at "
+                      "whole numbers of fixed macro steps); set checkpoints.every: 0");
+  if (c.power.empty())
+    throw ConfigError(path + ": the controller measures the energy residual of the power bonds, and `power` "
+                      "lists none; add a {name, force, velocity} pair under power");
+  return a;
+}
+
 // coupling: explicit (the default) or implicit with its iterations, convergence and acceleration.
 CouplingSpec parse_coupling(const YAML::Node& n, const Config& c) {
   CouplingSpec out;
   if (!n) return out;
   if (!n.IsMap()) throw ConfigError("coupling: expected a map {type, min_iterations, max_iterations, ...}");
   cfg::check_keys(n, "coupling", {"type", "min_iterations", "max_iterations", "at_max_iterations",
-                                  "convergence", "acceleration"});
+                                  "convergence", "acceleration", "adaptive"});
+  out.adaptive = parse_adaptive(n["adaptive"], c);
   out.type = cfg::get_choice(n, "coupling", "type", {"explicit", "implicit"}, "explicit") == "implicit"
                  ? CouplingType::Implicit
                  : CouplingType::Explicit;

@@ -96,8 +96,21 @@ struct AccelerationSpec {
   double filter = 1e-2;     // iqn_ils: QR filter, a column whose new part is below filter x its norm is dropped
 };
 
+// Adaptive macro step (docs/coupling.md#adaptive-macro-step): ECCO's PI controller on the power
+// bonds' energy residual (Sadjina et al. 2017), bounded, a whole multiple of every inner step.
+struct AdaptiveSpec {
+  bool enabled = false;
+  Duration min_step{}, max_step{};  // required when enabled
+  double abs_tolerance = 1e-6;      // J
+  double rel_tolerance = 1e-3;      // of the energy through the bond over the step
+  double p_gain = 0.2, i_gain = 0.15;
+  double safety = 0.8;
+  double min_change = 0.2, max_change = 1.5;  // of the step, per step
+};
+
 struct CouplingSpec {
   CouplingType type = CouplingType::Explicit;
+  AdaptiveSpec adaptive;
   int min_iterations = 1;
   int max_iterations = 50;
   bool stop_at_max = false;  // at_max_iterations: stop (else accept with a warning)

@@ -225,6 +225,7 @@ void CoSimulation::exchange(const std::vector<std::string>& group, int iteration
   OpenStep& s = *open_;
   StepRecord& rec = s.rec;
   const TimePoint t0 = rec.t_start, t1 = rec.t_end;
+  if (iteration > 0 && !s.first_pass) s.first_pass = OpenStep::Pass{s.sent, rec.outputs, s.averages};
   auto qs = requests(group, rec.step_index, iteration, t0, t1, checkpoint);
   for (std::size_t i = 0; i < config_.connections.size(); ++i)
     for (const auto& name : group)
@@ -301,6 +302,18 @@ void CoSimulation::close_step(int iterations, bool checkpoint) {
   record_power(s.rec, !s.sent.empty());
   s.rec.wall_seconds = s.wall.seconds();
   s.rec.master_seconds = s.rec.wall_seconds - s.waiting;
+  last_power_.clear();
+  if (s.first_pass) {
+    OpenStep first;
+    first.sent = s.first_pass->sent;
+    first.rec.outputs = s.first_pass->outputs;
+    first.averages = s.first_pass->averages;
+    record_connections(first);
+    record_power(first.rec, !first.sent.empty());
+    for (const auto& p : first.rec.power) last_power_.emplace_back(p.force_side, p.motion_side);
+  } else {
+    for (const auto& p : s.rec.power) last_power_.emplace_back(p.force_side, p.motion_side);
+  }
   for (auto* o : observers_) o->on_step(s.rec);
   open_.reset();
 }

@@ -1,7 +1,10 @@
 #include "coupling_algorithm.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
+#include <numeric>
 #include <sstream>
 #include <stdexcept>
 
@@ -16,6 +19,13 @@ void Coupling::set_end_value(std::size_t, const cosim::Value&) {
   throw std::logic_error("this coupling cannot set a connection's end value (implicit coupling needs a CoSimulation)");
 }
 void Coupling::set_residuals(std::vector<double>) {}
+std::vector<std::pair<double, double>> Coupling::last_power() const {
+  throw std::logic_error("this coupling cannot tell the power bonds (an adaptive step needs a CoSimulation)");
+}
+
+void CouplingAlgorithm::set_step(Duration) {
+  throw std::logic_error(name() + " has no settable macro step");
+}
 
 namespace {
 
@@ -244,9 +254,77 @@ Duration ImplicitAlgorithm::do_step(Coupling& coupling, int64_t step, TimePoint 
   return macro_step_;
 }
 
+// --- Adaptive macro step
+
+AdaptiveStepAlgorithm::AdaptiveStepAlgorithm(std::unique_ptr<CouplingAlgorithm> inner) : inner_(std::move(inner)) {}
+
+std::string AdaptiveStepAlgorithm::name() const { return inner_->name() + ", adaptive step"; }
+
+void AdaptiveStepAlgorithm::setup(const Config& config) {
+  inner_->setup(config);
+  spec_ = config.coupling.adaptive;
+  if (!spec_.enabled) throw std::logic_error("AdaptiveStepAlgorithm without coupling.adaptive");
+  t_end_ = config.t_end;
+  next_ = config.macro_step;
+  previous_error_ = 1.0;
+  history_.clear();
+}
+
+void AdaptiveStepAlgorithm::initialize(const AlgorithmSetup& setup) {
+  inner_->initialize(setup);
+  // The quantum: the least common multiple of the inner steps (time.macro_step is a multiple of
+  // each, check_wiring, so time.end - time.start is a multiple of the quantum too).
+  int64_t q = 1;
+  for (const auto& [name, info] : *setup.participants) {
+    const int64_t inner = cosim::to_ns(info.inner_step);
+    if (inner <= 0) continue;
+    q = std::lcm(q, inner);
+  }
+  quantum_ = Duration(q);
+  min_ = ((spec_.min_step + quantum_ - Duration(1)) / quantum_) * quantum_;  // rounded up
+  max_ = (spec_.max_step / quantum_) * quantum_;                            // rounded down
+  if (max_ < min_ || max_ <= Duration::zero())
+    throw cosim::config::ConfigError(
+        "coupling.adaptive: no whole multiple of every participant's inner step (their least common multiple: " +
+        std::to_string(q) + " ns) lies in [min_step, max_step] = [" + number(cosim::to_seconds(spec_.min_step)) + ", " +
+        number(cosim::to_seconds(spec_.max_step)) + "] s; widen the bounds");
+}
+
+Duration AdaptiveStepAlgorithm::do_step(Coupling& coupling, int64_t step, TimePoint t) {
+  const Duration H = std::min(next_, t_end_ - t);
+  inner_->set_step(H);
+  const Duration taken = inner_->do_step(coupling, step, t);
+  // ECCO's error estimate: per power bond the energy residual over the step against the
+  // tolerance abs + rel x the energy through the bond; the largest one counts.
+  const double h = cosim::to_seconds(taken);
+  double error = 0;
+  for (const auto& [force_side, motion_side] : coupling.last_power()) {
+    const double residual = std::abs(force_side - motion_side) * h;
+    const double through = std::max(std::abs(force_side), std::abs(motion_side)) * h;
+    if (std::isfinite(residual)) error = std::max(error, residual / (spec_.abs_tolerance + spec_.rel_tolerance * through));
+    else error = std::numeric_limits<double>::infinity();
+  }
+  history_.push_back({t, taken, error});
+  // PI controller: factor = safety (1/e_n)^i_gain (e_(n-1)/e_n)^p_gain, within [min_change, max_change].
+  double factor = spec_.max_change;
+  if (error > 0 && std::isfinite(error))
+    factor = spec_.safety * std::pow(1.0 / error, spec_.i_gain) * std::pow(previous_error_ / error, spec_.p_gain);
+  else if (!std::isfinite(error))
+    factor = spec_.min_change;
+  factor = std::clamp(std::isfinite(factor) ? factor : spec_.max_change, spec_.min_change, spec_.max_change);
+  if (error > 0 && std::isfinite(error)) previous_error_ = error;
+  const double wanted = cosim::to_seconds(taken) * factor;
+  const Duration next = static_cast<int64_t>(std::floor(wanted * 1e9 / static_cast<double>(quantum_.count()))) * quantum_;
+  next_ = std::clamp(next, min_, max_);
+  return taken;
+}
+
 std::unique_ptr<CouplingAlgorithm> make_algorithm(const Config& config) {
-  if (config.coupling.type == CouplingType::Implicit) return std::make_unique<ImplicitAlgorithm>();
-  return std::make_unique<FixedStepAlgorithm>();
+  std::unique_ptr<CouplingAlgorithm> a;
+  if (config.coupling.type == CouplingType::Implicit) a = std::make_unique<ImplicitAlgorithm>();
+  else a = std::make_unique<FixedStepAlgorithm>();
+  if (config.coupling.adaptive.enabled) return std::make_unique<AdaptiveStepAlgorithm>(std::move(a));
+  return a;
 }
 
 }  // namespace master

@@ -47,6 +47,8 @@ class Coupling {
   virtual void set_end_value(std::size_t connection, const cosim::Value& value);
   // The open step's convergence residuals (one per coupling.convergence entry), for its record.
   virtual void set_residuals(std::vector<double> residuals);
+  // The last closed step's power bonds (config `power` order): {force_side, motion_side} in W.
+  virtual std::vector<std::pair<double, double>> last_power() const;
 };
 
 // What the handshake told the master, for CouplingAlgorithm::initialize.
@@ -71,6 +73,9 @@ class CouplingAlgorithm {
 
   // The step loop: do_step from step `first_step` at `t` until t_end is reached.
   void run(Coupling& coupling, int64_t first_step, TimePoint t, TimePoint t_end);
+  // The length of the next steps (an adaptive step sets it before each do_step). Fixed-step
+  // algorithms take it; the default refuses.
+  virtual void set_step(Duration step);
 };
 
 // The explicit fixed-step scheme: every macro step once, Jacobi (all participants in one
@@ -83,6 +88,7 @@ class FixedStepAlgorithm final : public CouplingAlgorithm {
   void setup(const Config& config) override;
   void initialize(const AlgorithmSetup& setup) override;
   Duration do_step(Coupling& coupling, int64_t step, TimePoint t) override;
+  void set_step(Duration step) override { macro_step_ = step; }
   const std::vector<std::vector<std::string>>& groups() const { return groups_; }
 
  private:
@@ -109,6 +115,7 @@ class ImplicitAlgorithm final : public CouplingAlgorithm {
   void setup(const Config& config) override;
   void initialize(const AlgorithmSetup& setup) override;
   Duration do_step(Coupling& coupling, int64_t step, TimePoint t) override;
+  void set_step(Duration step) override { macro_step_ = step; }
 
   const std::vector<std::size_t>& fed_back() const { return fed_back_; }
   int64_t steps() const { return steps_; }
@@ -129,8 +136,38 @@ class ImplicitAlgorithm final : public CouplingAlgorithm {
   int64_t steps_ = 0, total_iterations_ = 0, unconverged_ = 0;
 };
 
+// An adaptive macro step (coupling.adaptive) around a fixed-step algorithm (explicit or
+// implicit): before each step it sets the step length, after it it measures the power bonds'
+// energy residual and chooses the next length with ECCO's PI controller (docs/coupling.md).
+// Every length is a whole multiple of every participant's inner step, within [min_step,
+// max_step] (rounded inwards to such multiples), and the last step ends at time.end.
+class AdaptiveStepAlgorithm final : public CouplingAlgorithm {
+ public:
+  explicit AdaptiveStepAlgorithm(std::unique_ptr<CouplingAlgorithm> inner);
+  std::string name() const override;
+  void setup(const Config& config) override;
+  void initialize(const AlgorithmSetup& setup) override;
+  Duration do_step(Coupling& coupling, int64_t step, TimePoint t) override;
+
+  struct Record {
+    TimePoint t_start;
+    Duration step;
+    double error;  // the controller's error estimate (<= 1: within tolerance)
+  };
+  const std::vector<Record>& history() const { return history_; }
+  Duration quantum() const { return quantum_; }
+
+ private:
+  std::unique_ptr<CouplingAlgorithm> inner_;
+  AdaptiveSpec spec_;
+  TimePoint t_end_{};
+  Duration next_{}, quantum_{}, min_{}, max_{};
+  double previous_error_ = 1.0;
+  std::vector<Record> history_;
+};
+
 // The algorithm a config asks for (FixedStepAlgorithm, or ImplicitAlgorithm for coupling.type:
-// implicit), not set up yet.
+// implicit), wrapped in AdaptiveStepAlgorithm with coupling.adaptive, not set up yet.
 std::unique_ptr<CouplingAlgorithm> make_algorithm(const Config& config);
 
 }  // namespace master

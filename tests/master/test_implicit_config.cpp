@@ -95,11 +95,57 @@ TEST(master_ImplicitConfig, BadSettingsAreRefusedNamingTheKeyAndTheFix) {
       {{"coupling.type=implicit", kConv, "coupling.acceleration={type: iqn_ils, reuse: -1}"}, {"coupling.acceleration.reuse", "0 to 100"}},
       {{"coupling.type=implicit", kConv, "coupling.acceleration={type: iqn_ils, filter: 1}"}, {"coupling.acceleration.filter", "0 <= filter < 1"}},
       {{"coupling.type=implicit", kConv, "checkpoints.every=0.01"}, {"does not take checkpoints yet", "checkpoints.every: 0"}},
+      {{"power=[{name: p, force: b.f, velocity: a.x}]", "coupling.adaptive={min_step: 1.0e-4}"}, {"coupling.adaptive", "max_step"}},
+      {{"power=[{name: p, force: b.f, velocity: a.x}]", "coupling.adaptive={min_step: 2.0e-3, max_step: 1.0e-2}"},
+       {"coupling.adaptive: min_step 0.002 s <= time.macro_step 0.001 s"}},
+      {{"coupling.adaptive={min_step: 1.0e-4, max_step: 1.0e-2}"}, {"coupling.adaptive", "`power` lists none"}},
+      {{"power=[{name: p, force: b.f, velocity: a.x}]", "coupling.adaptive={min_step: 1.0e-4, max_step: 1.0e-2, safety: 1.5}"},
+       {"coupling.adaptive.safety: 1.5", "<= 1"}},
+      {{"power=[{name: p, force: b.f, velocity: a.x}]", "coupling.adaptive={min_step: 1.0e-4, max_step: 1.0e-2, gain: 1}"},
+       {"coupling.adaptive", "gain"}},
+      {{"power=[{name: p, force: b.f, velocity: a.x}]", "checkpoints.every=0.01",
+        "coupling.adaptive={min_step: 1.0e-4, max_step: 1.0e-2}"}, {"coupling.adaptive", "checkpoints.every: 0"}},
   };
   for (const auto& c : cases) {
     const std::string e = error(c.sets);
     ASSERT_FALSE(e.empty()) << c.sets.back() << " was accepted";
     for (const auto& s : c.said) EXPECT_NE(e.find(s), std::string::npos) << "'" << e << "' lacks '" << s << "'";
+  }
+}
+
+TEST(master_ImplicitConfig, AdaptiveStepParsesAndWrapsEitherAlgorithm) {
+  const std::vector<std::string> sets = {"power=[{name: p, force: b.f, velocity: a.x}]",
+      "coupling.adaptive={min_step: 1.0e-4, max_step: 1.0e-2, abs_tolerance: 1.0e-5, rel_tolerance: 0.01, "
+      "p_gain: 0.3, i_gain: 0.2, safety: 0.9, min_change: 0.5, max_change: 2}"};
+  const auto c = parse(sets);
+  EXPECT_TRUE(c.coupling.adaptive.enabled);
+  EXPECT_EQ(c.coupling.adaptive.min_step, cosim::Duration(100000));
+  EXPECT_EQ(c.coupling.adaptive.max_step, cosim::Duration(10000000));
+  EXPECT_EQ(c.coupling.adaptive.abs_tolerance, 1e-5);
+  EXPECT_EQ(c.coupling.adaptive.rel_tolerance, 0.01);
+  EXPECT_EQ(c.coupling.adaptive.p_gain, 0.3);
+  EXPECT_EQ(c.coupling.adaptive.i_gain, 0.2);
+  EXPECT_EQ(c.coupling.adaptive.safety, 0.9);
+  EXPECT_EQ(c.coupling.adaptive.min_change, 0.5);
+  EXPECT_EQ(c.coupling.adaptive.max_change, 2);
+  auto a = master::make_algorithm(c);
+  a->setup(c);
+  EXPECT_EQ(a->name(), "fixed step (Jacobi), adaptive step");
+  auto with_implicit = sets;
+  with_implicit.insert(with_implicit.end(), {"coupling.type=implicit", kConv});
+  const auto ci = parse(with_implicit);
+  auto b = master::make_algorithm(ci);
+  b->setup(ci);
+  EXPECT_EQ(b->name(), "implicit (Jacobi, none), adaptive step");
+  // No multiple of the inner steps between the bounds: refused after the handshake.
+  std::map<std::string, cosim::ParticipantInfo> infos;
+  infos["a"].inner_step = cosim::Duration(3000000);
+  infos["b"].inner_step = cosim::Duration(7000000);  // lcm 21 ms > max_step 10 ms
+  try {
+    a->initialize({&infos, 0});
+    FAIL() << "bounds without a multiple of the inner steps were accepted";
+  } catch (const cosim::config::ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("21000000 ns"), std::string::npos) << e.what();
   }
 }
 
