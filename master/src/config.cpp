@@ -272,7 +272,163 @@ cosim::FaultPlan parse_faults(const YAML::Node& f, const Config& c) {
   return faults;
 }
 
+const char* const kMeasures[] = {"absolute", "relative", "residual_relative", "absolute_or_relative"};
+const char* const kAccelerations[] = {"none", "constant", "aitken", "iqn_ils"};
+
+double positive_limit(const YAML::Node& n, const std::string& path, const std::string& key) {
+  const double v = cfg::get_double(n, path, key);
+  if (!(v > 0) || !std::isfinite(v))
+    throw ConfigError(path + "." + key + ": " + number_text(v) + " is not allowed: give a finite number > 0");
+  return v;
+}
+
+// coupling.adaptive: the macro step chosen by ECCO's PI controller.
+AdaptiveSpec parse_adaptive(const YAML::Node& n, const Config& c) {
+  AdaptiveSpec a;
+  if (!n) return a;
+  const std::string path = "coupling.adaptive";
+  if (!n.IsMap()) throw ConfigError(path + ": expected a map {min_step, max_step, abs_tolerance, ...}");
+  cfg::check_keys(n, path, {"min_step", "max_step", "abs_tolerance", "rel_tolerance", "p_gain", "i_gain",
+                            "safety", "min_change", "max_change"});
+  a.enabled = true;
+  a.min_step = cosim::seconds_to_duration(positive_limit(n, path, "min_step"), path + ".min_step");
+  a.max_step = cosim::seconds_to_duration(positive_limit(n, path, "max_step"), path + ".max_step");
+  if (a.min_step > c.macro_step || a.max_step < c.macro_step)
+    throw ConfigError(path + ": min_step " + number_text(cosim::to_seconds(a.min_step)) + " s <= time.macro_step " +
+                      number_text(cosim::to_seconds(c.macro_step)) + " s (the first step) <= max_step " +
+                      number_text(cosim::to_seconds(a.max_step)) + " s must hold");
+  auto get = [&](const char* key, double& v, double lo, double hi, bool open_lo) {
+    v = cfg::get_double_or(n, path, key, v);
+    if (!(open_lo ? v > lo : v >= lo) || !(v <= hi) || !std::isfinite(v))
+      throw ConfigError(path + "." + key + ": " + number_text(v) + " is not allowed (allowed: " +
+                        (open_lo ? "> " : ">= ") + number_text(lo) + " and <= " + number_text(hi) + ")");
+  };
+  get("abs_tolerance", a.abs_tolerance, 0, 1e30, true);
+  get("rel_tolerance", a.rel_tolerance, 0, 1, false);
+  get("p_gain", a.p_gain, 0, 2, false);
+  get("i_gain", a.i_gain, 0, 2, true);
+  get("safety", a.safety, 0, 1, true);
+  get("min_change", a.min_change, 0, 1, true);
+  get("max_change", a.max_change, 1, 100, false);
+  if (c.checkpoints.every > Duration::zero())
+    throw ConfigError(path + ": an adaptive macro step does not take checkpoints yet (checkpoints are at "
+                      "whole numbers of fixed macro steps); set checkpoints.every: 0");
+  if (c.power.empty())
+    throw ConfigError(path + ": the controller measures the energy residual of the power bonds, and `power` "
+                      "lists none; add a {name, force, velocity} pair under power");
+  return a;
+}
+
+// coupling: explicit (the default) or implicit with its iterations, convergence and acceleration.
+CouplingSpec parse_coupling(const YAML::Node& n, const Config& c) {
+  CouplingSpec out;
+  if (!n) return out;
+  if (!n.IsMap()) throw ConfigError("coupling: expected a map {type, min_iterations, max_iterations, ...}");
+  cfg::check_keys(n, "coupling", {"type", "min_iterations", "max_iterations", "at_max_iterations",
+                                  "convergence", "acceleration", "adaptive"});
+  out.adaptive = parse_adaptive(n["adaptive"], c);
+  out.type = cfg::get_choice(n, "coupling", "type", {"explicit", "implicit"}, "explicit") == "implicit"
+                 ? CouplingType::Implicit
+                 : CouplingType::Explicit;
+  if (out.type == CouplingType::Explicit) {
+    for (const char* key : {"min_iterations", "max_iterations", "at_max_iterations", "convergence", "acceleration"})
+      if (n[key])
+        throw ConfigError(std::string("coupling.") + key +
+                          ": only for coupling.type: implicit (the explicit scheme steps once); "
+                          "set coupling.type: implicit or remove the key");
+    return out;
+  }
+  if (c.checkpoints.every > Duration::zero())
+    throw ConfigError("coupling.type: implicit does not take checkpoints yet (checkpoints.every: " +
+                      number_text(cosim::to_seconds(c.checkpoints.every)) +
+                      "); set checkpoints.every: 0, or use coupling.type: explicit for a resumable run");
+  const long long lo = cfg::get_int_or(n, "coupling", "min_iterations", out.min_iterations);
+  const long long hi = cfg::get_int_or(n, "coupling", "max_iterations", out.max_iterations);
+  if (hi < 1 || hi > 1000)
+    throw ConfigError("coupling.max_iterations: " + std::to_string(hi) + " is not allowed (allowed: 1 to 1000)");
+  if (lo < 1 || lo > hi)
+    throw ConfigError("coupling.min_iterations: " + std::to_string(lo) +
+                      " is not allowed (allowed: 1 to coupling.max_iterations = " + std::to_string(hi) + ")");
+  out.min_iterations = static_cast<int>(lo);
+  out.max_iterations = static_cast<int>(hi);
+  out.stop_at_max = cfg::get_choice(n, "coupling", "at_max_iterations", {"accept", "stop"}, "accept") == "stop";
+  const YAML::Node conv = n["convergence"];
+  if (!conv || !conv.IsSequence() || conv.size() == 0)
+    throw ConfigError("coupling.convergence: missing (coupling.type: implicit needs a list of "
+                      "{connection: participant.input, measure: relative, limit: 1.0e-6})");
+  for (std::size_t i = 0; i < conv.size(); ++i) {
+    const std::string path = "coupling.convergence." + std::to_string(i);
+    if (!conv[i].IsMap()) throw ConfigError(path + ": expected a map {connection, measure, limit}");
+    const std::string measure = cfg::get_choice(conv[i], path, "measure",
+                                                {kMeasures[0], kMeasures[1], kMeasures[2], kMeasures[3]});
+    ConvergenceSpec cs;
+    if (measure == "absolute_or_relative") {
+      cfg::check_keys(conv[i], path, {"connection", "measure", "absolute", "relative", "suffices"});
+      cs.measure = Measure::AbsoluteOrRelative;
+      cs.limit = positive_limit(conv[i], path, "absolute");
+      cs.relative_limit = positive_limit(conv[i], path, "relative");
+    } else {
+      cfg::check_keys(conv[i], path, {"connection", "measure", "limit", "suffices"});
+      cs.measure = measure == "absolute" ? Measure::Absolute
+                   : measure == "relative" ? Measure::Relative
+                                           : Measure::ResidualRelative;
+      cs.limit = positive_limit(conv[i], path, "limit");
+    }
+    cs.suffices = cfg::get_bool_or(conv[i], path, "suffices", false);
+    const std::string to = cfg::get_string(conv[i], path, "connection");
+    std::string inputs;
+    bool found = false;
+    for (std::size_t k = 0; k < c.connections.size(); ++k) {
+      inputs += (k ? ", " : "") + c.connections[k].to.str();
+      if (c.connections[k].to.str() == to) cs.connection = k, found = true;
+    }
+    if (!found)
+      throw ConfigError(path + ".connection: '" + to + "' is not the input of a connection (give the "
+                        "connection's `to`, one of: " + inputs + ")");
+    out.convergence.push_back(cs);
+  }
+  const YAML::Node a = n["acceleration"];
+  if (a) {
+    if (!a.IsMap()) throw ConfigError("coupling.acceleration: expected a map {type, relaxation, ...}");
+    const std::string type = cfg::get_choice(a, "coupling.acceleration", "type",
+                                             {kAccelerations[0], kAccelerations[1], kAccelerations[2], kAccelerations[3]});
+    auto& acc = out.acceleration;
+    acc.type = type == "none" ? AccelerationType::None
+               : type == "constant" ? AccelerationType::Constant
+               : type == "aitken"   ? AccelerationType::Aitken
+                                    : AccelerationType::IqnIls;
+    if (acc.type == AccelerationType::None) cfg::check_keys(a, "coupling.acceleration", {"type"});
+    else if (acc.type == AccelerationType::IqnIls)
+      cfg::check_keys(a, "coupling.acceleration", {"type", "relaxation", "reuse", "max_columns", "filter"});
+    else cfg::check_keys(a, "coupling.acceleration", {"type", "relaxation"});
+    if (acc.type != AccelerationType::None) {
+      acc.relaxation = cfg::get_double_or(a, "coupling.acceleration", "relaxation", acc.relaxation);
+      if (!(acc.relaxation > 0 && acc.relaxation <= 1))
+        throw ConfigError("coupling.acceleration.relaxation: " + number_text(acc.relaxation) +
+                          " is not allowed (allowed: > 0 and <= 1; 1 is no relaxation)");
+    }
+    if (acc.type == AccelerationType::IqnIls) {
+      const long long reuse = cfg::get_int_or(a, "coupling.acceleration", "reuse", acc.reuse);
+      if (reuse < 0 || reuse > 100)
+        throw ConfigError("coupling.acceleration.reuse: " + std::to_string(reuse) + " is not allowed (allowed: 0 to 100 past macro steps)");
+      const long long cols = cfg::get_int_or(a, "coupling.acceleration", "max_columns", acc.max_columns);
+      if (cols < 1 || cols > 1000)
+        throw ConfigError("coupling.acceleration.max_columns: " + std::to_string(cols) + " is not allowed (allowed: 1 to 1000)");
+      acc.reuse = static_cast<int>(reuse);
+      acc.max_columns = static_cast<int>(cols);
+      acc.filter = cfg::get_double_or(a, "coupling.acceleration", "filter", acc.filter);
+      if (!(acc.filter >= 0 && acc.filter < 1))
+        throw ConfigError("coupling.acceleration.filter: " + number_text(acc.filter) +
+                          " is not allowed (allowed: 0 <= filter < 1; 0 keeps every column)");
+    }
+  }
+  return out;
+}
+
 }  // namespace
+
+const char* measure_name(Measure m) { return kMeasures[static_cast<int>(m)]; }
+const char* acceleration_name(AccelerationType t) { return kAccelerations[static_cast<int>(t)]; }
 
 Config parse_config(const YAML::Node& root, const std::string& source_text) {
   Config c;
@@ -284,7 +440,7 @@ Config parse_config(const YAML::Node& root, const std::string& source_text) {
   }
   cfg::check_keys(root, "", {"bus", "time", "scheme", "order", "startup_iterations",
                               "connect_timeout", "participants", "predictors", "connections",
-                              "power", "output", "checkpoints", "faults"});
+                              "power", "output", "checkpoints", "faults", "coupling"});
   if (root["bus"]) {
     cfg::check_keys(root["bus"], "bus", {"url", "authenticate"});
     c.bus_url = cfg::get_string_or(root["bus"], "bus", "url", c.bus_url);
@@ -299,6 +455,7 @@ Config parse_config(const YAML::Node& root, const std::string& source_text) {
   c.output = parse_output(root["output"]);
   c.checkpoints = parse_checkpoints(root["checkpoints"], c);
   c.faults = parse_faults(root["faults"], c);
+  c.coupling = parse_coupling(root["coupling"], c);
   return c;
 }
 

@@ -67,6 +67,57 @@ struct CheckpointSpec {
   std::string folder;  // on each participant's host; "" : the output file's name + ".checkpoints"
 };
 
+// Implicit coupling (docs/coupling.md): the coupling signals of a macro step iterated until they
+// converge, every participant rolled back to the step's start between iterations.
+enum class CouplingType { Explicit, Implicit };
+// preCICE's convergence measures of a connection's residual r = x - x_in (its source's value at the
+// step's end minus the value in place for it when the iteration began), x its new value:
+// Absolute ||r|| <= limit; Relative ||r|| <= limit ||x||; ResidualRelative ||r|| <= limit ||r_0||
+// (r_0: the step's first iteration); AbsoluteOrRelative: either of the first two.
+enum class Measure { Absolute, Relative, ResidualRelative, AbsoluteOrRelative };
+const char* measure_name(Measure m);
+
+struct ConvergenceSpec {
+  std::size_t connection = 0;  // index into Config::connections
+  Measure measure = Measure::Relative;
+  double limit = 0;           // Absolute, Relative, ResidualRelative; AbsoluteOrRelative: absolute
+  double relative_limit = 0;  // AbsoluteOrRelative only
+  bool suffices = false;      // converged when this one is met, whatever the others say
+};
+
+enum class AccelerationType { None, Constant, Aitken, IqnIls };
+const char* acceleration_name(AccelerationType t);
+
+struct AccelerationSpec {
+  AccelerationType type = AccelerationType::None;
+  double relaxation = 0.5;  // constant: the factor; aitken, iqn_ils: the first iteration's
+  int reuse = 8;            // iqn_ils: past macro steps whose columns are kept
+  int max_columns = 100;    // iqn_ils
+  double filter = 1e-2;     // iqn_ils: QR filter, a column whose new part is below filter x its norm is dropped
+};
+
+// Adaptive macro step (docs/coupling.md#adaptive-macro-step): ECCO's PI controller on the power
+// bonds' energy residual (Sadjina et al. 2017), bounded, a whole multiple of every inner step.
+struct AdaptiveSpec {
+  bool enabled = false;
+  Duration min_step{}, max_step{};  // required when enabled
+  double abs_tolerance = 1e-6;      // J
+  double rel_tolerance = 1e-3;      // of the energy through the bond over the step
+  double p_gain = 0.2, i_gain = 0.15;
+  double safety = 0.8;
+  double min_change = 0.2, max_change = 1.5;  // of the step, per step
+};
+
+struct CouplingSpec {
+  CouplingType type = CouplingType::Explicit;
+  AdaptiveSpec adaptive;
+  int min_iterations = 1;
+  int max_iterations = 50;
+  bool stop_at_max = false;  // at_max_iterations: stop (else accept with a warning)
+  std::vector<ConvergenceSpec> convergence;
+  AccelerationSpec acceleration;
+};
+
 struct Config {
   std::string bus_url;
   // false: an unauthenticated bus, by explicit choice (the recorded config says so). true: a
@@ -84,6 +135,7 @@ struct Config {
   std::vector<PowerSpec> power;
   OutputSpec output;
   CheckpointSpec checkpoints;
+  CouplingSpec coupling;
   cosim::FaultPlan faults;
   std::string source_text;     // the file as read
   std::string effective_yaml;  // after --set

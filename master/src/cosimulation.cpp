@@ -185,6 +185,40 @@ void CoSimulation::open_step(int64_t step, TimePoint t0, TimePoint t1) {
   open_->rec.t_start = t0;
   open_->rec.t_end = t1;
   open_->sent.resize(config_.connections.size());
+  open_->end.resize(config_.connections.size());
+}
+
+cosim::Value CoSimulation::end_value(std::size_t i) const {
+  if (!open_) throw std::logic_error("end_value outside a macro step");
+  if (open_->end.at(i)) return *open_->end[i];
+  const auto p = predictors_.at(i).predict(open_->rec.t_start, open_->rec.t_end);
+  return config_.connections[i].use == Use::Average ? p.mean() : p.evaluate(1.0);
+}
+
+void CoSimulation::set_end_value(std::size_t i, const cosim::Value& value) {
+  if (!open_) throw std::logic_error("set_end_value outside a macro step");
+  const auto& k = config_.connections.at(i);
+  cosim::Value v = value;
+  const auto kind = setup_.participants.at(k.from.participant).initial_outputs.at(k.from.signal).kind;
+  if (kind == SignalKind::Kinematics) {  // a mix of unit quaternions: back onto the unit sphere
+    auto q = Kinematics::from_value(v);
+    double n = 0;
+    for (double e : q.orientation) n += e * e;
+    n = std::sqrt(n);
+    if (n > 0)
+      for (double& e : q.orientation) e /= n;
+    v = q.to_value();
+  }
+  if (k.use == Use::Average)
+    predictors_[i].record_mean(open_->rec.t_start, open_->rec.t_end, v);
+  else
+    predictors_[i].record(open_->rec.t_end, v);
+  open_->end[i] = std::move(v);
+}
+
+void CoSimulation::set_residuals(std::vector<double> residuals) {
+  if (!open_) throw std::logic_error("set_residuals outside a macro step");
+  open_->rec.coupling_residuals = std::move(residuals);
 }
 
 void CoSimulation::exchange(const std::vector<std::string>& group, int iteration, bool checkpoint) {
@@ -192,6 +226,7 @@ void CoSimulation::exchange(const std::vector<std::string>& group, int iteration
   OpenStep& s = *open_;
   StepRecord& rec = s.rec;
   const TimePoint t0 = rec.t_start, t1 = rec.t_end;
+  if (iteration > 0 && !s.first_pass) s.first_pass = OpenStep::Pass{s.sent, rec.outputs, s.averages};
   auto qs = requests(group, rec.step_index, iteration, t0, t1, checkpoint);
   for (std::size_t i = 0; i < config_.connections.size(); ++i)
     for (const auto& name : group)
@@ -210,10 +245,13 @@ void CoSimulation::exchange(const std::vector<std::string>& group, int iteration
     for (std::size_t i = 0; i < config_.connections.size(); ++i) {
       const auto& k = config_.connections[i];
       if (k.from.participant != name) continue;
-      if (k.use == Use::Average)  // the mean over this step: interpolation from now on
+      if (k.use == Use::Average) {  // the mean over this step: interpolation from now on
         predictors_[i].record_mean(t0, t1, answers[g].average->at(k.from.signal).value);
-      else
+        s.end[i] = answers[g].average->at(k.from.signal).value;
+      } else {
         predictors_[i].record(t1, answers[g].outputs.at(k.from.signal).value);
+        s.end[i] = answers[g].outputs.at(k.from.signal).value;
+      }
     }
   }
 }
@@ -284,6 +322,18 @@ void CoSimulation::close_step(int iterations, bool checkpoint) {
   record_power(s.rec, !s.sent.empty());
   s.rec.wall_seconds = s.wall.seconds();
   s.rec.master_seconds = s.rec.wall_seconds - s.waiting;
+  last_power_.clear();
+  if (s.first_pass) {
+    OpenStep first;
+    first.sent = s.first_pass->sent;
+    first.rec.outputs = s.first_pass->outputs;
+    first.averages = s.first_pass->averages;
+    record_connections(first);
+    record_power(first.rec, !first.sent.empty());
+    for (const auto& p : first.rec.power) last_power_.emplace_back(p.force_side, p.motion_side);
+  } else {
+    for (const auto& p : s.rec.power) last_power_.emplace_back(p.force_side, p.motion_side);
+  }
   for (auto* o : observers_) o->on_step(s.rec);
   open_.reset();
 }

@@ -42,6 +42,8 @@ struct StepRecord {
   int64_t step_index = 0;
   TimePoint t_start{}, t_end{};
   int iterations = 1;
+  // Implicit coupling: per coupling.convergence entry, |r| of the step's last iteration (else empty).
+  std::vector<double> coupling_residuals;
   std::map<std::string, cosim::Signals> outputs;
   std::map<std::string, std::vector<std::pair<std::string, double>>> diagnostics;
   std::vector<ConnectionRecord> connections;  // in config order
@@ -117,6 +119,16 @@ class CoSimulation final : private Coupling {
     StepRecord rec;
     std::vector<cosim::InputPolynomial> sent;       // per connection, the last one sent
     std::map<std::string, cosim::Signals> averages;  // participants asked for interval averages
+    // Per connection, the value in place at the step's end once an exchange or the algorithm
+    // has set one (else the prediction stands).
+    std::vector<std::optional<cosim::Value>> end;
+    // What the first pass over the step sent and got (kept when a second pass begins): the
+    // explicit prediction's power residual, which the adaptive step controls.
+    struct Pass {
+      std::vector<cosim::InputPolynomial> sent;
+      std::map<std::string, cosim::Signals> outputs, averages;
+    };
+    std::optional<Pass> first_pass;
   };
 
   // Coupling
@@ -126,6 +138,10 @@ class CoSimulation final : private Coupling {
   bool checkpoint_due(int64_t step) const override;
   bool ended() const override { return ended_.has_value(); }
   void note_end(const std::string& name, const cosim::StepAnswer& answer, TimePoint t0, TimePoint t1);
+  cosim::Value end_value(std::size_t connection) const override;
+  void set_end_value(std::size_t connection, const cosim::Value& value) override;
+  void set_residuals(std::vector<double> residuals) override;
+  std::vector<std::pair<double, double>> last_power() const override { return last_power_; }
 
   std::vector<cosim::step_request_t> requests(const std::vector<std::string>& group, int64_t step,
                                        int iteration, TimePoint t0, TimePoint t1, bool checkpoint);
@@ -147,6 +163,9 @@ class CoSimulation final : private Coupling {
   std::vector<Predictor> predictors_;  // one per connection
   int max_order_ = 0;
   std::optional<OpenStep> open_;
+  // The last closed step's bonds, from its first pass (the explicit prediction; the accepted
+  // pass of an implicit step agrees with itself by construction).
+  std::vector<std::pair<double, double>> last_power_;
   int64_t run_id_ = 0;
   std::string checkpoint_folder_;
   std::optional<ResumePoint> resume_;

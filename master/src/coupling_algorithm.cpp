@@ -1,6 +1,46 @@
 #include "coupling_algorithm.hpp"
 
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <numeric>
+#include <sstream>
+#include <stdexcept>
+
+#include "acceleration.hpp"
+
 namespace master {
+
+cosim::Value Coupling::end_value(std::size_t) const {
+  throw std::logic_error("this coupling cannot tell a connection's end value (implicit coupling needs a CoSimulation)");
+}
+void Coupling::set_end_value(std::size_t, const cosim::Value&) {
+  throw std::logic_error("this coupling cannot set a connection's end value (implicit coupling needs a CoSimulation)");
+}
+void Coupling::set_residuals(std::vector<double>) {}
+std::vector<std::pair<double, double>> Coupling::last_power() const {
+  throw std::logic_error("this coupling cannot tell the power bonds (an adaptive step needs a CoSimulation)");
+}
+
+void CouplingAlgorithm::set_step(Duration) {
+  throw std::logic_error(name() + " has no settable macro step");
+}
+
+namespace {
+
+std::vector<std::vector<std::string>> scheme_groups(const Config& config) {
+  std::vector<std::vector<std::string>> groups;
+  if (config.scheme == Scheme::Jacobi) {
+    groups.push_back({});
+    for (const auto& p : config.participants) groups.back().push_back(p.name);
+  } else {
+    for (const auto& name : config.order) groups.push_back({name});
+  }
+  return groups;
+}
+
+}  // namespace
 
 void CouplingAlgorithm::run(Coupling& coupling, int64_t first_step, TimePoint t, TimePoint t_end) {
   for (int64_t step = first_step; t < t_end && !coupling.ended(); ++step) {
@@ -19,13 +59,7 @@ void FixedStepAlgorithm::setup(const Config& config) {
   scheme_ = config.scheme;
   macro_step_ = config.macro_step;
   startup_iterations_ = config.startup_iterations;
-  groups_.clear();
-  if (config.scheme == Scheme::Jacobi) {
-    groups_.push_back({});
-    for (const auto& p : config.participants) groups_.back().push_back(p.name);
-  } else {
-    for (const auto& name : config.order) groups_.push_back({name});
-  }
+  groups_ = scheme_groups(config);
 }
 
 void FixedStepAlgorithm::initialize(const AlgorithmSetup& setup) {
@@ -64,9 +98,238 @@ Duration FixedStepAlgorithm::do_step(Coupling& coupling, int64_t step, TimePoint
   return macro_step_;
 }
 
+// --- Implicit coupling
+
+ImplicitAlgorithm::ImplicitAlgorithm() = default;
+ImplicitAlgorithm::~ImplicitAlgorithm() = default;
+
+std::string ImplicitAlgorithm::name() const {
+  return std::string(scheme_ == Scheme::Jacobi ? "implicit (Jacobi" : "implicit (Gauss-Seidel") + ", " +
+         acceleration_name(spec_.acceleration.type) + ")";
+}
+
+void ImplicitAlgorithm::setup(const Config& config) {
+  if (config.coupling.type != CouplingType::Implicit)
+    throw std::logic_error("ImplicitAlgorithm set up with coupling.type: explicit");
+  scheme_ = config.scheme;
+  macro_step_ = config.macro_step;
+  startup_iterations_ = config.startup_iterations;
+  spec_ = config.coupling;
+  if (spec_.convergence.empty())
+    throw cosim::config::ConfigError("coupling.convergence: missing (coupling.type: implicit needs at least one measure)");
+  groups_ = scheme_groups(config);
+  connection_names_.clear();
+  for (const auto& k : config.connections) connection_names_.push_back(k.to.str());
+  // A connection is fed back when its consumer steps before (or with) its source: its value at
+  // the step's end is then a guess the iteration improves. Jacobi: every connection.
+  auto group_of = [&](const std::string& name) {
+    for (std::size_t g = 0; g < groups_.size(); ++g)
+      for (const auto& n : groups_[g])
+        if (n == name) return g;
+    throw std::logic_error("participant in no group: " + name);
+  };
+  fed_back_.clear();
+  for (std::size_t i = 0; i < config.connections.size(); ++i)
+    if (group_of(config.connections[i].to.participant) <= group_of(config.connections[i].from.participant))
+      fed_back_.push_back(i);
+  scale_.assign(fed_back_.size(), 0.0);
+  acceleration_ = make_acceleration(spec_.acceleration);
+  steps_ = total_iterations_ = unconverged_ = 0;
+}
+
+void ImplicitAlgorithm::initialize(const AlgorithmSetup& setup) {
+  max_order_ = setup.max_order;
+  // Every iteration after the first repeats the step from its start: refused before any step.
+  for (const auto& [name, info] : *setup.participants)
+    if (!info.can_repeat)
+      throw cosim::config::ConfigError(
+          "coupling.type: implicit repeats every macro step from its start, but participant '" + name +
+          "' cannot repeat a step" + (info.repeat_note.empty() ? std::string() : " (" + info.repeat_note + ")") +
+          "; use coupling.type: explicit, or make the participant able to repeat steps");
+}
+
+namespace {
+
+double norm(const cosim::Value& v) {
+  double s = 0;
+  for (double e : v) s += e * e;
+  return std::sqrt(s);
+}
+
+std::string number(double v) {
+  std::ostringstream o;
+  o.precision(3);
+  o << v;
+  return o.str();
+}
+
+}  // namespace
+
+Duration ImplicitAlgorithm::do_step(Coupling& coupling, int64_t step, TimePoint t) {
+  const bool checkpoint = coupling.checkpoint_due(step);
+  const std::size_t n = connection_names_.size();
+  int min_iterations = spec_.min_iterations;
+  if (step < max_order_) min_iterations = std::max(min_iterations, 1 + startup_iterations_);
+  coupling.open_step(step, t, t + macro_step_);
+  std::vector<cosim::Value> in(n), out(n);
+  // Per entry of the flat vector the acceleration sees: 1 / the largest rms value its connection
+  // has had (so that metres and newtons weigh alike in IQN-ILS's least squares).
+  for (std::size_t f = 0; f < fed_back_.size(); ++f) {
+    const auto v = coupling.end_value(fed_back_[f]);
+    scale_[f] = std::max(scale_[f], norm(v) / std::sqrt(static_cast<double>(std::max<std::size_t>(v.size(), 1))));
+  }
+  std::vector<double> weights;
+  for (std::size_t f = 0; f < fed_back_.size(); ++f) {
+    const auto size = coupling.end_value(fed_back_[f]).size();
+    weights.insert(weights.end(), size, scale_[f] > 0 ? 1.0 / scale_[f] : 1.0);
+  }
+  acceleration_->start_step(weights);
+  std::vector<double> first(spec_.convergence.size(), 0.0), residuals(spec_.convergence.size(), 0.0);
+  int k = 0;
+  for (;; ++k) {
+    for (std::size_t i = 0; i < n; ++i) in[i] = coupling.end_value(i);
+    // Checkpoints are refused with implicit coupling (config.cpp): which iteration is the last
+    // is known only after it.
+    for (const auto& group : groups_)
+      if (!coupling.ended()) coupling.exchange(group, k, checkpoint);
+    if (coupling.ended()) break;  // a participant ended the run in this iteration: no more
+    for (std::size_t i = 0; i < n; ++i) out[i] = coupling.end_value(i);
+    bool all = true, any_sufficient = false;
+    std::size_t worst = 0;
+    double worst_ratio = -1;
+    for (std::size_t c = 0; c < spec_.convergence.size(); ++c) {
+      const auto& cs = spec_.convergence[c];
+      cosim::Value r(out[cs.connection].size());
+      for (std::size_t j = 0; j < r.size(); ++j) r[j] = out[cs.connection][j] - in[cs.connection][j];
+      const double rn = norm(r), xn = norm(out[cs.connection]);
+      if (k == 0) first[c] = rn;
+      residuals[c] = rn;
+      double ratio = 0;  // measure / limit: <= 1 is met
+      switch (cs.measure) {
+        case Measure::Absolute: ratio = rn / cs.limit; break;
+        case Measure::Relative: ratio = rn == 0 ? 0 : rn / (cs.limit * xn); break;
+        case Measure::ResidualRelative: ratio = rn == 0 ? 0 : rn / (cs.limit * first[c]); break;
+        case Measure::AbsoluteOrRelative:
+          ratio = std::min(rn / cs.limit, rn == 0 ? 0 : rn / (cs.relative_limit * xn));
+          break;
+      }
+      const bool met = ratio <= 1;  // NaN: not met
+      all = all && met;
+      any_sufficient = any_sufficient || (met && cs.suffices);
+      if (!met && !(ratio <= worst_ratio)) worst = c, worst_ratio = ratio;
+    }
+    const bool converged = all || any_sufficient;
+    if (converged && k + 1 >= min_iterations) break;
+    if (k + 1 >= spec_.max_iterations) {
+      if (converged) break;
+      const auto& cs = spec_.convergence[worst];
+      const std::string what =
+          "macro step " + std::to_string(step) + " (t = " + number(cosim::to_seconds(t)) + " s) did not converge in " +
+          std::to_string(spec_.max_iterations) + " iterations: connection " + connection_names_[cs.connection] +
+          " has residual |r| = " + number(residuals[worst]) + " (" + measure_name(cs.measure) + " measure at " +
+          number(worst_ratio) + " x its limit)";
+      if (spec_.stop_at_max)
+        throw std::runtime_error(what + "; coupling.at_max_iterations: stop. Raise coupling.max_iterations, "
+                                        "use an acceleration (coupling.acceleration.type: iqn_ils) or a smaller time.macro_step");
+      if (unconverged_ < 10)
+        std::fprintf(stderr, "cosim_master: warning: %s; accepted (coupling.at_max_iterations: accept)%s\n",
+                     what.c_str(), unconverged_ == 9 ? "; further such warnings are not printed" : "");
+      ++unconverged_;
+      break;
+    }
+    std::vector<double> x_in, x;
+    for (std::size_t i : fed_back_) {
+      x_in.insert(x_in.end(), in[i].begin(), in[i].end());
+      x.insert(x.end(), out[i].begin(), out[i].end());
+    }
+    const auto next = acceleration_->next(x_in, x, k);
+    std::size_t at = 0;
+    for (std::size_t i : fed_back_) {
+      const std::size_t size = in[i].size();
+      coupling.set_end_value(i, cosim::Value(next.begin() + static_cast<std::ptrdiff_t>(at),
+                                             next.begin() + static_cast<std::ptrdiff_t>(at + size)));
+      at += size;
+    }
+  }
+  acceleration_->end_step();
+  coupling.set_residuals(residuals);
+  coupling.close_step(k + 1, checkpoint);
+  ++steps_;
+  total_iterations_ += k + 1;
+  return macro_step_;
+}
+
+// --- Adaptive macro step
+
+AdaptiveStepAlgorithm::AdaptiveStepAlgorithm(std::unique_ptr<CouplingAlgorithm> inner) : inner_(std::move(inner)) {}
+
+std::string AdaptiveStepAlgorithm::name() const { return inner_->name() + ", adaptive step"; }
+
+void AdaptiveStepAlgorithm::setup(const Config& config) {
+  inner_->setup(config);
+  spec_ = config.coupling.adaptive;
+  if (!spec_.enabled) throw std::logic_error("AdaptiveStepAlgorithm without coupling.adaptive");
+  t_end_ = config.t_end;
+  next_ = config.macro_step;
+  previous_error_ = 1.0;
+  history_.clear();
+}
+
+void AdaptiveStepAlgorithm::initialize(const AlgorithmSetup& setup) {
+  inner_->initialize(setup);
+  // The quantum: the least common multiple of the inner steps (time.macro_step is a multiple of
+  // each, check_wiring, so time.end - time.start is a multiple of the quantum too).
+  int64_t q = 1;
+  for (const auto& [name, info] : *setup.participants) {
+    const int64_t inner = cosim::to_ns(info.inner_step);
+    if (inner <= 0) continue;
+    q = std::lcm(q, inner);
+  }
+  quantum_ = Duration(q);
+  min_ = ((spec_.min_step + quantum_ - Duration(1)) / quantum_) * quantum_;  // rounded up
+  max_ = (spec_.max_step / quantum_) * quantum_;                            // rounded down
+  if (max_ < min_ || max_ <= Duration::zero())
+    throw cosim::config::ConfigError(
+        "coupling.adaptive: no whole multiple of every participant's inner step (their least common multiple: " +
+        std::to_string(q) + " ns) lies in [min_step, max_step] = [" + number(cosim::to_seconds(spec_.min_step)) + ", " +
+        number(cosim::to_seconds(spec_.max_step)) + "] s; widen the bounds");
+}
+
+Duration AdaptiveStepAlgorithm::do_step(Coupling& coupling, int64_t step, TimePoint t) {
+  const Duration H = std::min(next_, t_end_ - t);
+  inner_->set_step(H);
+  const Duration taken = inner_->do_step(coupling, step, t);
+  // ECCO's error estimate: per power bond the energy residual over the step against the
+  // tolerance abs + rel x the energy through the bond; the largest one counts.
+  const double h = cosim::to_seconds(taken);
+  double error = 0;
+  for (const auto& [force_side, motion_side] : coupling.last_power()) {
+    const double residual = std::abs(force_side - motion_side) * h;
+    const double through = std::max(std::abs(force_side), std::abs(motion_side)) * h;
+    if (std::isfinite(residual)) error = std::max(error, residual / (spec_.abs_tolerance + spec_.rel_tolerance * through));
+    else error = std::numeric_limits<double>::infinity();
+  }
+  history_.push_back({t, taken, error});
+  // PI controller: factor = safety (1/e_n)^i_gain (e_(n-1)/e_n)^p_gain, within [min_change, max_change].
+  double factor = spec_.max_change;
+  if (error > 0 && std::isfinite(error))
+    factor = spec_.safety * std::pow(1.0 / error, spec_.i_gain) * std::pow(previous_error_ / error, spec_.p_gain);
+  else if (!std::isfinite(error))
+    factor = spec_.min_change;
+  factor = std::clamp(std::isfinite(factor) ? factor : spec_.max_change, spec_.min_change, spec_.max_change);
+  if (error > 0 && std::isfinite(error)) previous_error_ = error;
+  const double wanted = cosim::to_seconds(taken) * factor;
+  const Duration next = static_cast<int64_t>(std::floor(wanted * 1e9 / static_cast<double>(quantum_.count()))) * quantum_;
+  next_ = std::clamp(next, min_, max_);
+  return taken;
+}
+
 std::unique_ptr<CouplingAlgorithm> make_algorithm(const Config& config) {
-  (void)config;  // scheme and step size are the fixed step's; an implicit or adaptive one goes here
-  return std::make_unique<FixedStepAlgorithm>();
+  std::unique_ptr<CouplingAlgorithm> a;
+  if (config.coupling.type == CouplingType::Implicit) a = std::make_unique<ImplicitAlgorithm>();
+  else a = std::make_unique<FixedStepAlgorithm>();
+  if (config.coupling.adaptive.enabled) return std::make_unique<AdaptiveStepAlgorithm>(std::move(a));
+  return a;
 }
 
 }  // namespace master

@@ -40,6 +40,18 @@ class Coupling {
   // A participant ended the run itself (an FMU's terminate) in the open step: no further
   // exchange in it and no further step.
   virtual bool ended() const = 0;
+
+  // Implicit coupling. Per connection (config order), the value at the open step's end that is
+  // in place for it now: the source's answer of the latest exchange that stepped it, one set by
+  // set_end_value, or else the prediction (use: end: the polynomial at the end; use: average:
+  // its mean). The fallbacks raise: an algorithm that needs these runs on a CoSimulation.
+  virtual cosim::Value end_value(std::size_t connection) const;
+  // Replaces the value in place at the step's end (the next exchange interpolates to it).
+  virtual void set_end_value(std::size_t connection, const cosim::Value& value);
+  // The open step's convergence residuals (one per coupling.convergence entry), for its record.
+  virtual void set_residuals(std::vector<double> residuals);
+  // The last closed step's power bonds (config `power` order): {force_side, motion_side} in W.
+  virtual std::vector<std::pair<double, double>> last_power() const;
 };
 
 // What the handshake told the master, for CouplingAlgorithm::initialize.
@@ -64,6 +76,9 @@ class CouplingAlgorithm {
 
   // The step loop: do_step from step `first_step` at `t` until t_end is reached.
   void run(Coupling& coupling, int64_t first_step, TimePoint t, TimePoint t_end);
+  // The length of the next steps (an adaptive step sets it before each do_step). Fixed-step
+  // algorithms take it; the default refuses.
+  virtual void set_step(Duration step);
 };
 
 // The explicit fixed-step scheme: every macro step once, Jacobi (all participants in one
@@ -76,6 +91,7 @@ class FixedStepAlgorithm final : public CouplingAlgorithm {
   void setup(const Config& config) override;
   void initialize(const AlgorithmSetup& setup) override;
   Duration do_step(Coupling& coupling, int64_t step, TimePoint t) override;
+  void set_step(Duration step) override { macro_step_ = step; }
   const std::vector<std::vector<std::string>>& groups() const { return groups_; }
 
  private:
@@ -87,7 +103,74 @@ class FixedStepAlgorithm final : public CouplingAlgorithm {
   bool can_iterate_ = false;  // every participant can repeat a step
 };
 
-// The algorithm a config asks for (today: FixedStepAlgorithm for either scheme), not set up yet.
+// Implicit coupling (coupling.type: implicit): every macro step iterated, in the Jacobi or
+// Gauss-Seidel order, until each coupling.convergence measure is met (at least min_iterations,
+// at most max_iterations), every participant repeating the step from its start in each
+// iteration after the first. Between iterations the fed-back connections' end values (Jacobi:
+// every connection; Gauss-Seidel: those into a participant that steps no later than their
+// source) are set by the acceleration. The first steps (predictor history too short) take at
+// least 1 + startup_iterations iterations, as the explicit scheme's start-up does.
+class ImplicitAlgorithm final : public CouplingAlgorithm {
+ public:
+  ImplicitAlgorithm();
+  ~ImplicitAlgorithm() override;
+  std::string name() const override;
+  void setup(const Config& config) override;
+  void initialize(const AlgorithmSetup& setup) override;
+  Duration do_step(Coupling& coupling, int64_t step, TimePoint t) override;
+  void set_step(Duration step) override { macro_step_ = step; }
+
+  const std::vector<std::size_t>& fed_back() const { return fed_back_; }
+  int64_t steps() const { return steps_; }
+  int64_t total_iterations() const { return total_iterations_; }
+  int64_t unconverged_steps() const { return unconverged_; }
+
+ private:
+  Scheme scheme_ = Scheme::Jacobi;
+  Duration macro_step_{};
+  int startup_iterations_ = 0;
+  CouplingSpec spec_;
+  std::vector<std::string> connection_names_;  // `to` of each connection
+  std::vector<std::vector<std::string>> groups_;
+  std::vector<std::size_t> fed_back_;  // connections the acceleration sets
+  std::vector<double> scale_;          // per fed-back connection: the largest rms value seen
+  std::unique_ptr<class Acceleration> acceleration_;
+  int max_order_ = 0;
+  int64_t steps_ = 0, total_iterations_ = 0, unconverged_ = 0;
+};
+
+// An adaptive macro step (coupling.adaptive) around a fixed-step algorithm (explicit or
+// implicit): before each step it sets the step length, after it it measures the power bonds'
+// energy residual and chooses the next length with ECCO's PI controller (docs/coupling.md).
+// Every length is a whole multiple of every participant's inner step, within [min_step,
+// max_step] (rounded inwards to such multiples), and the last step ends at time.end.
+class AdaptiveStepAlgorithm final : public CouplingAlgorithm {
+ public:
+  explicit AdaptiveStepAlgorithm(std::unique_ptr<CouplingAlgorithm> inner);
+  std::string name() const override;
+  void setup(const Config& config) override;
+  void initialize(const AlgorithmSetup& setup) override;
+  Duration do_step(Coupling& coupling, int64_t step, TimePoint t) override;
+
+  struct Record {
+    TimePoint t_start;
+    Duration step;
+    double error;  // the controller's error estimate (<= 1: within tolerance)
+  };
+  const std::vector<Record>& history() const { return history_; }
+  Duration quantum() const { return quantum_; }
+
+ private:
+  std::unique_ptr<CouplingAlgorithm> inner_;
+  AdaptiveSpec spec_;
+  TimePoint t_end_{};
+  Duration next_{}, quantum_{}, min_{}, max_{};
+  double previous_error_ = 1.0;
+  std::vector<Record> history_;
+};
+
+// The algorithm a config asks for (FixedStepAlgorithm, or ImplicitAlgorithm for coupling.type:
+// implicit), wrapped in AdaptiveStepAlgorithm with coupling.adaptive, not set up yet.
 std::unique_ptr<CouplingAlgorithm> make_algorithm(const Config& config);
 
 }  // namespace master

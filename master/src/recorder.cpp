@@ -159,6 +159,7 @@ struct H5Recorder::Impl {
   std::vector<Conn> conns;
   struct Pow { std::unique_ptr<Table> force_side, motion_side, residual, energy_residual; double energy = 0; double last = kNaN; };
   std::vector<Pow> pows;
+  std::unique_ptr<Table> coupling_residual;  // coupling.type: implicit only
   cosim::Stopwatch since_flush;
   bool resume = false;  // continue an existing record (H5Recorder(Continue, ...))
   bool checkpoints = false;  // the record has /checkpoint (RunSetup::run_id != 0)
@@ -204,6 +205,7 @@ struct H5Recorder::Impl {
       if (c.received_average) c.received_average->flush();
     }
     for (auto& p : pows) p.force_side->flush(), p.motion_side->flush(), p.residual->flush(), p.energy_residual->flush();
+    if (coupling_residual) coupling_residual->flush();
     cosim::h5::flush(file, path);
   }
 };
@@ -313,6 +315,7 @@ void H5Recorder::Impl::continue_existing(const RunSetup& s) {
     pw.last = cosim::h5::read_doubles(I.file, g + "/residual").at(keep - 1);
     I.pows.push_back(std::move(pw));
   }
+  if (c.coupling.type == CouplingType::Implicit) I.coupling_residual = open("coupling/residual");
   if (I.checkpoints) {
     Table resumed(Table::Existing{}, I.file, "checkpoint/resumed_at",
                   cosim::h5::rows(I.file, "checkpoint/resumed_at"));
@@ -392,6 +395,14 @@ void H5Recorder::Impl::start_new(const RunSetup& s) {
     pw.energy_residual->append(0.0);
     I.pows.push_back(std::move(pw));
   }
+  if (c.coupling.type == CouplingType::Implicit) {  // docs/output.md#implicit-coupling
+    I.coupling_residual = table(I.file, "coupling/residual", c.coupling.convergence.size());
+    std::vector<std::string> names;
+    for (const auto& cs : c.coupling.convergence)
+      names.push_back(c.connections[cs.connection].to.str() + " " + measure_name(cs.measure));
+    I.coupling_residual->attribute("columns", join(names));
+    I.coupling_residual->append(std::vector<double>(c.coupling.convergence.size(), kNaN));
+  }
   if (I.checkpoints) {
     // docs/output.md#checkpoints-and-resume
     write_number(I.file, "checkpoint", "steps_done", 0.0);
@@ -423,6 +434,7 @@ void H5Recorder::step(const StepRecord& r) {
   I.master_s->append(r.master_seconds);
   I.wall_s->append(r.wall_seconds);
   I.iterations->append(r.iterations);
+  if (I.coupling_residual) I.coupling_residual->append(r.coupling_residuals);
   for (const auto& [name, sigs] : r.outputs)
     for (const auto& [sig, v] : sigs) I.outputs.at(name + "/" + sig)->append(v.value);
   for (const auto& [name, diags] : r.diagnostics)
@@ -652,6 +664,8 @@ void Progress::on_step(const StepRecord& r) {
   master_ += r.master_seconds;
   for (const auto& [n, v] : r.compute_seconds) compute_[n] += v;
   for (const auto& [n, v] : r.round_trip_seconds) round_trip_[n] += v;
+  iterations_ += r.iterations;
+  ++steps_here_;
   if (!live_ || since_print_.seconds() < 1.0) return;
   since_print_.restart();
   const double wall = run_wall_.seconds();
@@ -663,6 +677,9 @@ void Progress::on_step(const StepRecord& r) {
                cosim::to_seconds(t_done_), cosim::to_seconds(setup_->config->t_end), 100 * done / total,
                static_cast<long long>(steps_done_), static_cast<long long>(setup_->steps),
                wall / sim, eta);
+  if (setup_->config->coupling.type == CouplingType::Implicit && !r.coupling_residuals.empty())
+    std::fprintf(stderr, "iterations %d (mean %.2f)  |r| %.2e   ", r.iterations,
+                 static_cast<double>(iterations_) / static_cast<double>(steps_here_), r.coupling_residuals[0]);
   std::fflush(stderr);  // stderr is line-buffered and this line ends in \r
 }
 

@@ -92,6 +92,7 @@ class Progress final : public Observer {
   TimePoint t_begin_{}, t_done_{};
   double wall_steps_ = 0, master_ = 0;
   std::map<std::string, double> compute_, round_trip_;
+  int64_t iterations_ = 0, steps_here_ = 0;  // coupling iterations and steps of this process
 };
 
 }  // namespace master

@@ -22,6 +22,7 @@ constexpr const char* kUsage =
     "usage: cosim_stability [--scheme jacobi|gauss_seidel|all] [--kq K] [--kf K]\n"
     "                       [--samples-q M] [--samples-f M] [--use-force end|average]\n"
     "                       [--H seconds ...] [--param key=value ...] [--csv FILE]\n"
+    "                       [--implicit] [--iterations K ...]\n"
     "  --scheme      which scheme(s) to analyse (default all)\n"
     "  --kq, --kf    predictor orders 0..3 of the kinematic inputs and of the force; giving "
     "either\n"
@@ -34,7 +35,12 @@ constexpr const char* kUsage =
     "                histopolation), as the master's connections[].use\n"
     "  --H           macro steps in seconds: print rho and rho - 1 at each instead of the table\n"
     "  --param       oscillator parameters, keys m1 c1 d1 m2 c2 d2 cc dc (SI units)\n"
-    "  --csv FILE    also write the rows as CSV\n";
+    "  --csv FILE    also write the rows as CSV\n"
+    "  --implicit    the table gets, beside each explicit H_crit, the implicit scheme's\n"
+    "                (coupling.type: implicit without acceleration): converged, 2 and 3\n"
+    "                iterations per step, scanned up to 10 s\n"
+    "  --iterations  iterations per macro step for those columns, or with --H for the rows\n"
+    "                (0 = converged, 1 = explicit, 2..1000); implies --implicit\n";
 
 // A command-line mistake: reported with the usage line, exit code 2.
 struct UsageError : std::runtime_error {
@@ -48,6 +54,7 @@ struct Options {
   std::vector<double> H;
   OscParams params;
   std::string csv;
+  std::vector<int> iterations;  // implicit columns (--implicit, --iterations)
 };
 
 int parse_int(const std::string& flag, const std::string& text, int lo, int hi,
@@ -143,10 +150,16 @@ Options parse(int argc, char** argv) {
       }
     } else if (flag == "--csv") {
       o.csv = value();
+    } else if (flag == "--implicit") {
+      if (o.iterations.empty()) o.iterations = {0, 2, 3};
+    } else if (flag == "--iterations") {
+      o.iterations.clear();
+      for (const auto& v : values())
+        o.iterations.push_back(parse_int(flag, v, 0, 1000, "0 (converged), 1 (explicit), 2..1000"));
     } else {
       throw UsageError("unknown argument '" + flag +
                        "'; allowed: --scheme --kq --kf --samples-q --samples-f --use-force --H --param "
-                       "--csv");
+                       "--csv --implicit --iterations");
     }
   }
   try {
@@ -154,6 +167,8 @@ Options parse(int argc, char** argv) {
   } catch (const std::invalid_argument& e) {
     throw UsageError(std::string("--param: ") + e.what());
   }
+  if (!o.iterations.empty() && o.force == ForceUse::Average)
+    throw UsageError("--implicit/--iterations: the implicit scheme is modelled for --use-force end only");
   if ((o.mq && !o.kq && !o.kf) || (o.mf && !o.kq && !o.kf))
     throw UsageError("--samples-q/--samples-f apply to one pair: choose it with --kq and --kf");
   const int kq = o.kq.value_or(0), kf = o.kf.value_or(0);
@@ -200,9 +215,13 @@ void print_at_steps(const Options& o, std::ostream* csv) {
   std::printf("%-13s %2s %2s %2s %2s  %-10s  %-14s  %-11s  %s\n", "scheme", "kq", "kf", "mq", "mf",
               "H [s]", "rho", "rho-1", "log(rho)/H [1/s]");
   if (csv) *csv << "scheme,kq,kf,mq,mf,H,rho,rho_minus_1,growth_per_s\n";
+  std::vector<int> its = o.iterations.empty() ? std::vector<int>{1} : o.iterations;
   for (Scheme s : o.schemes)
-    for (const auto& pr : pairs(o))
+    for (auto pr : pairs(o))
+      for (int it : its)
       for (double H : o.H) {
+        pr.iterations = it;
+        if (!o.iterations.empty()) std::printf("it=%-4s ", it == 0 ? "conv" : std::to_string(it).c_str());
         const double r1 = spectral_radius_minus_one(o.params, s, pr, H);
         const double growth = std::log1p(r1) / H;
         std::printf("%s  %-10.4e  %-14.10f  %+.3e  %+.4e\n", row_prefix(s, pr).c_str(), H, 1.0 + r1,
@@ -226,7 +245,11 @@ void print_table(const Options& o, std::ostream* csv) {
               "rho-1@5e-4", "notes");
   if (csv)
     *csv << "scheme,kq,kf,mq,mf,H_crit,rho_minus_1_at_1e-2,rho_minus_1_at_2e-3,"
-            "rho_minus_1_at_1e-3,rho_minus_1_at_5e-4,further_crossings\n";
+            "rho_minus_1_at_1e-3,rho_minus_1_at_5e-4,further_crossings";
+  if (csv) {
+    for (int it : o.iterations) *csv << ",H_crit_implicit_" << (it == 0 ? std::string("converged") : std::to_string(it));
+    *csv << "\n";
+  }
   for (Scheme s : o.schemes)
     for (const auto& pr : pairs(o)) {
       const StabilityScan scan = scan_stability(o.params, s, pr, scan_opt);
@@ -262,8 +285,21 @@ void print_table(const Options& o, std::ostream* csv) {
         std::printf("  %+.3e", r1);
         if (csv) *csv << "," << fmt("%.9e", r1);
       }
+      // The implicit scheme's critical step beside the explicit one.
+      std::string implicit_csv;
+      for (int it : o.iterations) {
+        Predictors ip = pr;
+        ip.iterations = it;
+        ScanOptions wide = scan_opt;
+        wide.h_max = 10.0;
+        wide.points = 500;
+        const auto ic = scan_stability(o.params, s, ip, wide).critical();
+        const std::string name = it == 0 ? "converged" : std::to_string(it) + " iterations";
+        std::printf("  implicit %s: %s", name.c_str(), ic ? fmt("%.4e", *ic).c_str() : "none <= 10 s");
+        implicit_csv += "," + (ic ? fmt("%.9e", *ic) : std::string());
+      }
       std::printf("%s%s\n", notes.empty() ? "" : "   ", notes.c_str());
-      if (csv) *csv << ",\"" << further << "\"\n";
+      if (csv) *csv << ",\"" << further << "\"" << implicit_csv << "\n";
     }
 }
 

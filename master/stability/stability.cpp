@@ -238,6 +238,11 @@ std::optional<Scheme> parse_scheme(std::string_view name) {
 }
 
 void validate(const Predictors& pr) {
+  if (pr.iterations < 0 || pr.iterations > 1000)
+    throw std::invalid_argument("iterations: " + std::to_string(pr.iterations) +
+                                " is not allowed (allowed: 0 = converged, 1 = explicit, 2 to 1000)");
+  if (pr.iterations != 1 && pr.force == ForceUse::Average)
+    throw std::invalid_argument("the implicit scheme (iterations != 1) is modelled for force end samples only (use-force end)");
   const auto order = [](const char* what, int k) {
     if (k < 0 || k > kMaxOrder)
       throw std::invalid_argument(std::string(what) + " must be 0.." + std::to_string(kMaxOrder) +
@@ -290,15 +295,32 @@ StepMap step_map(const OscParams& p, Scheme scheme, const Predictors& pr, double
   const HalfMean m2 = average ? interval_mean(A2, B2, kq, H) : HalfMean{};
   const Eigen::MatrixXd Pq = fit_matrix(abscissae(mq, scheme == Scheme::Jacobi ? 0.0 : 1.0), kq);
 
-  // z_{n+1} - z_n for one macro step from z_n. Linear in z, so applying it to the unit vectors
-  // gives the columns of phi - I. Written as an increment so the physical rows carry
-  // (E - I) y + G w, never I + small - I.
-  const auto increment = [&](const Eigen::VectorXd& z) {
-    Eigen::VectorXd dz(N);
+  // Implicit iterations: the inputs fitted through the previous iteration's end values.
+  const bool implicit = pr.iterations != 1;
+  const Eigen::MatrixXd PF_it = implicit ? fit_matrix(abscissae(mf, 1.0), kf) : Eigen::MatrixXd();
+  const Eigen::MatrixXd Pq_it = implicit ? fit_matrix(abscissae(mq, 1.0), kq) : Eigen::MatrixXd();
+
+  // One pass of both halves from z_n; `guess` (x1, v1, F at t_{n+1} from the previous iteration)
+  // or null for the first pass (the explicit step). Linear in (z, guess).
+  struct Pass {
+    Eigen::Vector2d dy1, dy2;
+    Eigen::Vector3d end;  // x1, v1, F at t_{n+1}
+  };
+  const auto pass = [&](const Eigen::VectorXd& z, const Eigen::Vector3d* guess) {
+    Pass out;
     const Eigen::Vector2d y1 = z.segment<2>(0), y2 = z.segment<2>(2);
 
-    // mass1 with the force extrapolated from F_n, F_{n-1}, ... (both schemes).
-    const Eigen::VectorXd wF = PF * z.segment(L.f_hist(), mf);
+    // mass1 with the force extrapolated from F_n, F_{n-1}, ... (both schemes), or in an
+    // iteration fitted through the guess at t_{n+1} and F_n, F_{n-1}, ...
+    Eigen::VectorXd wF;
+    if (!guess) {
+      wF = PF * z.segment(L.f_hist(), mf);
+    } else {
+      Eigen::VectorXd fs(mf);
+      fs(0) = (*guess)(2);
+      for (int h = 1; h < mf; ++h) fs(h) = z(L.f_hist() + h - 1);
+      wF = PF_it * fs;
+    }
     const Eigen::Vector2d dy1 = h1.e_minus_identity * y1 + h1.g * wF;
 
     // mass2's kinematic samples, newest first.
@@ -307,6 +329,10 @@ StepMap step_map(const OscParams& p, Scheme scheme, const Predictors& pr, double
     if (scheme == Scheme::GaussSeidel) {  // mass1's sample at t_{n+1}, just computed
       xs(i) = y1(0) + dy1(0);
       vs(i) = y1(1) + dy1(1);
+      ++i;
+    } else if (guess) {  // Jacobi iteration: the previous iteration's sample at t_{n+1}
+      xs(i) = (*guess)(0);
+      vs(i) = (*guess)(1);
       ++i;
     }
     if (i < mq) {  // the sample at t_n is the current state
@@ -318,7 +344,8 @@ StepMap step_map(const OscParams& p, Scheme scheme, const Predictors& pr, double
       xs(i) = z(L.x1_hist() + h);
       vs(i) = z(L.v1_hist() + h);
     }
-    const Eigen::VectorXd wx = Pq * xs, wv = Pq * vs;
+    const Eigen::VectorXd wx = (guess && scheme == Scheme::Jacobi ? Pq_it : Pq) * xs;
+    const Eigen::VectorXd wv = (guess && scheme == Scheme::Jacobi ? Pq_it : Pq) * vs;
     Eigen::VectorXd w2(2 * (kq + 1));
     w2 << wx, wv;
     const Eigen::Vector2d dy2 = h2.e_minus_identity * y2 + h2.g * w2;
@@ -339,9 +366,43 @@ StepMap step_map(const OscParams& p, Scheme scheme, const Predictors& pr, double
       const Eigen::Vector2d y2_mean = m2.e * y2 + m2.g * w2;
       F_new = -(p.cc * (ux_mean - y2_mean(0)) + p.dc * (uv_mean - y2_mean(1)));
     }
+    out.dy1 = dy1;
+    out.dy2 = dy2;
+    out.end << y1(0) + dy1(0), y1(1) + dy1(1), F_new;
+    return out;
+  };
 
-    dz.segment<2>(0) = dy1;
-    dz.segment<2>(2) = dy2;
+  // The fixed point of the iteration (iterations = 0): the pass's end values are affine in the
+  // guess, end = Cz z + Cg guess, so guess* = (I - Cg)^-1 Cz z.
+  Eigen::Matrix3d I_minus_Cg = Eigen::Matrix3d::Identity();
+  if (pr.iterations == 0) {
+    const Eigen::VectorXd zero = Eigen::VectorXd::Zero(N);
+    for (int c = 0; c < 3; ++c) {
+      const Eigen::Vector3d e = Eigen::Vector3d::Unit(c);
+      I_minus_Cg.col(c) -= pass(zero, &e).end;
+    }
+  }
+  const auto fixed_point = I_minus_Cg.fullPivLu();
+
+  // z_{n+1} - z_n for one macro step from z_n. Linear in z, so applying it to the unit vectors
+  // gives the columns of phi - I. Written as an increment so the physical rows carry
+  // (E - I) y + G w, never I + small - I.
+  const auto increment = [&](const Eigen::VectorXd& z) {
+    Eigen::VectorXd dz(N);
+    const Eigen::Vector2d y1 = z.segment<2>(0);
+    Pass last = pass(z, nullptr);
+    if (pr.iterations == 0) {
+      const Eigen::Vector3d zero = Eigen::Vector3d::Zero();
+      const Eigen::Vector3d g = fixed_point.solve(pass(z, &zero).end);
+      last = pass(z, &g);
+    }
+    for (int k = 1; k < pr.iterations; ++k) {
+      const Eigen::Vector3d g = last.end;
+      last = pass(z, &g);
+    }
+    const double F_new = last.end(2);
+    dz.segment<2>(0) = last.dy1;
+    dz.segment<2>(2) = last.dy2;
     // Histories shift by one: the newest past kinematic sample becomes x1(t_n), the newest force
     // sample becomes F_{n+1}.
     for (int h = 0; h < L.hq; ++h) {

@@ -50,6 +50,11 @@ struct Predictors {
   int kq = 0, kf = 0;  // polynomial order of the kinematic inputs (x1, v1 -> mass2) and the force
   int mq = 0, mf = 0;  // number of samples fitted; more than k + 1 gives a least-squares fit
   ForceUse force = ForceUse::End;  // force samples: end values or interval averages
+  // Iterations per macro step (the master's coupling.type: implicit without acceleration):
+  // 1 = explicit; k > 1 = k iterations, each after the first fitting the inputs through the
+  // previous iteration's end values (force: s = 1, 0, -1, ...; Jacobi's kinematics too);
+  // 0 = iterated to convergence (the fixed point of the end values). ForceUse::End only.
+  int iterations = 1;
   int samples_q() const { return mq > 0 ? mq : kq + 1; }
   int samples_f() const { return mf > 0 ? mf : kf + 1; }
 };

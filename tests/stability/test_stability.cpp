@@ -465,4 +465,54 @@ TEST(StabilityArguments, RejectsWhatTheMasterCannotRun) {
   EXPECT_THROW(spectral_radius(bad, Scheme::Jacobi, 0, 0, 0, 0, 1e-3), std::invalid_argument);
 }
 
+// ---- The implicit scheme (Predictors::iterations) ----
+
+Predictors implicit_pr(int kq, int kf, int iterations) {
+  Predictors pr{kq, kf, 0, 0, ForceUse::End};
+  pr.iterations = iterations;
+  return pr;
+}
+
+// Converged, Jacobi and Gauss-Seidel iterate to the same fixed point: the same map, the same
+// spectral radius (their histories differ in length, so compare rho, not phi).
+TEST(StabilityImplicit, ConvergedJacobiAndGaussSeidelAgree) {
+  const OscParams p;
+  for (double H : {1e-3, 2e-2, 9e-2})
+    EXPECT_NEAR(spectral_radius(p, Scheme::Jacobi, implicit_pr(1, 0, 0), H),
+                spectral_radius(p, Scheme::GaussSeidel, implicit_pr(1, 0, 0), H), 1e-12) << H;
+}
+
+// Where plain iteration converges (small H), k iterations approach the converged map; one
+// iteration is the explicit scheme bit for bit.
+TEST(StabilityImplicit, IterationsApproachTheConvergedSchemeAndOneIsExplicit) {
+  const OscParams p;
+  const double H = 5e-3;
+  const double conv = spectral_radius_minus_one(p, Scheme::GaussSeidel, implicit_pr(1, 1, 0), H);
+  double prev = std::abs(spectral_radius_minus_one(p, Scheme::GaussSeidel, implicit_pr(1, 1, 2), H) - conv);
+  for (int k : {4, 8, 16}) {
+    const double d = std::abs(spectral_radius_minus_one(p, Scheme::GaussSeidel, implicit_pr(1, 1, k), H) - conv);
+    EXPECT_LT(d, prev) << k;
+    prev = d;
+  }
+  EXPECT_LT(prev, 1e-9);
+  for (Scheme s : {Scheme::Jacobi, Scheme::GaussSeidel})
+    EXPECT_EQ(spectral_radius_minus_one(p, s, implicit_pr(1, 0, 1), 1e-2), spectral_radius_minus_one(p, s, 1, 0, 0, 0, 1e-2));
+}
+
+// The converged scheme's limits (docs/stability.md): 1.0317e-1 s for (1,0) against the explicit
+// 8.454e-3 s (Gauss-Seidel) and 7.112e-3 s (Jacobi); with m1 = 0.01: 9.894e-2 s.
+TEST(StabilityImplicit, ConvergedLimitsFarAboveTheExplicitOnes) {
+  ScanOptions wide;
+  wide.h_max = 10;
+  wide.points = 500;
+  OscParams p;
+  EXPECT_NEAR(*critical_macro_step(p, Scheme::GaussSeidel, implicit_pr(1, 0, 0), wide), 1.0317e-1, 1e-4);
+  set_param(p, "m1", 0.01);
+  EXPECT_NEAR(*critical_macro_step(p, Scheme::GaussSeidel, implicit_pr(1, 0, 0), wide), 9.894e-2, 1e-4);
+  EXPECT_THROW(spectral_radius(OscParams{}, Scheme::Jacobi, implicit_pr(1, 0, -1), 1e-3), std::invalid_argument);
+  Predictors avg = implicit_pr(1, 0, 0);
+  avg.force = ForceUse::Average;
+  EXPECT_THROW(spectral_radius(OscParams{}, Scheme::Jacobi, avg, 1e-3), std::invalid_argument);
+}
+
 }  // namespace

@@ -1,0 +1,142 @@
+// The adaptive macro step (coupling.adaptive, docs/coupling.md#adaptive-macro-step) on the
+// dual-mass oscillator with a wall that mass1 hits: the step grows while the masses swing
+// quietly in phase, shrinks at the impact, never leaves its bounds, is always a whole multiple
+// of every inner step, and the steps add up to time.end exactly; with explicit and implicit
+// coupling.
+#include <cmath>
+#include <cstdio>
+
+#include "harness.hpp"
+
+namespace {
+
+using cosim::Duration;
+
+// mass1 of the oscillator with a stiff one-sided wall: m x'' = -c x - d v + F + k_w (wall - x)
+// while x < wall. Integrated with RK4 at its inner step on the force polynomial.
+class WallMass final : public cosim::Model {
+ public:
+  void configure(const YAML::Node& n, const cosim::RunInfo&) override {
+    namespace cfg = cosim::config;
+    cfg::check_keys(n, "parameters", {"mass", "stiffness", "damping", "position", "velocity", "inner_step", "wall",
+                                      "wall_stiffness"});
+    m_ = cfg::get_positive(n, "parameters", "mass");
+    c_ = cfg::get_double(n, "parameters", "stiffness");
+    d_ = cfg::get_double(n, "parameters", "damping");
+    x_ = cfg::get_double(n, "parameters", "position");
+    v_ = cfg::get_double(n, "parameters", "velocity");
+    wall_ = cfg::get_double(n, "parameters", "wall");
+    kw_ = cfg::get_positive(n, "parameters", "wall_stiffness");
+    inner_ = cosim::seconds_to_duration(cfg::get_positive(n, "parameters", "inner_step"), "inner_step");
+  }
+  cosim::Ports inputs() const override { return {{"force", cosim::SignalKind::Scalar}}; }
+  cosim::Ports outputs() const override { return {{"x", cosim::SignalKind::Scalar}, {"v", cosim::SignalKind::Scalar}}; }
+  Duration inner_step() const override { return inner_; }
+  cosim::Signals initial_outputs() override { return signals(); }
+  cosim::StepResult step(const cosim::StepInputs& in, bool) override {
+    const double h = cosim::to_seconds(inner_);
+    for (auto t = in.t_start(); t < in.t_end(); t += inner_) {
+      const double F0 = in.at("force", t)[0], F1 = in.at("force", t + inner_ / 2)[0], F2 = in.at("force", t + inner_)[0];
+      auto a = [&](double x, double v, double F) {
+        return (-c_ * x - d_ * v + F + (x < wall_ ? kw_ * (wall_ - x) : 0.0)) / m_;
+      };
+      const double k1x = v_, k1v = a(x_, v_, F0);
+      const double k2x = v_ + 0.5 * h * k1v, k2v = a(x_ + 0.5 * h * k1x, v_ + 0.5 * h * k1v, F1);
+      const double k3x = v_ + 0.5 * h * k2v, k3v = a(x_ + 0.5 * h * k2x, v_ + 0.5 * h * k2v, F1);
+      const double k4x = v_ + h * k3v, k4v = a(x_ + h * k3x, v_ + h * k3v, F2);
+      x_ += h / 6 * (k1x + 2 * k2x + 2 * k3x + k4x);
+      v_ += h / 6 * (k1v + 2 * k2v + 2 * k3v + k4v);
+    }
+    cosim::StepResult r;
+    r.outputs = signals();
+    return r;
+  }
+  bool can_repeat() const override { return true; }
+  void save_snapshot() override { saved_ = {x_, v_}; }
+  void restore_snapshot() override { x_ = saved_.first, v_ = saved_.second; }
+
+ private:
+  cosim::Signals signals() const {
+    return {{"x", {cosim::SignalKind::Scalar, {x_}}}, {"v", {cosim::SignalKind::Scalar, {v_}}}};
+  }
+  double m_ = 1, c_ = 0, d_ = 0, x_ = 0, v_ = 0, wall_ = 0, kw_ = 0;
+  Duration inner_{};
+  std::pair<double, double> saved_;
+};
+
+struct Result {
+  harness::Series s;
+  std::vector<master::AdaptiveStepAlgorithm::Record> history;
+  Duration quantum{};
+  std::string name;
+};
+
+Result run(std::vector<std::string> extra) {
+  std::vector<std::string> o = {
+      "time.end=2.0", "time.macro_step=1.0e-3", "output.file=", "output.csv=",
+      "participants.mass1.parameters={mass: 1, stiffness: 10, damping: 0.2, position: 0.1, velocity: 0, "
+      "inner_step: 1.0e-5, wall: -0.05, wall_stiffness: 1.0e5}",
+      // mass2 starts beside mass1 (coupling spring relaxed): the in-phase swing, quiet until the wall
+      "participants.mass2.parameters.position=0.1", "participants.mass2.parameters.coupled_position=0.1",
+      "participants.mass2.parameters.inner_step=2.0e-5",
+      "coupling.adaptive={min_step: 1.0e-4, max_step: 2.0e-2, abs_tolerance: 1.0e-6, rel_tolerance: 1.0e-3}"};
+  o.insert(o.end(), extra.begin(), extra.end());
+  const auto config = harness::oscillator_config(o);
+  WallMass m1;
+  oscillator::OscillatorAdapter m2(oscillator::Side::Mass2);
+  cosim::ParticipantCore c1("mass1", m1), c2("mass2", m2);
+  auto transport = cosim::make_in_process_transport(1234, {{"mass1", &c1}, {"mass2", &c2}});
+  master::CoSimulation sim(config, *transport);
+  harness::Collector col;
+  sim.add_observer(&col);
+  sim.connect();
+  sim.run();
+  const auto& a = dynamic_cast<const master::AdaptiveStepAlgorithm&>(sim.algorithm());
+  return {col.s, a.history(), a.quantum(), a.name()};
+}
+
+void check(const Result& r) {
+  SCOPED_TRACE(r.name);
+  ASSERT_FALSE(r.history.empty());
+  EXPECT_EQ(r.quantum, Duration(20000));  // lcm(10 us, 20 us) in ns
+  // Bounds and quanta: min_step 1e-4 and max_step 2e-2 are multiples of 20 us already.
+  Duration total{};
+  for (const auto& h : r.history) {
+    EXPECT_GE(h.step, Duration(100000));
+    EXPECT_LE(h.step, Duration(20000000));
+    EXPECT_EQ(h.step % r.quantum, Duration::zero());
+    total += h.step;
+  }
+  EXPECT_EQ(total, Duration(2000000000));  // integer nanoseconds: exactly time.end
+  // The impact: the first macro time with x1 below the wall.
+  std::size_t hit = 0;
+  while (hit < r.s.x1.size() && r.s.x1[hit] >= -0.05) ++hit;
+  ASSERT_LT(hit, r.s.x1.size()) << "mass1 never reached the wall";
+  const double t_hit = r.s.t[hit];
+  // Quiet phase: from 1 ms the step grows to at least 5 ms well before the impact.
+  Duration quiet_max{}, before_hit{}, around_min = Duration::max();
+  for (const auto& h : r.history) {
+    const double t = cosim::to_seconds(h.t_start.time_since_epoch());
+    if (t < t_hit - 0.1) quiet_max = std::max(quiet_max, h.step);
+    if (t < t_hit - 0.05) before_hit = h.step;
+    if (t > t_hit - 0.05 && t < t_hit + 0.05) around_min = std::min(around_min, h.step);
+  }
+  std::printf("%s: impact at t = %.4f s; steps: quiet max %.4g s, just before %.4g s, smallest around the impact %.4g s; %zu steps\n",
+              r.name.c_str(), t_hit, cosim::to_seconds(quiet_max), cosim::to_seconds(before_hit),
+              cosim::to_seconds(around_min), r.history.size());
+  EXPECT_GE(quiet_max, Duration(5000000)) << "the step should grow in the quiet phase";
+  EXPECT_LE(around_min * 4, before_hit) << "the step should shrink at the impact";
+}
+
+}  // namespace
+
+TEST(AdaptiveStep, GrowsWhenQuietShrinksAtTheImpactStaysInBoundsExplicit) {
+  check(run({"scheme=gauss_seidel", "order=[mass1, mass2]"}));
+  check(run({"scheme=jacobi"}));
+}
+
+TEST(AdaptiveStep, WorksWithImplicitCoupling) {
+  check(run({"scheme=gauss_seidel", "order=[mass1, mass2]", "coupling.type=implicit",
+             "coupling.convergence=[{connection: mass1.force, measure: absolute_or_relative, absolute: 1.0e-9, relative: 1.0e-9}]",
+             "coupling.acceleration={type: iqn_ils, relaxation: 0.1, reuse: 8}"}));
+}
