@@ -17,6 +17,7 @@
 #include "dem/config.hpp"
 #include "dem/engine.hpp"
 #include "dem/packing.hpp"
+#include "dem/service.hpp"
 #include "dem/stability.hpp"
 
 namespace {
@@ -267,6 +268,18 @@ prepare: {deposition_friction: 0.2, margin: 2.0, ke_per_particle: 1.0e-7, max_ti
   EXPECT_NE(refused("particles.insert.0.species", "gravel").find("particles.insert[0].species"), std::string::npos);
   EXPECT_NE(refused("particles.insert.0.count", "5000").find("raise max.z"), std::string::npos);
   EXPECT_NE(refused("particles.insert.0.max", "[0.1, 0.1, 0.005]").find("particles.insert[0]"), std::string::npos);
+}
+
+TEST(dem_SoilConfig, DemServiceRefusesToPrepareABed) {
+  YAML::Node root = YAML::Load(kSlide);
+  root["prepare"] = YAML::Load("{deposition_friction: 0.1}");
+  try {
+    dem::read_service_options(root);
+    FAIL() << "dem_service cannot run a deposition inside a co-simulation step";
+  } catch (const cosim::config::ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("prepare: dem_service does not prepare beds"), std::string::npos)
+        << e.what();
+  }
 }
 
 }  // namespace
