@@ -65,12 +65,12 @@ ReposeResult run_repose(const ReposeOptions& o) {
   law.tangential_stiffness_ratio = o.tangential_stiffness_ratio;
   law.friction = o.friction;
   finalize(law, "repose");
-  sc.particle_particle = sc.particle_wall = law;  // floor and back wall: rough like the grains
+  sc.particle_particle = sc.particle_wall = law;  // the floor: rough like the grains
   ContactLaw smooth = law;
   smooth.friction = 0;
-  sc.boundary_laws.push_back(smooth);  // the side walls
+  sc.boundary_laws.push_back(smooth);  // the side and back walls and the gate
   sc.walls.push_back(plane("floor", {0, 0, 0}, {0, 0, 1}, -1));
-  sc.walls.push_back(plane("back", {0, 0, 0}, {1, 0, 0}, -1));
+  sc.walls.push_back(plane("back", {0, 0, 0}, {1, 0, 0}, 0));  // smooth: no grains hung on it
   sc.walls.push_back(plane("left", {0, 0, 0}, {0, 1, 0}, 0));
   sc.walls.push_back(plane("right", {0, o.width, 0}, {0, -1, 0}, 0));
   sc.walls.push_back(plane("gate", {o.length, 0, 0}, {-1, 0, 0}, 0));
@@ -111,7 +111,6 @@ ReposeResult run_repose(const ReposeOptions& o) {
       break;
     }
   }
-  res.final_height = top();
   // The surface: the highest grain top per slice of one mean diameter along x.
   const double d = 2 * o.radius;
   double xmax = 0;
@@ -123,15 +122,23 @@ ReposeResult run_repose(const ReposeOptions& o) {
     if (b >= 0 && static_cast<std::size_t>(b) < bins)
       h[static_cast<std::size_t>(b)] = std::max(h[static_cast<std::size_t>(b)], s.x[i].z + s.radius[i]);
   }
-  const double H = *std::max_element(h.begin(), h.end());
-  // From the back wall out to where the heap ends (the first slice below 10 % of the height).
+  // The first two slices are the layer against the back wall: grains that do not rotate stand
+  // there in a column one grain wide (even against a smooth wall), taller than the heap.
+  constexpr std::size_t kWallSlices = 2;
+  const double H = bins > kWallSlices ? *std::max_element(h.begin() + kWallSlices, h.end()) : 0.0;
+  res.final_height = H;
+  // The band fitted: 20 % to 80 % of the heap's height, but not the sheet of one or two grains
+  // that runs far out over the floor (below 3 diameters).
+  const double low = std::max(0.2 * H, 3 * d);
+  // From the wall layer out to where the heap ends (the first slice below 10 % of the height).
   double sx = 0, sz = 0, sxx = 0, sxz = 0;
   int m = 0;
   for (std::size_t b = 0; b < bins; ++b) {
     res.profile_x.push_back((b + 0.5) * d);
     res.profile_z.push_back(h[b]);
+    if (b < kWallSlices) continue;
     if (h[b] < 0.1 * H) break;
-    if (h[b] > 0.8 * H || h[b] < 0.2 * H) continue;
+    if (h[b] > 0.8 * H || h[b] < low) continue;
     const double x = (b + 0.5) * d;
     sx += x, sz += h[b], sxx += x * x, sxz += x * h[b];
     ++m;
@@ -142,8 +149,8 @@ ReposeResult run_repose(const ReposeOptions& o) {
     const double slope = (m * sxz - sx * sz) / (m * sxx - sx * sx), icpt = (sz - slope * sx) / m;
     res.angle = std::atan(-slope);
     double ss = 0;
-    for (std::size_t b = 0; b < res.profile_z.size(); ++b) {
-      if (h[b] > 0.8 * H || h[b] < 0.2 * H) continue;
+    for (std::size_t b = kWallSlices; b < res.profile_z.size(); ++b) {
+      if (h[b] > 0.8 * H || h[b] < low) continue;
       const double e = h[b] - (icpt + slope * res.profile_x[b]);
       ss += e * e;
     }

@@ -1,7 +1,8 @@
 // An angle-of-repose test of the engine's own soil (docs/soil.md): a column of grains deposited
 // in a box between smooth side walls is released by removing the front wall; the grains run out
 // over a rough floor and come to rest. The angle is the slope of the free surface, a line fitted
-// to the surface heights between 20 % and 80 % of the remaining height.
+// to the surface heights between 20 % and 80 % of the heap's height (the 2 diameters next to the
+// back wall left out: a column one grain wide stands there).
 #pragma once
 
 #include <cstdint>
@@ -26,7 +27,8 @@ struct ReposeOptions {
 
 struct ReposeResult {
   double angle = 0;        // rad
-  double column_height = 0, final_height = 0;  // m, tops of the column before and after
+  double column_height = 0;  // m, top of the column before the release
+  double final_height = 0;   // m, top of the heap after (beyond the 2 diameters at the back wall)
   double column_fraction = 0;  // packing fraction of the deposited column (inner region)
   int surface_points = 0;  // surface heights the line was fitted to
   double fit_rms = 0;      // m
