@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
+#include <new>
 #include <optional>
 #include <string>
 #include <vector>
@@ -328,6 +329,10 @@ int main(int argc, char** argv) {
   } catch (const dem::SimulationError& e) {
     std::cerr << "dem_run: stopped: " << e.what() << "\n";
     return 3;
+  } catch (const std::bad_alloc&) {  // memory ran out after the checks (docs/dem.md#memory)
+    std::cerr << "dem_run: out of memory (std::bad_alloc): the scene needs more memory than this "
+                 "process may use; lower particles.fill counts or run where more memory is free\n";
+    return 1;
   } catch (const std::exception& e) {
     std::cerr << "dem_run: error: " << e.what() << "\n";
     return 1;

@@ -5,6 +5,7 @@
 // `parameters` for this participant amend the config as --set does.
 #include <cstdio>
 #include <iostream>
+#include <new>
 #include <string>
 
 #include "cosim/yaml_config.hpp"
@@ -54,6 +55,10 @@ int main(int argc, char** argv) {
   } catch (const dem::SimulationError& e) {
     std::cerr << "dem_service: stopped: " << e.what() << "\n";
     return 3;
+  } catch (const std::bad_alloc&) {  // memory ran out after the checks (docs/dem.md#memory)
+    std::cerr << "dem_service: out of memory (std::bad_alloc): the scene needs more memory than this "
+                 "process may use; lower particles.fill counts or run where more memory is free\n";
+    return 1;
   } catch (const std::exception& e) {
     std::cerr << "dem_service: error: " << e.what() << "\n";
     return 1;

@@ -1,7 +1,11 @@
 #include "dem/bed.hpp"
 
+#include <sys/resource.h>
+
 #include <algorithm>
 #include <cmath>
+#include <fstream>
+#include <iomanip>
 #include <numeric>
 #include <sstream>
 
@@ -20,7 +24,60 @@ double uniform01(std::uint64_t& rng) {
   return static_cast<double>((z ^ (z >> 31)) >> 11) * 0x1.0p-53;
 }
 
+std::string gb(double bytes) {
+  std::ostringstream o;
+  if (bytes >= 100e9) o << std::fixed << std::setprecision(0);
+  else o << std::setprecision(3);
+  o << bytes / 1e9 << " GB (" << std::fixed;
+  o.precision(0);
+  o << bytes << " bytes)";
+  return o.str();
+}
+
+// A "Key:   value kB" line of a /proc file, in bytes; -1 if missing.
+double proc_kb(const char* file, const std::string& key) {
+  std::ifstream in(file);
+  std::string k;
+  while (in >> k) {
+    if (k == key) {
+      double kb = -1;
+      in >> kb;
+      return kb * 1024;
+    }
+    in.ignore(4096, '\n');
+  }
+  return -1;
+}
+
 }  // namespace
+
+double available_memory_bytes(std::string* source) {
+  double avail = proc_kb("/proc/meminfo", "MemAvailable:");
+  if (source) *source = "MemAvailable in /proc/meminfo";
+  rlimit as{};
+  if (::getrlimit(RLIMIT_AS, &as) == 0 && as.rlim_cur != RLIM_INFINITY) {
+    const double used = std::max(0.0, proc_kb("/proc/self/status", "VmSize:"));
+    const double left = std::max(0.0, static_cast<double>(as.rlim_cur) - used);
+    if (avail < 0 || left < avail) {
+      avail = left;
+      if (source) *source = "the address-space limit (RLIMIT_AS, ulimit -v) less the " + gb(used) + " in use";
+    }
+  }
+  return std::max(0.0, avail);
+}
+
+void check_memory_for_particles(double particles, const std::string& key) {
+  std::string source;
+  const double avail = available_memory_bytes(&source);
+  const double need = particles * kBytesPerParticle;
+  if (avail <= 0 || need <= avail) return;
+  std::ostringstream msg;
+  msg << key << ": a scene of " << particles << " particles needs at least " << gb(need) << " of memory ("
+      << kBytesPerParticle << " B per particle: state, contact lists and workspace) but "
+      << gb(avail) << " are available (" << source
+      << "): lower the count, or run where more memory is free";
+  throw cosim::config::ConfigError(msg.str());
+}
 
 double sample_radius(const Species& sp, std::uint64_t& rng) {
   const RadiusDistribution& d = sp.radius;
@@ -73,6 +130,8 @@ void fill_region(const Scene& scene, const FillRegion& region, State& s) {
         << "; enlarge the region or lower count";
     throw cosim::config::ConfigError(msg.str());
   }
+  check_memory_for_particles(static_cast<double>(s.size()) + static_cast<double>(region.count),
+                             "particles.fill (count " + std::to_string(region.count) + ")");
   std::uint64_t rng = region.seed * 0x2545F4914F6CDD1Dull + 12345;
   long long placed = 0;
   std::int64_t next_id = s.id.empty() ? 0 : *std::max_element(s.id.begin(), s.id.end()) + 1;

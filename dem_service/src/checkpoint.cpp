@@ -4,6 +4,7 @@
 #include <string>
 #include <string_view>
 
+#include "cosim/files.hpp"
 #include "dem/coupling.hpp"
 #include "dem/h5_util.hpp"
 
@@ -45,21 +46,34 @@ void read_array(hid_t file, const char* name, std::vector<T>& out) {
 }  // namespace
 
 void save_checkpoint(const State& s, const std::string& path) {
-  h5::Handle file(H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose);
-  if (!file.ok())
-    throw std::runtime_error("cannot create checkpoint '" + path +
-                             "': check that the folder exists and is writable");
-  h5::write_string_attribute(file, "format", "dem_state_v1");
-  const std::vector<std::int64_t> counters{s.step, s.lists_valid ? 1 : 0, s.steps_since_rebuild,
-                                           s.rebuilds, s.early_rebuilds};
-  h5::write(file, "counters", counters);
-  h5::write(file, "max_displacement", std::vector<double>{s.max_displacement});
-  h5::write(file, "second_displacement", std::vector<double>{s.second_displacement});
-  h5::write(file, "removed_count", std::vector<std::int64_t>{s.removed_count});
-  h5::write(file, "removed_mass", std::vector<double>{s.removed_mass});
-  for_each_array(s, [&](const char* name, const auto& array, Field) {
-    write_array(file, name, array);
-  });
+  // Written under a temporary name and renamed onto `path` once closed: a checkpoint that cannot
+  // be written (a full disk) leaves the previous one of that name whole.
+  H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+  cosim::StagedFile staged(path);
+  hid_t file = H5Fcreate(staged.current().c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
+  if (file < 0)
+    throw std::runtime_error("cannot create checkpoint '" + path + "' (" + cosim::h5::error_cause() +
+                             "): check that the folder exists and is writable");
+  try {
+    h5::write_string_attribute(file, "format", "dem_state_v1");
+    const std::vector<std::int64_t> counters{s.step, s.lists_valid ? 1 : 0, s.steps_since_rebuild,
+                                             s.rebuilds, s.early_rebuilds};
+    h5::write(file, "counters", counters);
+    h5::write(file, "max_displacement", std::vector<double>{s.max_displacement});
+    h5::write(file, "second_displacement", std::vector<double>{s.second_displacement});
+    h5::write(file, "removed_count", std::vector<std::int64_t>{s.removed_count});
+    h5::write(file, "removed_mass", std::vector<double>{s.removed_mass});
+    for_each_array(s, [&](const char* name, const auto& array, Field) {
+      write_array(file, name, array);
+    });
+  } catch (const std::exception& e) {
+    H5Fclose(file);  // fails too on a full disk; the temporary file goes with `staged`
+    throw std::runtime_error(cosim::write_failure(path, e.what()));
+  }
+  const hid_t f = file;
+  cosim::h5::close(f, path);  // raises "cannot write '<path>': <cause>"
+  staged.commit();
+  staged.done();
 }
 
 State load_checkpoint(const std::string& path) {

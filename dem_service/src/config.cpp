@@ -667,6 +667,13 @@ RunConfig load_config(const YAML::Node& root, const std::string& base_dir) {
   rc.continues = !particles.checkpoint.empty() && particles.keep_time && particles.list.empty() &&
                  rc.fill.empty() && rc.insert.empty();
   place_listed(sc, particles.list, rc.state);
+  {  // Before the particle arrays grow: the scene must fit in memory (docs/dem.md#memory).
+    double total = static_cast<double>(rc.state.size());
+    for (std::size_t i = 0; i < rc.fill.size(); ++i) {
+      total += static_cast<double>(rc.fill[i].count);
+      check_memory_for_particles(total, "particles.fill[" + std::to_string(i) + "].count");
+    }
+  }
   for (const FillRegion& r : rc.fill) fill_region(sc, r, rc.state);
   for (std::size_t i = 0; i < rc.insert.size(); ++i)
     insert_random(sc, rc.insert[i], rc.state, "particles.insert[" + std::to_string(i) + "]");

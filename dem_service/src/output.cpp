@@ -1,10 +1,14 @@
 #include "dem/output.hpp"
 
+#include <unistd.h>
+
 #include <algorithm>
 #include <array>
 #include <charconv>
 #include <cmath>
+#include <cerrno>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <numeric>
@@ -119,10 +123,28 @@ std::vector<Vec3> clip(const std::vector<Vec3>& poly, const Wall& o, double eps)
 RunOutput::RunOutput(const std::string& path, const Scene& scene, const std::string& config_text)
     : path_(path), scene_(scene), staged_(std::make_unique<cosim::StagedFile>(path)) {
   xdmf_ = std::filesystem::path(path).replace_extension(".xdmf").string();
+  {  // An earlier XDMF describes the earlier file of this name: kept (a second name, no copy)
+     // until this output is complete, and put back with that file if this one fails.
+    const std::filesystem::path x(xdmf_);
+    std::string name = ".";
+    name += x.filename().string();
+    name += ".previous-run-" + std::to_string(static_cast<long>(::getpid()));  // not StagedFile's name
+    xdmf_earlier_ = (x.parent_path() / name).string();
+    std::remove(xdmf_earlier_.c_str());
+    if (::link(xdmf_.c_str(), xdmf_earlier_.c_str()) != 0) xdmf_earlier_.clear();
+  }
+  H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);  // failures are reported with their cause
   file_ = H5Fcreate(staged_->current().c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
   if (file_ < 0)
-    throw std::runtime_error("cannot create output '" + path +
-                             "': check that the folder exists and is writable (--output FILE.h5)");
+    throw std::runtime_error("cannot create output '" + path + "' (" + cosim::h5::error_cause() +
+                             "): check that the folder exists and is writable (--output FILE.h5)");
+  checked([&] { start(config_text); });
+}
+
+void RunOutput::start(const std::string& config_text) {
+  const Scene& scene = scene_;
+  // 1 once write_summary closed the file after the run's last step (docs/dem.md#output).
+  cosim::h5::set_int_attribute(file_, "complete", 0);
   h5::write_string_attribute(file_, "config", config_text);
   h5::Handle g1(H5Gcreate2(file_, "particles", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Gclose);
   h5::Handle g2(H5Gcreate2(file_, "tools", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Gclose);
@@ -159,19 +181,65 @@ RunOutput::RunOutput(const std::string& path, const Scene& scene, const std::str
 }
 
 RunOutput::~RunOutput() {
+  if (file_ < 0) return;  // closed by write_summary, or abandoned after a failed write
+  // The run stopped before its summary: what it wrote so far stays (complete: 0).
   try {
     flush();
-  } catch (...) {
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "dem: %s\n", e.what());  // flush() put the earlier file back
+    return;
   }
   tool_rows_.clear();
   wall_rows_.reset();
-  if (file_ >= 0) H5Fclose(file_);
+  const hid_t f = file_;
+  file_ = -1;
+  if (H5Fclose(f) < 0) {
+    std::fprintf(stderr, "dem: %s; %s\n", cosim::write_failure(path_, cosim::h5::error_cause()).c_str(),
+                 staged_->restore().c_str());
+    if (!xdmf_earlier_.empty()) std::rename(xdmf_earlier_.c_str(), xdmf_.c_str());
+    else if (xdmf_written_) std::remove(xdmf_.c_str());
+  } else if (!xdmf_earlier_.empty()) {
+    std::remove(xdmf_earlier_.c_str());
+  }
+}
+
+void RunOutput::abandon() {
+  tool_rows_.clear();
+  wall_rows_.reset();
+  if (file_ >= 0) H5Fclose(file_);  // fails on a broken file; the process still exits cleanly
+  file_ = -1;
+}
+
+template <class F>
+void RunOutput::checked(F&& f) {
+  if (!failure_.empty()) throw std::runtime_error(failure_);  // it failed before: say so again
+  if (file_ < 0) throw std::logic_error("RunOutput: '" + path_ + "' is closed");
+  try {
+    f();
+  } catch (const std::exception& e) {
+    const std::string message = e.what();
+    abandon();
+    const std::string what = message.rfind("cannot write '", 0) == 0
+                                 ? message
+                                 : cosim::write_failure(path_, message);
+    const std::string restored = staged_->restore();
+    if (!xdmf_earlier_.empty()) std::rename(xdmf_earlier_.c_str(), xdmf_.c_str());
+    else if (xdmf_written_) std::remove(xdmf_.c_str());
+    xdmf_earlier_.clear();
+    failure_ = restored.empty() ? what : what + "; " + restored;
+    throw std::runtime_error(failure_);
+  }
 }
 
 void RunOutput::snapshot(const State& s, double time, const std::vector<ToolPose>& poses) {
   if (poses.size() != scene_.tools.size())
     throw std::logic_error("RunOutput::snapshot: " + std::to_string(poses.size()) +
                            " poses for " + std::to_string(scene_.tools.size()) + " tools");
+  checked([&] { write_snapshot(s, time, poses); });
+  flush();
+}
+
+void RunOutput::write_snapshot(const State& s, double time, const std::vector<ToolPose>& poses) {
   // Sorted by id so ParaView sees the same particle at the same index in every snapshot.
   std::vector<std::size_t> order(s.size());
   std::iota(order.begin(), order.end(), 0);
@@ -229,7 +297,6 @@ void RunOutput::snapshot(const State& s, double time, const std::vector<ToolPose
   write_wall_geometry();
   snapshot_times_.push_back(time);
   snapshot_sizes_.push_back(s.size());
-  flush();
 }
 
 void RunOutput::sample_wrenches(const State& s, const Engine& e, double time) {
@@ -262,16 +329,39 @@ void RunOutput::discard_rows_after(std::size_t keep) {
 }
 
 void RunOutput::flush() {
-  for (auto& rows : tool_rows_) rows->flush();
-  if (wall_rows_) wall_rows_->flush();
-  buffered_ = 0;
-  since_flush_.restart();
-  H5Fflush(file_, H5F_SCOPE_LOCAL);
-  staged_->commit();  // the first flush puts the file in place (docs/output.md#file-safety)
-  write_xdmf();
+  if (file_ < 0 && failure_.empty()) return;  // closed (write_summary)
+  checked([&] {
+    for (auto& rows : tool_rows_) rows->flush();
+    if (wall_rows_) wall_rows_->flush();
+    buffered_ = 0;
+    since_flush_.restart();
+    cosim::h5::flush(file_, path_);
+    staged_->commit();  // the first flush puts the file in place (docs/output.md#file-safety)
+    write_xdmf();
+  });
 }
 
 void RunOutput::write_summary(const Timing& t, const State& s, double sim_time) {
+  checked([&] {
+    write_timing(t, s, sim_time);
+    cosim::h5::set_int_attribute(file_, "complete", 1);
+    for (auto& rows : tool_rows_) rows->flush();
+    if (wall_rows_) wall_rows_->flush();
+    buffered_ = 0;
+    tool_rows_.clear();
+    wall_rows_.reset();
+    const hid_t f = file_;
+    file_ = -1;
+    cosim::h5::close(f, path_);
+    staged_->commit();
+    staged_->done();  // the earlier file of this name is dropped only now
+    write_xdmf();
+    if (!xdmf_earlier_.empty()) std::remove(xdmf_earlier_.c_str());
+    xdmf_earlier_.clear();
+  });
+}
+
+void RunOutput::write_timing(const Timing& t, const State& s, double sim_time) {
   h5::Handle g(H5Gcreate2(file_, "timing", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Gclose);
   for (std::size_t i = 0; i < t.size(); ++i) h5::write_double_attribute(g, t.name(i), t.seconds(i));
   h5::write_double_attribute(g, "total", t.sum());
@@ -330,7 +420,9 @@ void RunOutput::write_wall_geometry() {
 }
 
 void RunOutput::write_xdmf() const {
-  std::ofstream out(xdmf_);
+  // Under a temporary name, renamed over the last one when written whole.
+  cosim::StagedFile staged(xdmf_);
+  std::ofstream out(staged.current());
   const std::string h5 = xml_escape(std::filesystem::path(path_).filename().string());
   auto item = [&](std::size_t rows, std::size_t cols, const char* type, int precision,
                   const std::string& where) {
@@ -381,6 +473,10 @@ void RunOutput::write_xdmf() const {
     out << "</Grid>\n";
   }
   out << "</Grid>\n</Domain>\n</Xdmf>\n";
+  out.close();
+  if (!out) throw std::runtime_error(cosim::write_failure(xdmf_, std::strerror(errno)));
+  staged.commit();
+  xdmf_written_ = true;
 }
 
 }  // namespace dem

@@ -24,6 +24,7 @@
 #include <cstring>
 #include <filesystem>
 #include <iostream>
+#include <new>
 
 #include <cosim/auth.hpp>
 #include <cosim/bus.hpp>
@@ -184,6 +185,7 @@ int main(int argc, char** argv) {
   master::ResumeRecord resume_record;
   int64_t run_id = 0;
   std::string checkpoint_folder;
+  std::vector<std::unique_ptr<cosim::OutputLock>> output_locks;  // one writer per output file
   try {
     if (!resume.empty()) {
       resume_record = master::read_resume_record(resume);
@@ -212,6 +214,9 @@ int main(int argc, char** argv) {
     }
     check_files(config, config_path, !output.empty() || !resume.empty(), !csv.empty(), record,
                 replay_options.log);
+    output_locks = cosim::lock_outputs({{output.empty() && resume.empty() ? "output.file" : "--output", config.output.file},
+                                        {csv.empty() ? "output.csv" : "--csv", config.output.csv_file},
+                                        {"--record", record}}, "cosim_master", std::cerr);
   } catch (const std::exception& e) {  // ConfigError, and anything a malformed file raises
     std::cerr << "cosim_master: config refused: " << e.what() << "\n";
     return 2;
@@ -407,6 +412,11 @@ int main(int argc, char** argv) {
   } catch (const cosim::config::ConfigError& e) {
     std::cerr << "cosim_master: config refused: " << e.what() << "\n";
     return 2;
+  } catch (const std::bad_alloc&) {
+    close_recording("stopped: out of memory");
+    std::cerr << "cosim_master: out of memory (std::bad_alloc): the run is stopped; run it where more "
+                 "memory is free, or with fewer or shorter outputs\n";
+    return 1;
   } catch (const std::exception& e) {
     close_recording(std::string("stopped: ") + e.what());
     std::cerr << "cosim_master: error: " << e.what() << "\n";

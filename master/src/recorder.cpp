@@ -5,7 +5,11 @@
 #include "cosim/h5.hpp"
 #include "cosim/timer.hpp"
 
+#include <unistd.h>
+
+#include <cerrno>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <iostream>
 #include <limits>
@@ -25,6 +29,35 @@ void write_number(hid_t file, const std::string& group, const std::string& name,
 }
 
 namespace {
+
+// The records of one run (its HDF5 file and CSV export): when one cannot be written, none of
+// them replaces the earlier file of its name. Writers alive at the same time share one group.
+struct RecordGroup {
+  bool failed = false;
+};
+std::shared_ptr<RecordGroup> join_record_group() {
+  static std::weak_ptr<RecordGroup> current;
+  auto g = current.lock();
+  if (!g) {
+    g = std::make_shared<RecordGroup>();
+    current = g;
+  }
+  return g;
+}
+
+// The message for a failed write of the record at `path`: names the file and the cause.
+std::string record_failure(const std::string& path, const std::string& what) {
+  if (what.rfind("cannot write '", 0) == 0) return what;  // already says which file
+  return cosim::write_failure(path, what);
+}
+
+// The file descriptor HDF5 writes `file` through (sec2 driver), or -1.
+int file_descriptor(hid_t file) {
+  void* handle = nullptr;
+  if (H5Fget_vfd_handle(file, H5P_DEFAULT, &handle) < 0 || !handle) return -1;
+  return *static_cast<int*>(handle);
+}
+
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 using cosim::h5::Table;
@@ -107,7 +140,12 @@ std::vector<std::string> children(hid_t file, const std::string& group) {
 
 struct H5Recorder::Impl {
   std::string path;
-  std::unique_ptr<cosim::StagedFile> staged;  // renamed onto `path` when the run starts
+  // Renamed onto `path` when the run starts (a resume: the record itself, with a copy of it
+  // kept); the earlier file stays beside it until this one is closed.
+  std::unique_ptr<cosim::StagedFile> staged;
+  std::shared_ptr<RecordGroup> group = join_record_group();
+  bool failed = false;  // a write, flush or close failed: this record is not kept
+  bool closed = false;  // closed successfully
   hid_t file = -1;
   const RunSetup* setup = nullptr;
   std::unique_ptr<Table> time;
@@ -127,6 +165,33 @@ struct H5Recorder::Impl {
 
   void start_new(const RunSetup& s);
   void continue_existing(const RunSetup& s);
+  void drop_tables() {
+    outputs.clear(), diagnostics.clear(), compute.clear(), round_trip.clear();
+    conns.clear(), pows.clear();
+    time.reset(), master_s.reset(), wall_s.reset(), iterations.reset();
+  }
+  // After a failed write: the file is closed as far as HDF5 still can, and taken off its name
+  // (nothing else of this run may write it); the destructor puts the earlier file back.
+  void abandon() {
+    failed = true;
+    group->failed = true;
+    drop_tables();
+    if (file >= 0) H5Fclose(file);  // fails on a broken file; the process can still exit cleanly
+    file = -1;
+    if (staged && staged->committed()) std::remove(path.c_str());
+  }
+  // Runs f; a failure to write marks this record failed and raises the message naming the file.
+  template <class F>
+  void checked(F&& f) {
+    if (failed) throw std::runtime_error("the record '" + path + "' could not be written before");
+    try {
+      f();
+    } catch (const std::exception& e) {
+      const std::string message = record_failure(path, e.what());
+      abandon();
+      throw std::runtime_error(message);
+    }
+  }
 
   void flush_all() {
     auto f = [](auto& m) { for (auto& [k, t] : m) t->flush(); };
@@ -138,7 +203,7 @@ struct H5Recorder::Impl {
       if (c.received_average) c.received_average->flush();
     }
     for (auto& p : pows) p.force_side->flush(), p.motion_side->flush(), p.residual->flush(), p.energy_residual->flush();
-    H5Fflush(file, H5F_SCOPE_GLOBAL);
+    cosim::h5::flush(file, path);
   }
 };
 
@@ -148,23 +213,34 @@ H5Recorder::H5Recorder(const std::string& path) : impl_(std::make_unique<Impl>()
   H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
   impl_->file = H5Fcreate(impl_->staged->current().c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
   if (impl_->file < 0)
-    throw std::runtime_error("cannot create output file '" + path +
-                             "': check that its folder exists and is writable (output.file / --output)");
+    throw std::runtime_error("cannot create output file '" + path + "' (" + cosim::h5::error_cause() +
+                             "): check that its folder exists and is writable (output.file / --output)");
 }
 
 H5Recorder::H5Recorder(Continue, const std::string& path) : impl_(std::make_unique<Impl>()) {
   impl_->path = path;
   impl_->resume = true;
   H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+  // A copy of the record as it is, put back if this run cannot write it.
+  impl_->staged = std::make_unique<cosim::StagedFile>(cosim::StagedFile::InPlace{}, path);
   impl_->file = H5Fopen(path.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
   if (impl_->file < 0)
     throw std::runtime_error("cannot open the record '" + path + "' for writing: check that it exists and is writable");
 }
 
 H5Recorder::~H5Recorder() {
-  if (impl_->file >= 0) {
-    impl_->outputs.clear();
-    H5Fclose(impl_->file);
+  auto& I = *impl_;
+  if (I.file >= 0) {  // on_finish never ran: the file stays as the last flush left it
+    I.drop_tables();
+    H5Fclose(I.file);
+  }
+  if (!I.staged) return;
+  if (I.group->failed && I.staged->committed()) {
+    // This record, or another of the run (its CSV), could not be written.
+    if (!I.failed) std::remove(I.path.c_str());
+    std::cerr << "cosim_master: " << I.staged->restore() << "\n";
+  } else if (I.closed) {
+    I.staged->done();
   }
 }
 
@@ -172,18 +248,22 @@ void H5Recorder::on_start(const RunSetup& s) {
   auto& I = *impl_;
   I.setup = &s;
   I.checkpoints = s.run_id != 0;
-  if (I.resume) I.continue_existing(s);
-  else I.start_new(s);
-  if (I.checkpoints) {
-    // The checkpoint the participants and this record agree on so far (steps_done 0: none).
-    set_number(I.file, "checkpoint/steps_done", static_cast<double>(s.first_step));
-    I.checkpoint_steps = s.first_step;
-    set_number(I.file, "checkpoint/time",
-               cosim::to_seconds(s.config->t_start + s.first_step * s.config->macro_step));
-  }
-  I.flush_all();
-  H5Fflush(I.file, H5F_SCOPE_GLOBAL);
-  if (I.staged) I.staged->commit();  // the run has started: now the file replaces one of its name
+  I.checked([&] {
+    // Not complete until the run finished and the file closed (docs/output.md).
+    cosim::h5::set_int_attribute(I.file, "complete", 0);
+    if (I.resume) I.continue_existing(s);
+    else I.start_new(s);
+    if (I.checkpoints) {
+      // The checkpoint the participants and this record agree on so far (steps_done 0: none).
+      set_number(I.file, "checkpoint/steps_done", static_cast<double>(s.first_step));
+      I.checkpoint_steps = s.first_step;
+      set_number(I.file, "checkpoint/time",
+                 cosim::to_seconds(s.config->t_start + s.first_step * s.config->macro_step));
+    }
+    I.flush_all();
+    // The run has started: now the file replaces one of its name (kept aside until closed).
+    I.staged->commit();
+  });
 }
 
 void H5Recorder::Impl::continue_existing(const RunSetup& s) {
@@ -329,9 +409,13 @@ void H5Recorder::Impl::start_new(const RunSetup& s) {
 
 int64_t H5Recorder::checkpoint_steps() const { return impl_->checkpoint_steps; }
 
-bool H5Recorder::started() const { return !impl_->staged || impl_->staged->committed(); }
+bool H5Recorder::started() const { return !impl_->failed && impl_->staged->committed(); }
 
 void H5Recorder::on_step(const StepRecord& r) {
+  impl_->checked([&] { step(r); });
+}
+
+void H5Recorder::step(const StepRecord& r) {
   auto& I = *impl_;
   const Config& c = *I.setup->config;
   I.time->append(cosim::to_seconds(r.t_end));
@@ -381,7 +465,7 @@ void H5Recorder::on_step(const StepRecord& r) {
     set_number(I.file, "checkpoint/steps_done", static_cast<double>(r.step_index + 1));
     I.checkpoint_steps = r.step_index + 1;
     set_number(I.file, "checkpoint/time", cosim::to_seconds(r.t_end));
-    H5Fflush(I.file, H5F_SCOPE_GLOBAL);
+    cosim::h5::flush(I.file, I.path);
     I.since_flush.restart();
   } else if (I.since_flush.seconds() > 1.0) {
     I.flush_all();
@@ -391,49 +475,93 @@ void H5Recorder::on_step(const StepRecord& r) {
 
 void H5Recorder::on_finish(bool ok, const std::string& message) {
   auto& I = *impl_;
-  if (I.time) {
-    I.flush_all();
-    cosim::h5::write_string(I.file, "status", ok ? "finished" : "stopped: " + message);
-    if (I.setup && I.setup->bus) write_bus_stats(I.file, *I.setup);
+  if (I.failed || I.file < 0) return;
+  if (I.group->failed) {  // the CSV could not be written: this record is not kept either
+    I.abandon();
+    return;
   }
-  I.outputs.clear();
-  I.diagnostics.clear();
-  I.compute.clear();
-  I.round_trip.clear();
-  I.conns.clear();
-  I.pows.clear();
-  I.time.reset();
-  I.master_s.reset();
-  I.wall_s.reset();
-  I.iterations.reset();
-  H5Fclose(I.file);
-  I.file = -1;
+  try {
+    I.checked([&] {
+      if (I.time) {
+        I.flush_all();
+        cosim::h5::write_string(I.file, "status", ok ? "finished" : "stopped: " + message);
+        if (I.setup && I.setup->bus) write_bus_stats(I.file, *I.setup);
+        cosim::h5::set_int_attribute(I.file, "complete", ok ? 1 : 0);
+        cosim::h5::flush(I.file, I.path);
+        // On the disk before it replaces the earlier file for good.
+        if (const int fd = file_descriptor(I.file); fd >= 0 && ::fsync(fd) != 0 && errno != EINVAL)
+          throw std::runtime_error(cosim::write_failure(I.path, std::strerror(errno)));
+      }
+      I.drop_tables();
+      const hid_t f = I.file;
+      I.file = -1;
+      cosim::h5::close(f, I.path);
+      I.closed = true;
+    });
+  } catch (const std::exception& e) {
+    // The run stopped for another reason and says so; this is the record's own failure.
+    if (!ok) {
+      std::cerr << "cosim_master: " << e.what() << "\n";
+      return;
+    }
+    throw;  // the run did not finish: no "finished", a non-zero exit
+  }
 }
 
 // ---------------------------------------------------------------------------------------------
 
+struct CsvWriter::Shared {
+  std::shared_ptr<RecordGroup> group = join_record_group();
+};
+
 CsvWriter::CsvWriter(const std::string& path)
-    : path_(path), staged_(std::make_unique<cosim::StagedFile>(path)) {
+    : path_(path), staged_(std::make_unique<cosim::StagedFile>(path)), shared_(std::make_unique<Shared>()) {
   file_ = std::fopen(staged_->current().c_str(), "w");
   if (!file_)
-    throw std::runtime_error("cannot create CSV file '" + path + "': check that its folder exists (output.csv / --csv)");
+    throw std::runtime_error("cannot create CSV file '" + path + "': " + std::strerror(errno) +
+                             ": check that its folder exists (output.csv / --csv)");
 }
 
 CsvWriter::~CsvWriter() {
   if (file_) std::fclose(file_);
+  if (shared_->group->failed && staged_->committed()) {
+    if (!failed_) std::remove(path_.c_str());
+    std::cerr << "cosim_master: " << staged_->restore() << "\n";
+  } else if (closed_) {
+    staged_->done();
+  }
+}
+
+void CsvWriter::fail() {
+  // errno of the failed stdio call: "No space left on device", "File too large", ...
+  const std::string message = cosim::write_failure(path_, std::strerror(errno));
+  failed_ = true;
+  shared_->group->failed = true;
+  if (file_) std::fclose(file_);
+  file_ = nullptr;
+  if (staged_->committed()) std::remove(path_.c_str());  // the destructor puts the earlier one back
+  throw std::runtime_error(message);
+}
+
+void CsvWriter::check_writable() const {
+  if (failed_ || !file_)
+    throw std::runtime_error("the CSV export '" + path_ + "' could not be written before");
 }
 
 void CsvWriter::on_start(const RunSetup& s) {
-  std::fprintf(file_, "time");
+  check_writable();
+  if (std::fprintf(file_, "time") < 0) fail();
   for (const auto& [name, info] : s.participants)
     for (const auto& port : info.outputs) {
       columns_.emplace_back(name, port.name);
       for (const auto& comp : cosim::component_names(port.kind)) {
-        if (port.kind == cosim::SignalKind::Scalar) std::fprintf(file_, ",%s.%s", name.c_str(), port.name.c_str());
-        else std::fprintf(file_, ",%s.%s.%s", name.c_str(), port.name.c_str(), comp.c_str());
+        const int n = port.kind == cosim::SignalKind::Scalar
+                          ? std::fprintf(file_, ",%s.%s", name.c_str(), port.name.c_str())
+                          : std::fprintf(file_, ",%s.%s.%s", name.c_str(), port.name.c_str(), comp.c_str());
+        if (n < 0) fail();
       }
     }
-  std::fprintf(file_, "\n");
+  if (std::fprintf(file_, "\n") < 0) fail();
   std::map<std::string, cosim::Signals> initial;
   for (const auto& [name, info] : s.participants) initial[name] = info.initial_outputs;
   if (continue_from_.empty()) {
@@ -458,22 +586,50 @@ void CsvWriter::on_start(const RunSetup& s) {
       row(s.config->t_start + i * s.config->macro_step, outputs);
     }
   }
-  std::fflush(file_);
+  if (std::fflush(file_) != 0) fail();
   staged_->commit();
 }
 
 void CsvWriter::row(TimePoint t, const std::map<std::string, cosim::Signals>& outputs) {
-  std::fprintf(file_, "%.9f", cosim::to_seconds(t));
+  check_writable();
+  // A failed write shows in the return value of the call that flushes stdio's buffer.
+  if (std::fprintf(file_, "%.9f", cosim::to_seconds(t)) < 0) fail();
   for (const auto& [name, sig] : columns_)
-    for (double v : outputs.at(name).at(sig).value) std::fprintf(file_, ",%.17g", v);
-  std::fprintf(file_, "\n");
+    for (double v : outputs.at(name).at(sig).value)
+      if (std::fprintf(file_, ",%.17g", v) < 0) fail();
+  if (std::fprintf(file_, "\n") < 0) fail();
 }
 
 void CsvWriter::on_step(const StepRecord& r) { row(r.t_end, r.outputs); }
 
-void CsvWriter::on_finish(bool, const std::string&) {
-  if (file_) std::fclose(file_);
-  file_ = nullptr;
+void CsvWriter::on_finish(bool ok, const std::string&) {
+  if (failed_ || !file_) return;
+  if (shared_->group->failed) {  // the HDF5 record could not be written: nor is this kept
+    std::fclose(file_);
+    file_ = nullptr;
+    failed_ = true;
+    if (staged_->committed()) std::remove(path_.c_str());
+    return;
+  }
+  try {
+    if (std::fflush(file_) != 0 || (::fsync(::fileno(file_)) != 0 && errno != EINVAL)) fail();
+    std::FILE* f = file_;
+    file_ = nullptr;
+    if (std::fclose(f) != 0) {
+      failed_ = true;  // as fail(), without a second fclose
+      const std::string message = cosim::write_failure(path_, std::strerror(errno));
+      shared_->group->failed = true;
+      if (staged_->committed()) std::remove(path_.c_str());
+      throw std::runtime_error(message);
+    }
+    closed_ = true;
+  } catch (const std::exception& e) {
+    if (!ok) {  // the run stopped for another reason and says so
+      std::cerr << "cosim_master: " << e.what() << "\n";
+      return;
+    }
+    throw;
+  }
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -18,6 +18,10 @@ namespace master {
 // if missing (run summaries: /bus, /bus/auth, /replay, ...). Does nothing if it cannot open it.
 void write_number(hid_t file, const std::string& group, const std::string& name, double value);
 
+// Every write, flush and close is checked: a failure raises std::runtime_error naming the file
+// and the cause (e.g. "No space left on device"); the run then stops, and when the recorder is
+// destroyed the earlier file of that name is back in place (docs/output.md). The root attribute
+// `complete` is 1 only in a record of a finished run that was closed successfully.
 class H5Recorder final : public Observer {
  public:
   // Creates the file under a temporary name beside `path` (cosim::StagedFile) and renames it
@@ -33,16 +37,21 @@ class H5Recorder final : public Observer {
   void on_start(const RunSetup& setup) override;
   void on_step(const StepRecord& record) override;
   void on_finish(bool ok, const std::string& message) override;
-  bool started() const;  // the file is at its path (on_start ran)
+  // The file is at its path (on_start ran) and every write so far succeeded.
+  bool started() const;
   // Steps done at the last checkpoint the record holds (0: none; without checkpoints: 0).
   int64_t checkpoint_steps() const;
 
  private:
+  void step(const StepRecord& record);
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };
 
-// Written under a temporary name and renamed onto `path` in on_start, as the H5Recorder.
+// Written under a temporary name and renamed onto `path` in on_start, as the H5Recorder. Every
+// write is checked: a failure raises std::runtime_error naming the file and the cause, and then,
+// as when the HDF5 record of the same run fails, the earlier file of its name is put back when
+// the writer is destroyed (docs/output.md#when-a-record-cannot-be-written).
 class CsvWriter final : public Observer {
  public:
   explicit CsvWriter(const std::string& path);
@@ -56,9 +65,14 @@ class CsvWriter final : public Observer {
 
  private:
   void row(TimePoint t, const std::map<std::string, cosim::Signals>& outputs);
+  [[noreturn]] void fail();  // after a failed stdio call: raises the message naming the file
+  void check_writable() const;
+  struct Shared;
   std::string path_;
   std::unique_ptr<cosim::StagedFile> staged_;
+  std::unique_ptr<Shared> shared_;
   std::FILE* file_ = nullptr;
+  bool failed_ = false, closed_ = false;
   std::vector<std::pair<std::string, std::string>> columns_;  // participant, signal
   std::string continue_from_;
 };

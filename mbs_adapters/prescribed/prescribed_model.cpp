@@ -1,9 +1,12 @@
 #include "prescribed_model.hpp"
 
+#include <cerrno>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <stdexcept>
 
+#include "cosim/files.hpp"
 #include "cosim/yaml_config.hpp"
 
 namespace prescribed {
@@ -109,6 +112,8 @@ void PrescribedModel::flush() {
   for (const auto& row : pending_) *record_ << row;
   pending_.clear();
   record_->flush();
+  // A full disk: the run stops naming the file (docs/output.md#when-a-record-cannot-be-written).
+  if (!*record_) throw std::runtime_error(cosim::write_failure(record_path_, std::strerror(errno)));
 }
 
 cosim::StepResult PrescribedModel::step(const cosim::StepInputs& in, bool /*want_average*/) {

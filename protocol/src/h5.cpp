@@ -4,6 +4,8 @@
 #include <limits>
 #include <stdexcept>
 
+#include "cosim/files.hpp"
+
 namespace cosim::h5 {
 namespace {
 
@@ -14,7 +16,69 @@ hid_t string_type(const std::string& value) {
   return type;
 }
 
+// HDF5 closes the files still open at exit from an atexit handler; a file whose flush failed
+// (a full disk) makes that handler crash (HDF5 1.10.8: SIGSEGV after the failed H5Fclose).
+// Every file here is closed by its owner, so the handler has nothing to do: it is turned off
+// before the library starts (the call must come before any other HDF5 call of the process).
+const bool kNoCloseAtExit = H5dont_atexit() >= 0;
+
+herr_t collect(unsigned, const H5E_error2_t* e, void* data) {
+  auto& out = *static_cast<std::vector<std::string>*>(data);
+  if (e->desc) out.emplace_back(e->desc);
+  return 0;
+}
+
 }  // namespace
+
+std::string error_cause() {
+  (void)kNoCloseAtExit;
+  std::vector<std::string> messages;
+  H5Ewalk2(H5E_DEFAULT, H5E_WALK_DOWNWARD, collect, &messages);
+  // The file driver's message carries the system's: "..., errno = 28, error message = 'No
+  // space left on device', ...".
+  for (auto it = messages.rbegin(); it != messages.rend(); ++it) {
+    const std::string key = "error message = '";
+    const auto at = it->find(key);
+    if (at == std::string::npos) continue;
+    const auto end = it->find('\'', at + key.size());
+    if (end != std::string::npos) return it->substr(at + key.size(), end - at - key.size());
+  }
+  return messages.empty() ? std::string() : messages.back();
+}
+
+void fail(const std::string& what) {
+  const std::string cause = error_cause();
+  throw std::runtime_error("HDF5: cannot " + what + (cause.empty() ? "" : ": " + cause));
+}
+
+void flush(hid_t file, const std::string& path) {
+  if (H5Fflush(file, H5F_SCOPE_GLOBAL) < 0)
+    throw std::runtime_error(cosim::write_failure(path, error_cause()));
+}
+
+void close(hid_t file, const std::string& path) {
+  if (H5Fclose(file) < 0) throw std::runtime_error(cosim::write_failure(path, error_cause()));
+}
+
+void set_int_attribute(hid_t loc, const std::string& name, std::int64_t value) {
+  if (H5Aexists(loc, name.c_str()) > 0) {
+    Handle attr(H5Aopen(loc, name.c_str(), H5P_DEFAULT), H5Aclose);
+    if (!attr.ok() || H5Awrite(attr, H5T_NATIVE_INT64, &value) < 0) fail("write attribute '" + name + "'");
+    return;
+  }
+  Handle space(H5Screate(H5S_SCALAR), H5Sclose);
+  Handle attr(H5Acreate2(loc, name.c_str(), H5T_NATIVE_INT64, space, H5P_DEFAULT, H5P_DEFAULT), H5Aclose);
+  if (!attr.ok() || H5Awrite(attr, H5T_NATIVE_INT64, &value) < 0) fail("write attribute '" + name + "'");
+}
+
+std::int64_t read_int_attribute(hid_t loc, const std::string& name) {
+  if (H5Aexists(loc, name.c_str()) <= 0) throw std::runtime_error("attribute '" + name + "' missing");
+  Handle attr(H5Aopen(loc, name.c_str(), H5P_DEFAULT), H5Aclose);
+  std::int64_t v = 0;
+  if (!attr.ok() || H5Aread(attr, H5T_NATIVE_INT64, &v) < 0)
+    throw std::runtime_error("cannot read attribute '" + name + "'");
+  return v;
+}
 
 void write(hid_t loc, const std::string& name, hid_t type, const void* data, std::size_t rows,
            std::size_t cols) {
@@ -22,9 +86,9 @@ void write(hid_t loc, const std::string& name, hid_t type, const void* data, std
   Handle space(H5Screate_simple(cols ? 2 : 1, dims, nullptr), H5Sclose);
   Handle set(H5Dcreate2(loc, name.c_str(), type, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
              H5Dclose);
-  if (!set.ok()) throw std::runtime_error("HDF5: cannot create dataset '" + name + "'");
+  if (!set.ok()) fail("create dataset '" + name + "'");
   if (rows > 0 && H5Dwrite(set, type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data) < 0)
-    throw std::runtime_error("HDF5: cannot write dataset '" + name + "'");
+    fail("write dataset '" + name + "'");
 }
 
 std::size_t rows(hid_t loc, const std::string& name) {
@@ -93,7 +157,7 @@ void write_string_attribute(hid_t loc, const std::string& name, const std::strin
   Handle type(string_type(value), H5Tclose);
   Handle space(H5Screate(H5S_SCALAR), H5Sclose);
   Handle attr(H5Acreate2(loc, name.c_str(), type, space, H5P_DEFAULT, H5P_DEFAULT), H5Aclose);
-  H5Awrite(attr, type, value.c_str());
+  if (!attr.ok() || H5Awrite(attr, type, value.c_str()) < 0) fail("write attribute '" + name + "'");
 }
 
 void write_string(hid_t loc, const std::string& name, const std::string& value) {
@@ -101,15 +165,16 @@ void write_string(hid_t loc, const std::string& name, const std::string& value) 
   Handle space(H5Screate(H5S_SCALAR), H5Sclose);
   Handle set(H5Dcreate2(loc, name.c_str(), type, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
              H5Dclose);
-  if (!set.ok()) throw std::runtime_error("HDF5: cannot create dataset '" + name + "'");
-  H5Dwrite(set, type, H5S_ALL, H5S_ALL, H5P_DEFAULT, value.c_str());
+  if (!set.ok()) fail("create dataset '" + name + "'");
+  if (H5Dwrite(set, type, H5S_ALL, H5S_ALL, H5P_DEFAULT, value.c_str()) < 0)
+    fail("write dataset '" + name + "'");
 }
 
 void write_double_attribute(hid_t loc, const std::string& name, double value) {
   Handle space(H5Screate(H5S_SCALAR), H5Sclose);
   Handle attr(H5Acreate2(loc, name.c_str(), H5T_NATIVE_DOUBLE, space, H5P_DEFAULT, H5P_DEFAULT),
               H5Aclose);
-  H5Awrite(attr, H5T_NATIVE_DOUBLE, &value);
+  if (!attr.ok() || H5Awrite(attr, H5T_NATIVE_DOUBLE, &value) < 0) fail("write attribute '" + name + "'");
 }
 
 Table::Table(hid_t parent, const std::string& name, std::size_t width, std::size_t chunk_rows)
@@ -119,11 +184,11 @@ Table::Table(hid_t parent, const std::string& name, std::size_t width, std::size
   const hsize_t chunk[2] = {chunk_rows, width};
   Handle space(H5Screate_simple(rank, dims, maxdims), H5Sclose);
   Handle props(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
-  H5Pset_chunk(props, rank, chunk);
+  if (H5Pset_chunk(props, rank, chunk) < 0) fail("set the chunks of '" + name + "'");
   Handle links(H5Pcreate(H5P_LINK_CREATE), H5Pclose);
   H5Pset_create_intermediate_group(links, 1);
   id_ = H5Dcreate2(parent, name.c_str(), H5T_NATIVE_DOUBLE, space, links, props, H5P_DEFAULT);
-  if (id_ < 0) throw std::runtime_error("HDF5: cannot create dataset '" + name + "'");
+  if (id_ < 0) fail("create dataset '" + name + "'");
 }
 
 Table::Table(Existing, hid_t parent, const std::string& name, std::size_t keep_rows) : name_(name) {
@@ -173,12 +238,14 @@ void Table::flush() {
   const int rank = width_ == 1 ? 1 : 2;
   const hsize_t size[2] = {rows_ + n, width_};
   const hsize_t start[2] = {rows_, 0}, count[2] = {n, width_};
-  H5Dset_extent(id_, size);
+  if (H5Dset_extent(id_, size) < 0) fail("extend '" + name_ + "'");
   Handle file_space(H5Dget_space(id_), H5Sclose);
-  H5Sselect_hyperslab(file_space, H5S_SELECT_SET, start, nullptr, count, nullptr);
+  if (!file_space.ok() ||
+      H5Sselect_hyperslab(file_space, H5S_SELECT_SET, start, nullptr, count, nullptr) < 0)
+    fail("select rows of '" + name_ + "'");
   Handle memory(H5Screate_simple(rank, count, nullptr), H5Sclose);
   if (H5Dwrite(id_, H5T_NATIVE_DOUBLE, memory, file_space, H5P_DEFAULT, buffer_.data()) < 0)
-    throw std::runtime_error("HDF5: cannot append to '" + name_ + "'");
+    fail("append to '" + name_ + "'");
   rows_ += n;
   buffer_.clear();
 }

@@ -116,6 +116,7 @@ std::optional<ready_t> ParticipantCore::configure(const configure_t& m) {
     checkpoint_folder_ = m.checkpoint_folder;
     run_id_ = m.run_id;
     checkpoints_.clear();
+    resumed_from_.clear();
     if (!checkpoint_folder_.empty() && model_.can_checkpoint()) {
       std::error_code ec;
       std::filesystem::create_directories(checkpoint_folder_, ec);
@@ -189,6 +190,7 @@ void ParticipantCore::restore_checkpoint(const configure_t& m) {
       std::filesystem::remove(entry.path(), ec);
   }
   checkpoints_.push_back(path);
+  resumed_from_ = path;
 }
 
 void ParticipantCore::write_checkpoint() {
@@ -201,9 +203,12 @@ void ParticipantCore::write_checkpoint() {
   if (checkpoints_.empty() || checkpoints_.back() != path) checkpoints_.push_back(path);
   // The master records a checkpoint once every participant has written it, before it asks for
   // the next one: the previous one is the oldest it may still resume from.
-  while (checkpoints_.size() > 2) {
-    std::filesystem::remove(checkpoints_.front(), ec);
-    checkpoints_.erase(checkpoints_.begin());
+  // The one this session resumed from stays too (resumed_from_).
+  while (checkpoints_.size() > (resumed_from_.empty() ? 2u : 3u)) {
+    auto oldest = checkpoints_.begin();
+    if (*oldest == resumed_from_) ++oldest;
+    std::filesystem::remove(*oldest, ec);
+    checkpoints_.erase(oldest);
   }
 }
 

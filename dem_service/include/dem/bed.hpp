@@ -3,6 +3,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <string>
 
 #include "dem/engine.hpp"
 
@@ -15,6 +16,23 @@ struct FillRegion {
   long long count = 0;
   unsigned long long seed = 1;
 };
+
+// Memory a run needs per particle, at least: its State (positions, velocities, contact springs,
+// sorted copies) and the engine's workspace and pair lists. The smallest peak resident memory
+// per particle measured (docs/performance.md: 1.2M particles, 852 MB; 914-1041 B per particle
+// in the paper's scene) is about 710 B; a lower bound, so a run is refused only when it cannot
+// fit (docs/dem.md#memory).
+constexpr double kBytesPerParticle = 700;
+
+// Bytes this process may still allocate: /proc/meminfo MemAvailable, and when RLIMIT_AS is set,
+// that limit minus the address space in use (/proc/self/status VmSize), whichever is smaller.
+// `source` (if given) says which bounded it. 0 when unknown (then nothing is refused).
+double available_memory_bytes(std::string* source = nullptr);
+
+// Refuses (cosim::config::ConfigError) a scene of `particles` particles in all whose estimated
+// memory (kBytesPerParticle each) exceeds what is available, naming `key` (the config key that
+// asks for them, e.g. "particles.fill[0].count") and the bytes needed and available.
+void check_memory_for_particles(double particles, const std::string& key);
 
 // Samples one radius of species sp with the generator state `rng` (splitmix64).
 double sample_radius(const Species& sp, std::uint64_t& rng);

@@ -8,7 +8,9 @@
 
 namespace dem {
 
-// Throws std::runtime_error naming the file and the fix.
+// Written under a temporary name and renamed onto `path` once closed, so a failed write (a full
+// disk) leaves an earlier checkpoint of that name whole. Every write and the close are checked:
+// throws std::runtime_error naming the file and the cause, or the fix.
 void save_checkpoint(const State& s, const std::string& path);
 State load_checkpoint(const std::string& path);
 

@@ -42,14 +42,27 @@ class RunOutput {
   // (the samples of a macro step the co-simulation repeats).
   std::size_t buffered_rows() const { return buffered_; }
   void discard_rows_after(std::size_t keep);
+  // The run's timing summary, then `complete` = 1, and the file closed (checked): the last
+  // write; later flushes do nothing. Every write here is checked: a failure (a full disk)
+  // raises std::runtime_error naming the file and the cause, and the earlier file of that name
+  // is put back (cosim::StagedFile::restore).
   void write_summary(const Timing& t, const State& s, double sim_time);
 
   const std::string& xdmf_path() const { return xdmf_; }
 
  private:
+  void start(const std::string& config_text);
+  void write_snapshot(const State& s, double time, const std::vector<ToolPose>& poses);
+  void write_timing(const Timing& t, const State& s, double sim_time);
+  template <class F>
+  void checked(F&& f);  // runs f; a failed write abandons the file and raises the message
+  void abandon();
   void write_xdmf() const;
   void write_wall_geometry();
   std::string path_, xdmf_;
+  std::string failure_;  // the message of a failed write; every later write raises it again
+  std::string xdmf_earlier_;     // the XDMF of an earlier file of this name, kept until complete
+  mutable bool xdmf_written_ = false;  // this run wrote the XDMF file
   const Scene& scene_;
   std::unique_ptr<cosim::StagedFile> staged_;
   long long file_ = -1;

@@ -42,6 +42,23 @@ inline hid_t type_of<std::uint8_t>() { return H5T_NATIVE_UINT8; }
 template <>
 inline hid_t type_of<std::uint32_t>() { return H5T_NATIVE_UINT32; }
 
+// What HDF5's error stack says about the call that just failed: the system's reason where the
+// file driver gives one ("No space left on device", "File too large" past a file-size limit),
+// else the innermost message; "" when the stack is empty. Call it before any other HDF5 call.
+std::string error_cause();
+// "HDF5: cannot <what>: <cause>" as a std::runtime_error (the cause from error_cause()).
+[[noreturn]] void fail(const std::string& what);
+
+// Checked H5Fflush and H5Fclose of a file written to `path` (named in the message); they raise
+// std::runtime_error "cannot write '<path>': <cause>" (cosim::write_failure). A file whose close
+// failed stays open inside HDF5 until the process ends; this library turns off HDF5's own close
+// at exit (H5dont_atexit), which crashes on such a file (HDF5 1.10).
+void flush(hid_t file, const std::string& path);
+void close(hid_t file, const std::string& path);
+// An integer attribute, created or overwritten (the record's `complete` flag).
+void set_int_attribute(hid_t loc, const std::string& name, std::int64_t value);
+std::int64_t read_int_attribute(hid_t loc, const std::string& name);
+
 // Writes rows x cols values as a 2-D dataset (1-D when cols == 0).
 void write(hid_t loc, const std::string& name, hid_t type, const void* data, std::size_t rows,
            std::size_t cols);
@@ -66,7 +83,8 @@ std::vector<double> read_doubles(hid_t loc, const std::string& name, std::size_t
 std::string read_string(hid_t loc, const std::string& name);
 std::string read_string_attribute(hid_t loc, const std::string& name);
 
-// Scalar strings (fixed length, the string's own length) as an attribute or a dataset.
+// Scalar strings (fixed length, the string's own length) as an attribute or a dataset. Every
+// writer raises std::runtime_error naming the dataset or attribute and the cause.
 void write_string_attribute(hid_t loc, const std::string& name, const std::string& value);
 void write_string(hid_t loc, const std::string& name, const std::string& value);
 void write_double_attribute(hid_t loc, const std::string& name, double value);

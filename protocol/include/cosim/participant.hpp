@@ -161,6 +161,10 @@ class ParticipantCore {
   std::string checkpoint_folder_;  // "" : no checkpoints asked
   int64_t run_id_ = 0;
   std::vector<std::string> checkpoints_;  // written or restored by this process, oldest first
+  // The checkpoint this session resumed from: kept until the session finishes, so that the
+  // record of the run, put back as it was when the resumed run cannot write it, can be resumed
+  // again (docs/output.md#when-a-record-cannot-be-written).
+  std::string resumed_from_;
 };
 
 // Serves `model` on the bus until the master terminates the session. Command line:
