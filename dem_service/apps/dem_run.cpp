@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <iostream>
 #include <new>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -19,6 +20,7 @@
 #include "dem/config.hpp"
 #include "dem/engine.hpp"
 #include "dem/output.hpp"
+#include "dem/packing.hpp"
 #include "dem/stability.hpp"
 #include "dem/thread_wait.hpp"
 
@@ -135,6 +137,51 @@ void print_timing(const dem::Engine& engine, const dem::State& s, double sim_tim
                             wall);
 }
 
+// Stores the bed's largest overlap (so it reloads whatever the overlap tolerance) and, when the
+// bed is large enough for an inner region, its packing in the checkpoint's /bed group; prints
+// the packing.
+void record_bed(const dem::Scene& scene, const dem::State& s, const std::string& path,
+                double margin, const char* stage,
+                const std::optional<dem::PackingStats>& known = std::nullopt) {
+  std::optional<dem::PackingStats> p = known;
+  if (!p) {
+    try {
+      p = dem::measure_packing(scene, s, dem::inner_region(s, margin));
+    } catch (const std::invalid_argument& e) {
+      std::fprintf(stderr, "%s: no packing measured: %s\n", stage, e.what());
+    }
+  }
+  if (p) std::fprintf(stderr, "%s: %s\n", stage, dem::describe(*p).c_str());
+  dem::write_bed_record(path, p ? p->max_overlap_ratio : dem::max_overlap_ratio(scene, s), p);
+}
+
+// prepare: the deposition and the freeze (docs/soil.md), then the bed's packing.
+void prepare(dem::RunConfig& rc) {
+  const dem::Scene& scene = rc.scene;
+  dem::State& s = rc.state;
+  set_tool_poses(scene, s);
+  const cosim::Stopwatch wall;
+  const long long every = std::max(100LL, 100 * std::llround(0.5 / scene.dt / 100));
+  std::fprintf(stderr, "prepare: deposition of %zu grains with friction %g, then frozen with the "
+                       "scene's laws\n", s.size(), rc.prepare.deposition_friction);
+  const dem::PrepareResult r = dem::prepare_bed(
+      scene, s, rc.prepare, [&](const char* stage, double t, double ke) {
+        if (s.step % every == 0)
+          std::fprintf(stderr, "prepare: %s t = %.3f s, KE/particle %.3g J, %s\n", stage, t, ke,
+                       extent(s).c_str());
+      });
+  std::fprintf(stderr, "prepare: deposition %s after %.3f s, freeze %s after %.3f s (%.0f s wall), %s\n",
+               r.deposition_converged ? "at rest" : "NOT at rest (prepare.max_time reached)",
+               r.deposition_time, r.freeze_converged ? "at rest" : "NOT at rest (prepare.max_time reached)",
+               r.freeze_time, wall.seconds(), extent(s).c_str());
+  std::printf("Prepared bed: %s\n", dem::describe(r.packing).c_str());
+  if (!rc.prepare.checkpoint.empty()) {
+    dem::save_checkpoint(s, rc.prepare.checkpoint);
+    record_bed(scene, s, rc.prepare.checkpoint, rc.prepare.margin, "prepare", r.packing);
+    std::fprintf(stderr, "prepare: saved %s\n", rc.prepare.checkpoint.c_str());
+  }
+}
+
 int run(int argc, char** argv) {
   std::string config_path, output_override;
   std::vector<std::string> sets;
@@ -164,6 +211,12 @@ int run(int argc, char** argv) {
   }
   YAML::Node root = cosim::config::load_file(config_path);
   for (const auto& s : sets) cosim::config::apply_override(root, s);
+  // A dem_service config runs here too: its service section is dem_service's alone.
+  if (root.IsMap() && root["service"]) {
+    std::fprintf(stderr, "dem_run: the config's service: section is ignored (only dem_service "
+                         "reads it)\n");
+    root.remove("service");
+  }
   // May execute dem_run again (once) with the OpenMP wait variables set: before any output.
   const std::string wait = dem::apply_thread_wait(dem::read_thread_wait(root), argv);
   // The engine's performance options, once (a bad DEM_PAIR_KERNEL stops the run before any work).
@@ -185,6 +238,7 @@ int run(int argc, char** argv) {
   std::fprintf(stderr, "dem_run: %s\n",
                dem::describe_thread_cpus(dem::thread_cpus(std::max(1, scene.threads))).c_str());
 
+  if (rc.prepare.enabled) prepare(rc);
   dem::Engine engine(scene, engine_options);
   if (rc.settle.enabled) {
     set_tool_poses(scene, s);
@@ -202,6 +256,7 @@ int run(int argc, char** argv) {
                  settle_wall.seconds(), r.ke_per_particle, extent(s).c_str());
     if (!rc.settle.checkpoint.empty()) {
       dem::save_checkpoint(s, rc.settle.checkpoint);
+      record_bed(scene, s, rc.settle.checkpoint, dem::kPackingMarginDiameters, "settle");
       std::fprintf(stderr, "settle: saved %s\n", rc.settle.checkpoint.c_str());
     }
     engine.timing().reset();  // the tables below are for the run itself

@@ -141,6 +141,7 @@ BoundaryContacts::BoundaryContacts(const Scene& scene, int max_threads) : scene_
 void BoundaryContacts::forces(State& s, const ToolGeometry& tools, Vec3* force, int T,
                               double* busy) {
   const ContactLaw& law = scene_.particle_wall;
+  const bool per_body_laws = !scene_.boundary_laws.empty();
   const double dt = scene_.dt;
   const std::size_t ntools = scene_.tools.size(), nwalls = scene_.walls.size();
   std::fill(thread_stats_.begin(), thread_stats_.end(), ContactStats{});
@@ -196,7 +197,15 @@ void BoundaryContacts::forces(State& s, const ToolGeometry& tools, Vec3* force, 
         int active = 0;
         for (int c = 0; c < nc; ++c) {
           Vec3 f;
-          if (!contact_force(law, coef, cs[c].overlap, cs[c].normal, s.u[i] - cs[c].body_velocity,
+          // A wall or tool with a law of its own (Scene::boundary_laws; none: particle_wall).
+          const ContactLaw* lw = &law;
+          ContactCoefficients cw = coef;
+          if (per_body_laws) {
+            const std::uint32_t b = key_body(cs[c].key);
+            lw = key_kind(cs[c].key) == FeatureKind::wall ? &scene_.wall_law(b) : &scene_.tool_law(b);
+            if (lw != &law) cw = coefficients(*lw, ri, mi);
+          }
+          if (!contact_force(*lw, cw, cs[c].overlap, cs[c].normal, s.u[i] - cs[c].body_velocity,
                              spring[c], dt, f))
             continue;
           ++my_stats.boundary_contacts;

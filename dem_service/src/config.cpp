@@ -6,6 +6,7 @@
 #include <limits>
 #include <filesystem>
 #include <map>
+#include <optional>
 #include <numeric>
 #include <stdexcept>
 #include <sstream>
@@ -14,6 +15,7 @@
 #include "cosim/yaml_config.hpp"
 #include "dem/bed.hpp"
 #include "dem/checkpoint.hpp"
+#include "dem/packing.hpp"
 
 namespace dem {
 namespace cfg = cosim::config;
@@ -266,12 +268,12 @@ std::vector<Wall> parse_walls(const YAML::Node& w) {
     const std::string type = cfg::get_choice(w[i], p, "type", {"plane", "box"});
     const std::string name = cfg::get_string(w[i], p, "name");
     if (type == "plane") {
-      cfg::check_keys(w[i], p, {"name", "type", "point", "normal"});
+      cfg::check_keys(w[i], p, {"name", "type", "point", "normal", "contact"});
       Vec3 n = vec3(w[i], p, "normal");
       if (!(norm(n) > 0)) throw ConfigError(p + ".normal: must be non-zero");
       walls.push_back({name, vec3(w[i], p, "point"), (1.0 / norm(n)) * n});
     } else {
-      cfg::check_keys(w[i], p, {"name", "type", "min", "max", "open_top"});
+      cfg::check_keys(w[i], p, {"name", "type", "min", "max", "open_top", "contact"});
       const Vec3 lo = vec3(w[i], p, "min"), hi = vec3(w[i], p, "max");
       if (!(hi.x > lo.x && hi.y > lo.y && hi.z > lo.z))
         throw ConfigError(p + ": max must exceed min in x, y and z");
@@ -286,6 +288,47 @@ std::vector<Wall> parse_walls(const YAML::Node& w) {
     }
   }
   return walls;
+}
+
+// walls[i].contact / tools[i].contact: a law of the wall's or tool's own, given as the keys
+// that differ from contact.particle_wall (or particle_particle when that is left out); giving
+// restitution replaces the base's normal_damping and the other way round. Parsed and validated
+// as a whole law under its own dotted path.
+ContactLaw boundary_law(const YAML::Node& contact, const YAML::Node& over, const std::string& path) {
+  if (!over.IsMap())
+    throw ConfigError(path + ": expected a map of contact-law keys (e.g. {friction: 0.0}) that "
+                             "replace those of contact.particle_wall");
+  YAML::Node merged = YAML::Clone(contact["particle_wall"] ? contact["particle_wall"]
+                                                           : contact["particle_particle"]);
+  if (over["restitution"]) merged.remove("normal_damping");
+  if (over["normal_damping"]) merged.remove("restitution");
+  for (const auto& kv : over) merged[kv.first.as<std::string>()] = kv.second;
+  return parse_contact_law(merged, path);
+}
+
+// Scene::boundary_laws from walls[].contact and tools[].contact (after parse_walls and the
+// tools): each config wall's law goes to every plane it made (a box makes 5 or 6).
+void parse_boundary_laws(const YAML::Node& root, Scene& sc) {
+  const YAML::Node contact = root["contact"];
+  std::size_t plane = 0;
+  if (const YAML::Node w = root["walls"])
+    for (std::size_t i = 0; i < w.size(); ++i) {
+      const std::string p = "walls[" + std::to_string(i) + "]";
+      const bool box = cfg::get_string(w[i], p, "type") == "box";
+      const std::size_t planes = !box ? 1 : cfg::get_bool_or(w[i], p, "open_top", true) ? 5 : 6;
+      if (w[i]["contact"]) {
+        sc.boundary_laws.push_back(boundary_law(contact, w[i]["contact"], p + ".contact"));
+        for (std::size_t k = plane; k < plane + planes; ++k)
+          sc.walls[k].law = static_cast<int>(sc.boundary_laws.size() - 1);
+      }
+      plane += planes;
+    }
+  if (const YAML::Node t = root["tools"])
+    for (std::size_t i = 0; i < t.size(); ++i)
+      if (t[i]["contact"]) {
+        sc.boundary_laws.push_back(boundary_law(contact, t[i]["contact"], "tools[" + std::to_string(i) + "].contact"));
+        sc.tools[i].law = static_cast<int>(sc.boundary_laws.size() - 1);
+      }
 }
 
 // A tool as the config describes it: the files are read by load_tool.
@@ -305,7 +348,7 @@ std::vector<ToolSource> parse_tools(const YAML::Node& t) {
   for (std::size_t i = 0; i < t.size(); ++i) {
     ToolSource tool;
     const std::string& p = tool.path = "tools[" + std::to_string(i) + "]";
-    cfg::check_keys(t[i], p, {"name", "mesh", "scale", "reference_point", "motion"});
+    cfg::check_keys(t[i], p, {"name", "mesh", "scale", "reference_point", "motion", "contact"});
     tool.name = cfg::get_string(t[i], p, "name");
     tool.scale = cfg::get_positive_or(t[i], p, "scale", tool.scale);
     if (t[i]["reference_point"]) tool.reference_point = vec3(t[i], p, "reference_point");
@@ -338,11 +381,14 @@ struct ParticleSources {
   Perturbation perturb;
   std::vector<ListedParticle> list;
   std::vector<FillRegion> fill;
+  std::vector<InsertRegion> insert;
 };
+
+std::vector<InsertRegion> parse_insert(const YAML::Node& ins, const Scene& sc);
 
 ParticleSources parse_particles(const YAML::Node& parts, const Scene& sc) {
   if (!parts) throw ConfigError("particles: missing (give fill, list or checkpoint)");
-  cfg::check_keys(parts, "particles", {"fill", "list", "checkpoint", "keep_time", "perturb"});
+  cfg::check_keys(parts, "particles", {"fill", "insert", "list", "checkpoint", "keep_time", "perturb"});
   ParticleSources src;
   if (const YAML::Node pt = parts["perturb"]) {
     cfg::check_keys(pt, "particles.perturb", {"amplitude", "seed"});
@@ -383,6 +429,7 @@ ParticleSources parse_particles(const YAML::Node& parts, const Scene& sc) {
       src.fill.push_back(r);
     }
   }
+  if (const YAML::Node ins = parts["insert"]) src.insert = parse_insert(ins, sc);
   if (const YAML::Node l = parts["list"]) {
     for (std::size_t i = 0; i < l.size(); ++i) {
       const std::string p = "particles.list[" + std::to_string(i) + "]";
@@ -400,6 +447,61 @@ ParticleSources parse_particles(const YAML::Node& parts, const Scene& sc) {
     }
   }
   return src;
+}
+
+// particles.insert: random sequential insertion, a list like particles.fill.
+std::vector<InsertRegion> parse_insert(const YAML::Node& ins, const Scene& sc) {
+  std::vector<InsertRegion> out;
+  if (!ins.IsSequence())
+    throw ConfigError("particles.insert: expected a list of {species, min, max, count, seed}");
+  for (std::size_t i = 0; i < ins.size(); ++i) {
+    const std::string p = "particles.insert[" + std::to_string(i) + "]";
+    cfg::check_keys(ins[i], p, {"species", "min", "max", "count", "seed"});
+    InsertRegion r;
+    r.species = species_index(sc, cfg::get_string(ins[i], p, "species"), p + ".species");
+    r.min = vec3(ins[i], p, "min");
+    r.max = vec3(ins[i], p, "max");
+    r.count = cfg::get_int(ins[i], p, "count");
+    if (r.count < 0) throw ConfigError(p + ".count: must be >= 0");
+    const long long seed = cfg::get_int_or(ins[i], p, "seed", static_cast<long long>(r.seed));
+    if (seed < 0) throw ConfigError(p + ".seed: must be an integer >= 0");
+    r.seed = static_cast<std::uint64_t>(seed);
+    out.push_back(r);
+  }
+  return out;
+}
+
+// prepare: the deposition of the inserted (or filled) grains, then frozen into contact.
+PrepareOptions parse_prepare(const YAML::Node& pr) {
+  PrepareOptions o;
+  if (!pr) return o;
+  const std::string p = "prepare";
+  if (!pr.IsMap())
+    throw ConfigError("prepare: expected a map {deposition_friction, ke_per_particle, max_time, "
+                      "margin, checkpoint}");
+  cfg::check_keys(pr, p, {"deposition_friction", "ke_per_particle", "max_time", "margin", "checkpoint"});
+  o.enabled = true;
+  o.deposition_friction = cfg::get_double_or(pr, p, "deposition_friction", o.deposition_friction);
+  if (!(o.deposition_friction >= 0) || !std::isfinite(o.deposition_friction))
+    throw ConfigError("prepare.deposition_friction: must be a Coulomb coefficient >= 0 (0 = "
+                      "frictionless fall, densest), got " + std::to_string(o.deposition_friction));
+  o.ke_per_particle = cfg::get_positive_or(pr, p, "ke_per_particle", o.ke_per_particle);
+  o.max_time = cfg::get_positive_or(pr, p, "max_time", o.max_time);
+  o.margin = cfg::get_double_or(pr, p, "margin", o.margin);
+  if (!(o.margin >= 0) || !std::isfinite(o.margin))
+    throw ConfigError("prepare.margin: must be >= 0 mean grain diameters (e.g. 2.5), got " +
+                      std::to_string(o.margin));
+  o.checkpoint = cfg::get_string_or(pr, p, "checkpoint", o.checkpoint);
+  return o;
+}
+
+// A bed saved with its largest overlap (/bed/max_overlap_ratio, written by dem_run when it
+// prepares or settles a bed) reloads whatever scene.stability.overlap_tolerance says: the
+// tolerance is raised to the overlap the bed was made with.
+void follow_bed_overlap(const std::string& checkpoint, StabilityOptions& o) {
+  if (checkpoint.empty()) return;
+  if (const std::optional<double> made = read_bed_overlap(checkpoint))
+    o.overlap_tolerance = std::max(o.overlap_tolerance, *made * (1 + 1e-9));
 }
 
 SettleOptions parse_settle(const YAML::Node& st) {
@@ -537,7 +639,7 @@ ThreadWait read_thread_wait(const YAML::Node& root) {
 
 RunConfig load_config(const YAML::Node& root, const std::string& base_dir) {
   cfg::check_keys(root, "", {"scene", "materials", "species", "contact", "walls", "tools",
-                             "particles", "settle", "run", "output"});
+                             "particles", "prepare", "settle", "run", "output"});
   RunConfig rc;
   {
     std::ostringstream text;
@@ -551,15 +653,19 @@ RunConfig load_config(const YAML::Node& root, const std::string& base_dir) {
   sc.walls = parse_walls(root["walls"]);
   for (const ToolSource& t : parse_tools(root["tools"]))
     sc.tools.push_back(load_tool(t, base_dir, rc.inputs));
+  parse_boundary_laws(root, sc);
   const ParticleSources particles = parse_particles(root["particles"], sc);
   rc.fill = particles.fill;
+  rc.insert = particles.insert;
+  rc.prepare = parse_prepare(root["prepare"]);
   rc.settle = parse_settle(root["settle"]);
   rc.duration = parse_run(root["run"], rc.duration);
   rc.output = parse_output(root["output"]);
 
   rc.state = load_bed(particles, base_dir, rc.inputs);
+  if (!particles.checkpoint.empty()) follow_bed_overlap(rc.inputs.back().path, sc.stability);
   rc.continues = !particles.checkpoint.empty() && particles.keep_time && particles.list.empty() &&
-                 rc.fill.empty();
+                 rc.fill.empty() && rc.insert.empty();
   place_listed(sc, particles.list, rc.state);
   {  // Before the particle arrays grow: the scene must fit in memory (docs/dem.md#memory).
     double total = static_cast<double>(rc.state.size());
@@ -569,12 +675,15 @@ RunConfig load_config(const YAML::Node& root, const std::string& base_dir) {
     }
   }
   for (const FillRegion& r : rc.fill) fill_region(sc, r, rc.state);
+  for (std::size_t i = 0; i < rc.insert.size(); ++i)
+    insert_random(sc, rc.insert[i], rc.state, "particles.insert[" + std::to_string(i) + "]");
   if (rc.state.size() == 0) {
     std::string why;
     auto add = [&](const char* r) { why += (why.empty() ? "" : "; ") + std::string(r); };
     if (!particles.checkpoint.empty()) add("particles.checkpoint holds none");
     if (parts_listed_empty(root)) add("particles.list is empty");
     if (!rc.fill.empty()) add("particles.fill places none (count 0)");
+    if (!rc.insert.empty()) add("particles.insert places none (count 0)");
     if (why.empty()) add("none given");
     throw ConfigError("particles: the scene has no particles (" + why +
                       "): give at least one in particles.list, a particles.fill count > 0 or a "
@@ -593,6 +702,7 @@ std::vector<cosim::NamedFile> output_files(const RunConfig& rc, const std::strin
                    std::filesystem::path(rc.output.file).replace_extension(".xdmf").string()});
   out.push_back({"output.checkpoint", rc.output.checkpoint});
   if (rc.settle.enabled) out.push_back({"settle.checkpoint", rc.settle.checkpoint});
+  if (rc.prepare.enabled) out.push_back({"prepare.checkpoint", rc.prepare.checkpoint});
   return out;
 }
 

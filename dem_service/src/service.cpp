@@ -48,6 +48,10 @@ ServiceOptions read_service_options(YAML::Node& root) {
         "settle: dem_service does not settle beds (the master would time out waiting); settle "
         "with dem_run and load the result with particles.checkpoint");
   }
+  if (root["prepare"])
+    throw cfg::ConfigError(
+        "prepare: dem_service does not prepare beds (the master would time out waiting); prepare "
+        "with dem_run (prepare.checkpoint) and load the result with particles.checkpoint");
   return o;
 }
 

@@ -39,6 +39,9 @@ double stiffest_contact_period(const Scene& scene, std::string* which) {
       std::ostringstream w;
       w << "sphere-wall " << a.name << " r=" << a.r;
       consider(stability_period(scene.particle_wall, a.r, a.m), w.str());
+      for (std::size_t l = 0; l < scene.boundary_laws.size(); ++l)  // walls[].contact, tools[].contact
+        consider(stability_period(scene.boundary_laws[l], a.r, a.m),
+                 w.str() + " (wall or tool law " + std::to_string(l) + ")");
     }
   }
   return best;

@@ -11,6 +11,7 @@
 
 #include "cosim/files.hpp"
 #include "dem/bed.hpp"
+#include "dem/packing.hpp"
 #include "dem/scene.hpp"
 #include "dem/state.hpp"
 
@@ -47,6 +48,8 @@ struct RunConfig {
   Scene scene;
   State state;  // initial particles and tool poses
   std::vector<FillRegion> fill;
+  std::vector<InsertRegion> insert;  // particles.insert: random sequential insertion
+  PrepareOptions prepare;            // prepare: deposition, then frozen into contact
   SettleOptions settle;
   OutputOptions output;
   double duration = 0;

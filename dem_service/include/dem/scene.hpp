@@ -40,6 +40,8 @@ struct Wall {
   // the face of that box; a `plane` wall as a rectangle covering the run (docs/visualise.md).
   bool from_box = false;
   Vec3 box_min{}, box_max{};
+  // Its contact law: an index into Scene::boundary_laws, or -1 for Scene::particle_wall.
+  int law = -1;
 };
 
 // A rigid triangle-mesh tool; the mesh is stored relative to the reference point.
@@ -47,6 +49,7 @@ struct Tool {
   std::string name;
   Mesh mesh;
   ToolMotion motion;
+  int law = -1;  // index into Scene::boundary_laws, or -1 for Scene::particle_wall
 };
 
 enum class GuardMode { rebuild, strict };
@@ -126,7 +129,16 @@ struct Scene {
   RegionOptions region;
   std::vector<Species> species;
   ContactLaw particle_particle;
-  ContactLaw particle_wall;  // walls and tools
+  ContactLaw particle_wall;  // walls and tools without a law of their own
+  // Laws of walls and tools that name their own (walls[].contact, tools[].contact in the
+  // config); empty when none does, and then every boundary contact uses particle_wall.
+  std::vector<ContactLaw> boundary_laws;
+  const ContactLaw& wall_law(std::size_t w) const {
+    return walls[w].law < 0 ? particle_wall : boundary_laws[static_cast<std::size_t>(walls[w].law)];
+  }
+  const ContactLaw& tool_law(std::size_t m) const {
+    return tools[m].law < 0 ? particle_wall : boundary_laws[static_cast<std::size_t>(tools[m].law)];
+  }
   std::vector<Wall> walls;
   std::vector<Tool> tools;
 
