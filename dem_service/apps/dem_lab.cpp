@@ -65,7 +65,7 @@ int run_triaxial(const YAML::Node& root, const fs::path& out) {
         << "," << r.sigma3 << "," << r.q() << "," << r.sin_phi() << "," << r.packing << ","
         << r.time << "\n";
   std::ofstream s = open_out(out / "triaxial_summary.csv");
-  s << "confining_Pa,grains,packing,bulk_density_kg_m3,porosity,coordination,strain_rate_1_s,"
+  s << "confining_Pa,grains,packing,packing_inner,bulk_density_kg_m3,porosity,coordination,strain_rate_1_s,"
        "inertial_number,peak_axial_strain,sigma1_peak_Pa,sigma3_peak_Pa,phi_peak_deg,phi_end_deg,"
        "dilatancy_end,critical_state,servo_worst\n";
   std::vector<double> s1, s3, e1, e3;
@@ -77,13 +77,13 @@ int run_triaxial(const YAML::Node& root, const fs::path& out) {
     e1.push_back(t.sigma1_end);
     e3.push_back(t.sigma3_end);
     all_critical = all_critical && t.critical;
-    s << t.confining << "," << t.grains << "," << t.packing << ","
-      << t.packing * o.grains.density << "," << 1 - t.packing << "," << t.coordination << ","
+    s << t.confining << "," << t.grains << "," << t.packing << "," << t.packing_inner << ","
+      << t.packing_inner * o.grains.density << "," << 1 - t.packing_inner << "," << t.coordination << ","
       << t.strain_rate << "," << t.inertial_number << "," << pk.axial_strain << "," << pk.sigma1
       << "," << pk.sigma3 << "," << t.phi_peak << "," << t.phi_end << "," << t.dilatancy_end
       << "," << (t.critical ? 1 : 0) << "," << t.servo_worst << "\n";
     std::cout << std::fixed << std::setprecision(2) << "sigma3 " << t.confining / 1e3
-              << " kPa: packing " << std::setprecision(3) << t.packing << ", " << std::setprecision(2)
+              << " kPa: packing " << std::setprecision(3) << t.packing << " (inner " << t.packing_inner << "), " << std::setprecision(2)
               << t.coordination << " contacts/grain, peak phi " << t.phi_peak << " deg at "
               << 100 * pk.axial_strain << " % axial strain, end phi " << t.phi_end
               << " deg (dilatancy " << std::setprecision(3) << t.dilatancy_end
@@ -125,7 +125,7 @@ int run_repose(const YAML::Node& root, const fs::path& out) {
     << "," << r.pile_radius << "," << r.intercept << "," << r.lost << "," << r.cylinder_radius << "\n";
   std::cout << std::fixed << std::setprecision(2) << "angle of repose " << r.angle << " deg (+- "
             << r.angle_sd << " deg over " << r.sectors << " sectors), pile height " << r.height
-            << " m, radius " << r.pile_radius << " m, " << r.count << " grains on the base (" << r.lost << " lost through it or off it)\n";
+            << " m, radius " << r.pile_radius << " m, " << r.count << " grains on the base (" << r.lost << " ran off it)\n";
   return 0;
 }
 

@@ -210,11 +210,37 @@ double servo_speed(double gain, double area, double error, double stiffness, dou
 }
 
 double packing_fraction(const State& s, Vec3 lo, Vec3 hi) {
+  // Each grain's volume inside the box: its whole volume less the caps beyond the faces it
+  // crosses (a grain whose centre is outside counts the cap inside). Grains at an edge or a
+  // corner count a cap twice; at two or more grains across the box that is far below 1e-3.
+  auto cap = [](double r, double h) { return M_PI * h * h * (3 * r - h) / 3; };
   double v = 0;
   for (std::size_t i = 0; i < s.size(); ++i) {
-    const Vec3 x = s.x[i];
-    if (x.x >= lo.x && x.x <= hi.x && x.y >= lo.y && x.y <= hi.y && x.z >= lo.z && x.z <= hi.z)
-      v += 4.0 / 3.0 * M_PI * s.radius[i] * s.radius[i] * s.radius[i];
+    const double r = s.radius[i];
+    const double c[3] = {s.x[i].x, s.x[i].y, s.x[i].z};
+    const double a[3] = {lo.x, lo.y, lo.z}, b[3] = {hi.x, hi.y, hi.z};
+    bool outside = false;
+    double inside = 4.0 / 3.0 * M_PI * r * r * r;
+    for (int k = 0; k < 3 && !outside; ++k) {
+      if (c[k] < a[k] - r || c[k] > b[k] + r) outside = true;
+    }
+    if (outside) continue;
+    int out_faces = 0;
+    double out_cap = 0;
+    for (int k = 0; k < 3; ++k) {
+      for (const double d : {c[k] - a[k], b[k] - c[k]}) {
+        if (d >= r) continue;
+        if (d >= 0) {
+          inside -= cap(r, r - d);
+        } else {
+          ++out_faces;
+          out_cap = cap(r, r + d);  // the part inside this face
+        }
+      }
+    }
+    if (out_faces == 1) inside = out_cap;
+    else if (out_faces > 1) inside = 0;  // beyond an edge of the box: a sliver, left out
+    v += std::max(0.0, inside);
   }
   const Vec3 d = hi - lo;
   return v / (d.x * d.y * d.z);

@@ -35,14 +35,6 @@ bool inside_cylinder(Vec3 c, double r, const void* ctx) {
   const double R = static_cast<const Cylinder*>(ctx)->radius;
   return std::hypot(c.x, c.y) <= R - r;
 }
-struct Disc {
-  double outer, hole_in, hole_out;
-};
-bool on_base(Vec3 c, double r, const void* ctx) {
-  const Disc* d = static_cast<const Disc*>(ctx);
-  const double rr = std::hypot(c.x, c.y);
-  return rr <= d->outer - r && (d->hole_out <= 0 || rr < d->hole_in - r || rr > d->hole_out + r);
-}
 
 // A tube of radius R from z0 to z1 about the z axis, `segments` facets, triangles facing both
 // ways (mesh contacts are by distance).
@@ -211,25 +203,21 @@ ReposeResult run_repose(const ReposeOptions& o, const Progress& progress) {
   const double mg = o.grains.density * o.grains.mean_volume() * g;
   const double ke = o.ke_per_grain > 0 ? o.ke_per_grain : 1e-6 * mg * d;
   const double lift = o.lift_speed > 0 ? o.lift_speed : 0.5 * std::sqrt(g * d);
-  // The base: a random monolayer of the same grains pinned in place (no floor under it: a grain
-  // that finds a hole falls through and leaves the region, counted as lost), then the grains
-  // inside the cylinder, whose bottom edge stands just above the base.
+  // The base: a rough plate of grains of the largest radius pinned in a square array, touching
+  // (a free grain cannot pass between four of them), then the grains inside the cylinder, whose
+  // bottom edge stands just above the base.
   State s;
-  const Disc disc{Rb, 0, 0};
   {
-    long n = static_cast<long>(0.55 * Rb * Rb / (rmax * rmax));
-    while (true) {
-      State b;
-      try {
-        insert_random(scene, b, {-Rb, -Rb, rmax}, {Rb, Rb, rmax * (1 + 1e-9)}, n, o.seed + 1000,
-                      "repose base", on_base, &disc);
-        s = b;
-        break;
-      } catch (const std::invalid_argument&) {
-        n = static_cast<long>(n * 0.95);
-        if (n < 10) throw std::invalid_argument("repose.base_radius: no room for the base layer");
+    const double pitch = 2 * rmax;
+    const long m = static_cast<long>(std::floor(Rb / pitch));
+    const Species& sp = scene.species[0];
+    std::int64_t id = 0;
+    for (long i = -m; i <= m; ++i)
+      for (long j = -m; j <= m; ++j) {
+        const Vec3 c{i * pitch, j * pitch, rmax};
+        if (std::hypot(c.x, c.y) > Rb - rmax) continue;
+        add_particle(s, c, {}, rmax, sp.mass(rmax), 0, id++);
       }
-    }
   }
   const long nbase = static_cast<long>(s.size());
   std::vector<Vec3> base_x(static_cast<std::size_t>(nbase));

@@ -296,6 +296,10 @@ TriaxialTest run_triaxial(const TriaxialOptions& o, const Sample& sample, double
   t.consolidation_time = consolidate(rig, engine, s, confining, o.servo_gain, vcons, o.tolerance,
                                      o.max_consolidation_steps, "consolidation", progress);
   t.packing = packing_fraction(s, rig.lo(), rig.hi());
+  {
+    const double m = 2 * o.grains.radius_max;
+    t.packing_inner = packing_fraction(s, rig.lo() + Vec3{m, m, m}, rig.hi() - Vec3{m, m, m});
+  }
   t.coordination = coordination(engine, s);
 
   // Shearing: z walls at constant speed, lateral walls servoed.

@@ -92,8 +92,8 @@ class BoxRig {
 double servo_speed(double gain, double area, double error, double stiffness, double dt,
                    double max_speed);
 
-// Packing fraction of the grains whose centres lie in [lo, hi] (sphere volumes / box volume;
-// grains cut by the box are counted whole, the error is of order the surface share).
+// Packing fraction in the box [lo, hi]: the grains' volume inside it (a grain cut by a face
+// counts its part inside; the caps of grains at an edge are counted approximately) / its volume.
 double packing_fraction(const State& s, Vec3 lo, Vec3 hi);
 // Mean contacts per grain (particle-particle contacts x 2 / grains, rattlers included).
 double coordination(const Engine& engine, const State& s);

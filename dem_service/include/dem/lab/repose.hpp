@@ -1,5 +1,5 @@
 // The virtual angle-of-repose test (docs/soil_lab.md): grains poured at random into a smooth
-// cylinder standing on a rough base (a layer of the same grains pinned in place), settled, the
+// cylinder standing on a rough base (a square array of the largest grains pinned in place), settled, the
 // cylinder lifted slowly, the heap settled again; the angle is fitted to the free surface (the
 // highest grain of each radial bin in each azimuthal sector).
 #pragma once
@@ -20,7 +20,7 @@ struct ReposeOptions {
   std::uint64_t seed = 1;
   double cylinder_radius = 0;   // m; 0: the poured column stands two radii high
   double lift_speed = 0;        // m/s; 0: 0.5 sqrt(g d), slow against the grains' fall
-  double base_radius = 0;       // m; 0: 4 cylinder radii (the rough base; beyond it grains are removed)
+  double base_radius = 0;       // m; 0: 4 cylinder radii (the rough base; grains that run off it are removed)
   double ke_per_grain = 0;      // J; settled below this; 0: 1e-6 m g d per grain
   double max_time = 10;         // s simulated per settling stage
   int sectors = 8;              // azimuthal sectors of the surface fit
@@ -44,7 +44,7 @@ struct ReposeResult {
   double pile_radius = 0;  // m, where the fitted cone meets the base
   double intercept = 0;    // m, the cone's height at the axis
   long count = 0;          // free grains left on the base
-  long lost = 0;           // grains that fell through the base or ran off it
+  long lost = 0;           // grains that ran off the base
   double base = 0;         // m, mean top of the base grains
   double cylinder_radius = 0;  // m
   std::vector<SurfacePoint> surface;

@@ -55,7 +55,8 @@ struct TriaxialTest {
   double inertial_number = 0;    // of the shearing
   double dt = 0;
   long grains = 0;
-  double packing = 0;            // after consolidation
+  double packing = 0;            // after consolidation, whole sample (grain volume / box)
+  double packing_inner = 0;      // after consolidation, centres more than 2 r_max from every wall
   double coordination = 0;       // after consolidation, contacts per grain
   double consolidation_time = 0; // s simulated
   std::vector<TriaxialRecord> curve;
