@@ -129,8 +129,9 @@ ReposeResult fit_heap(const std::vector<Vec3>& x, const std::vector<double>& r, 
   ReposeResult out;
   // The surface: the highest grain top in each ring (radial bin) for the angle, and in each
   // sector of each ring for the scatter between sectors.
-  std::map<int, double> ring;
-  std::map<std::pair<int, int>, double> top;
+  // (height, radius of that grain)
+  std::map<int, std::pair<double, double>> ring;
+  std::map<std::pair<int, int>, std::pair<double, double>> top;
   double hmax = 0;
   for (std::size_t i = 0; i < x.size(); ++i) {
     const double h = x[i].z + r[i] - base;
@@ -140,9 +141,9 @@ ReposeResult fit_heap(const std::vector<Vec3>& x, const std::vector<double>& r, 
     const int s = std::min(sectors - 1, static_cast<int>(a / (2 * M_PI) * sectors));
     const int b = static_cast<int>(rr / bin);
     auto it = top.find({s, b});
-    if (it == top.end() || h > it->second) top[{s, b}] = h;
+    if (it == top.end() || h > it->second.first) top[{s, b}] = {h, rr};
     auto jt = ring.find(b);
-    if (jt == ring.end() || h > jt->second) ring[b] = h;
+    if (jt == ring.end() || h > jt->second.first) ring[b] = {h, rr};
     hmax = std::max(hmax, h);
   }
   out.height = hmax;
@@ -150,10 +151,11 @@ ReposeResult fit_heap(const std::vector<Vec3>& x, const std::vector<double>& r, 
   const double lo = 0.15 * hmax, hi = 0.85 * hmax;
   auto slope_point = [&](double h) { return h >= lo && h <= hi; };
   std::vector<std::pair<double, double>> pts;
-  for (const auto& [b, h] : ring) {
+  for (const auto& [b, hr] : ring) {
+    const double h = hr.first;
     SurfacePoint p;
     p.sector = -1;
-    p.radius = (b + 0.5) * bin;
+    p.radius = hr.second;
     p.height = h;
     p.used = slope_point(h);
     out.surface.push_back(p);
@@ -165,10 +167,11 @@ ReposeResult fit_heap(const std::vector<Vec3>& x, const std::vector<double>& r, 
   out.angle = std::atan(-slope) * kDeg;
   out.pile_radius = slope < 0 ? a / -slope : 0;
   std::vector<std::vector<std::pair<double, double>>> per(static_cast<std::size_t>(sectors));
-  for (const auto& [key, h] : top) {
+  for (const auto& [key, hr] : top) {
+    const double h = hr.first;
     SurfacePoint p;
     p.sector = key.first;
-    p.radius = (key.second + 0.5) * bin;
+    p.radius = hr.second;
     p.height = h;
     // The innermost ring's sectors are too small to hold the surface.
     p.used = key.second >= 1 && slope_point(h);

@@ -31,7 +31,7 @@ ReposeOptions parse_repose(const YAML::Node& root);
 
 struct SurfacePoint {
   int sector = 0;
-  double radius = 0;  // m from the axis
+  double radius = 0;  // m from the axis, of the highest grain of the bin
   double height = 0;  // m above the base, top of the highest grain of the bin
   bool used = false;  // in the slope fit (sector -1: the whole ring, the angle; else a sector)
 };
