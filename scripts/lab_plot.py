@@ -64,6 +64,11 @@ def triaxial(d):
             phi = math.radians(float(fit[state]["phi_origin_deg"]))
             ax.plot([0, smax], [0, smax * math.tan(phi)], style,
                     label=f"{state} envelope, $\\varphi$ = {math.degrees(phi):.1f} deg")
+    if "peak" in fit and len(summary) >= 2:
+        phi = math.radians(float(fit["peak"]["phi_deg"]))
+        c = float(fit["peak"]["cohesion_Pa"]) / 1e3
+        ax.plot([0, smax], [c, c + smax * math.tan(phi)], "C7-.",
+                label=f"peak fit with intercept: $\\varphi$ = {math.degrees(phi):.1f} deg, c = {c:.1f} kPa")
     ax.set_xlabel("normal stress [kPa]")
     ax.set_ylabel("shear stress [kPa]")
     ax.set_aspect("equal")
@@ -79,7 +84,7 @@ def repose(d):
     g = rows(f"{d}/repose_grains.csv")
     sfc = rows(f"{d}/repose_surface.csv")
     s = rows(f"{d}/repose_summary.csv")[0]
-    fig, ax = plt.subplots(figsize=(8, 4))
+    fig, ax = plt.subplots(figsize=(9, 5))
     ax.scatter([math.hypot(float(r["x"]), float(r["y"])) for r in g], [float(r["z"]) for r in g],
                s=2, c="0.6", label="grains (radius from the axis)")
     used = [r for r in sfc if r["used"] == "1" and r["sector"] == "-1"]
@@ -91,7 +96,7 @@ def repose(d):
     ax.set_xlabel("radius [m]")
     ax.set_ylabel("height above the base [m]")
     ax.set_aspect("equal")
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1))
     ax.set_title("angle of repose (lifted cylinder)")
     fig.tight_layout()
     fig.savefig(f"{d}/repose.png", dpi=120)
