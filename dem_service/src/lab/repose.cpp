@@ -1,8 +1,6 @@
 #include "dem/lab/repose.hpp"
 
 #include <algorithm>
-#include <cstdio>
-#include <cstdlib>
 #include <cmath>
 #include <map>
 #include <sstream>
@@ -274,11 +272,6 @@ ReposeResult run_repose(const ReposeOptions& o, const Progress& progress) {
       }
       t += 200 * dt;
       const double e = free_ke();
-      if (std::getenv("LAB_DEBUG") && static_cast<long>(t / dt) % 2000 == 0) {
-        std::size_t w = 0;
-        for (std::size_t i = 0; i < s.size(); ++i) if (norm2(s.v[i]) > norm2(s.v[w])) w = i;
-        std::fprintf(stderr, "t %.2f ke %.3g fastest id %ld at %.3f %.3f %.3f v %.3f n %zu\n", t, e, (long)s.id[w], s.x[w].x, s.x[w].y, s.x[w].z, norm(s.v[w]), s.size());
-      }
       if (t >= min_time && e < ke) break;
       if (t >= o.max_time) {
         if (progress) progress(what + ": not settled after repose.max_time; measuring anyway");

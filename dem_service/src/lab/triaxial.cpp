@@ -42,7 +42,7 @@ struct Servo {
   long n = 0;
   // Share of the proportional speed added to the integral speed each step: the integral part
   // takes about 1 / kIntegral steps to learn a steady speed.
-  static constexpr double kIntegral = 0.01;
+  static constexpr double kIntegral = 0.03;
 
   // One step; faces with servo[f] follow target[f] at up to vmax[f], the others move inward at
   // fixed[f] m/s.
