@@ -1,0 +1,168 @@
+// Bad lab inputs (docs/soil_lab.md) are refused with a message that names the key and the fix,
+// by the parsers and by dem_lab itself (exit code 2).
+#include <gtest/gtest.h>
+
+#include <array>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include "cosim/yaml_config.hpp"
+#include "dem/lab/repose.hpp"
+#include "dem/lab/triaxial.hpp"
+
+namespace {
+
+namespace lab = dem::lab;
+
+const char* kGrains = R"(
+grains:
+  density: 2600
+  radius: {min: 0.06, max: 0.075}
+  contact: {normal_stiffness: 4.0e7, restitution: 0.3, friction: 0.5}
+)";
+
+std::string triaxial_error(const std::string& body) {
+  try {
+    lab::parse_triaxial(cosim::config::load_string(body, "test"));
+  } catch (const std::exception& e) {
+    return e.what();
+  }
+  return "";
+}
+
+std::string repose_error(const std::string& body) {
+  try {
+    lab::parse_repose(cosim::config::load_string(body, "test"));
+  } catch (const std::exception& e) {
+    return e.what();
+  }
+  return "";
+}
+
+void expect_has(const std::string& msg, std::initializer_list<const char*> parts) {
+  EXPECT_FALSE(msg.empty()) << "accepted";
+  for (const char* p : parts) EXPECT_NE(msg.find(p), std::string::npos) << msg << "\n  lacks: " << p;
+}
+
+TEST(dem_LabBadInput, GoodTriaxialConfigIsAccepted) {
+  const std::string ok = std::string(kGrains) + "triaxial: {confining_pressures: [20.0e3, 10.0e3]}\n";
+  EXPECT_EQ(triaxial_error(ok), "");
+  const lab::TriaxialOptions o = lab::parse_triaxial(cosim::config::load_string(ok, "t"));
+  ASSERT_EQ(o.confining.size(), 2u);
+  EXPECT_EQ(o.confining[0], 10e3);  // sorted
+  EXPECT_EQ(o.grains.law.friction, 0.5);
+}
+
+TEST(dem_LabBadInput, TriaxialValuesNamed) {
+  const std::string g = kGrains;
+  expect_has(triaxial_error(g + "triaxial: {confining_pressures: [10.0e3, -5.0e3]}\n"),
+             {"triaxial.confining_pressures.1", "> 0 Pa", "-5.0e3"});
+  expect_has(triaxial_error(g + "triaxial: {confining_pressures: [0]}\n"),
+             {"triaxial.confining_pressures.0"});
+  expect_has(triaxial_error(g + "triaxial: {confining_pressures: [10.0e3, 10.0e3]}\n"),
+             {"triaxial.confining_pressures", "twice"});
+  expect_has(triaxial_error(g + "triaxial: {confining_pressures: []}\n"),
+             {"triaxial.confining_pressures", "missing or empty"});
+  expect_has(triaxial_error(g + "triaxial: {confining_pressures: [abc]}\n"),
+             {"triaxial.confining_pressures.0", "Pa", "abc"});
+  expect_has(triaxial_error(g + "triaxial: {confining_pressures: [1.0e4], strain_rate: 0}\n"),
+             {"triaxial.strain_rate", "> 0"});
+  expect_has(triaxial_error(g + "triaxial: {confining_pressures: [1.0e4], strain_rate: -1}\n"),
+             {"triaxial.strain_rate"});
+  expect_has(triaxial_error(g + "triaxial: {confining_pressures: [1.0e4], inertial_number: 0.5}\n"),
+             {"triaxial.inertial_number", "quasi-static"});
+  expect_has(triaxial_error(g + "triaxial: {confining_pressures: [1.0e4], servo_gain: 1.5}\n"),
+             {"triaxial.servo_gain", "below 1"});
+  expect_has(triaxial_error(g + "triaxial: {confining_pressures: [1.0e4], max_axial_strain: 0.8}\n"),
+             {"triaxial.max_axial_strain"});
+  expect_has(triaxial_error(g + "triaxial: {confining_pressures: [1.0e4], record_every: 0.1}\n"),
+             {"triaxial.record_every", "fewer than 5 records"});
+  expect_has(triaxial_error(g + "sample: {count: 10}\ntriaxial: {confining_pressures: [1.0e4]}\n"),
+             {"sample.count", "10"});
+  expect_has(triaxial_error(g + "sample: {initial_fraction: 0.5}\ntriaxial: {confining_pressures: [1.0e4]}\n"),
+             {"sample.initial_fraction", "0.35"});
+  expect_has(triaxial_error(g + "sample: {preparation_friction: -0.1}\ntriaxial: {confining_pressures: [1.0e4]}\n"),
+             {"sample.preparation_friction", ">= 0"});
+  expect_has(triaxial_error(g + "run: {threads: 0}\ntriaxial: {confining_pressures: [1.0e4]}\n"),
+             {"run.threads"});
+}
+
+TEST(dem_LabBadInput, MissingAndUnknownKeysNamed) {
+  const std::string g = kGrains;
+  expect_has(triaxial_error(g), {"triaxial", "missing", "confining_pressures"});
+  expect_has(triaxial_error("triaxial: {confining_pressures: [1.0e4]}\n"), {"grains", "missing"});
+  expect_has(triaxial_error("grains: {density: 2600, radius: 0.05}\ntriaxial: {confining_pressures: [1.0e4]}\n"),
+             {"grains.contact", "missing"});
+  expect_has(triaxial_error("grains: {radius: 0.05, contact: {normal_stiffness: 1.0e7, restitution: 0.3}}\n"
+                            "triaxial: {confining_pressures: [1.0e4]}\n"),
+             {"grains.density", "missing"});
+  expect_has(triaxial_error(g + "triaxial: {confining_presures: [1.0e4]}\n"),
+             {"triaxial.confining_presures", "unknown key", "did you mean 'confining_pressures'"});
+  expect_has(triaxial_error(g + "triaxal: {confining_pressures: [1.0e4]}\n"), {"triaxal", "unknown key"});
+  // The grains' own values and the contact law's keys, by their dotted path.
+  expect_has(triaxial_error("grains: {density: -1, radius: 0.05, contact: {normal_stiffness: 1.0e7, restitution: 0.3}}\n"
+                            "triaxial: {confining_pressures: [1.0e4]}\n"),
+             {"grains.density", "> 0"});
+  expect_has(triaxial_error("grains: {density: 2600, radius: {min: 0.08, max: 0.05}, contact: {normal_stiffness: 1.0e7, restitution: 0.3}}\n"
+                            "triaxial: {confining_pressures: [1.0e4]}\n"),
+             {"grains.radius", "min <= max"});
+  expect_has(triaxial_error("grains: {density: 2600, radius: 0.05, contact: {normal_stiffness: 1.0e7, restitution: 0.3, friction: -1}}\n"
+                            "triaxial: {confining_pressures: [1.0e4]}\n"),
+             {"grains.contact.friction"});
+  expect_has(triaxial_error("grains: {density: 2600, radius: 0.05, contact: {normal_stiffness: 1.0e7}}\n"
+                            "triaxial: {confining_pressures: [1.0e4]}\n"),
+             {"grains.contact", "restitution"});
+}
+
+TEST(dem_LabBadInput, ReposeValuesNamed) {
+  const std::string g = kGrains;
+  EXPECT_EQ(repose_error(g + "repose: {count: 300}\n"), "");
+  expect_has(repose_error(g), {"repose", "missing"});
+  expect_has(repose_error(g + "repose: {count: 3}\n"), {"repose.count"});
+  expect_has(repose_error(g + "repose: {lift_speed: -0.1}\n"), {"repose.lift_speed", ">= 0"});
+  expect_has(repose_error(g + "repose: {cylinder_radius: 0.1}\n"), {"repose.cylinder_radius", "3 grain diameters"});
+  expect_has(repose_error(g + "repose: {cylinder_radius: 1.0, base_radius: 1.5}\n"), {"repose.base_radius"});
+  expect_has(repose_error(g + "repose: {max_time: 0}\n"), {"repose.max_time", "> 0"});
+  expect_has(repose_error(g + "repose: {sectors: 0}\n"), {"repose.sectors"});
+  expect_has(repose_error(g + "repose: {cont: 300}\n"), {"repose.cont", "unknown key", "did you mean 'count'"});
+}
+
+// dem_lab: the program refuses with exit code 2 and a message on stderr naming the key.
+std::pair<int, std::string> run(const std::string& args) {
+  const std::string cmd = std::string(DEM_LAB_EXE) + " " + args + " 2>&1";
+  std::string out;
+  FILE* p = popen(cmd.c_str(), "r");
+  if (!p) return {-1, ""};
+  std::array<char, 512> buf;
+  while (fgets(buf.data(), buf.size(), p)) out += buf.data();
+  const int status = pclose(p);
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out};
+}
+
+TEST(dem_LabBadInput, ProgramRefusesWithExitCodeTwo) {
+  const auto dir = std::filesystem::temp_directory_path() / "test_lab_bad_input";
+  std::filesystem::create_directories(dir);
+  const auto cfg = dir / "t.yaml";
+  std::ofstream(cfg) << kGrains << "triaxial: {confining_pressures: [1.0e4]}\n";
+  auto [rc, out] = run("triaxial " + cfg.string() + " --set 'triaxial.confining_pressures=[-1]' --out " +
+                       (dir / "out").string() + " --no-plot");
+  EXPECT_EQ(rc, 2) << out;
+  EXPECT_NE(out.find("triaxial.confining_pressures.0"), std::string::npos) << out;
+  std::tie(rc, out) = run("shear " + cfg.string());
+  EXPECT_EQ(rc, 2);
+  EXPECT_NE(out.find("unknown test 'shear'"), std::string::npos) << out;
+  std::tie(rc, out) = run("triaxial " + (dir / "missing.yaml").string());
+  EXPECT_EQ(rc, 2);
+  EXPECT_NE(out.find("missing.yaml"), std::string::npos) << out;
+  std::tie(rc, out) = run("repose " + cfg.string() + " --no-plot");
+  EXPECT_EQ(rc, 2);
+  EXPECT_NE(out.find("unknown key 'triaxial'"), std::string::npos) << out;
+  std::tie(rc, out) = run("triaxial " + cfg.string() + " --bogus");
+  EXPECT_EQ(rc, 2);
+  EXPECT_NE(out.find("--bogus"), std::string::npos) << out;
+  std::filesystem::remove_all(dir);
+}
+
+}  // namespace
