@@ -12,7 +12,7 @@ set -euo pipefail
 cd "$(dirname "$0")/../.."
 root=$PWD
 bin=$root/build/bin
-[ -x "$bin/netns_relay" ] && [ -x "$bin/cosim_master" ] || { echo "build netns_relay, cosim_master and oscillator_participant first"; exit 1; }
+[ -x "$bin/netns_relay" ] && [ -x "$bin/cosim_master" ] || { echo "build netns_relay, cosim_master and oscillator_adapter first"; exit 1; }
 reason=$(bash tests/netns/rig.sh check) || { echo "skipped: $reason"; exit 0; }
 repeats=${1:-1}
 p=bn$$
@@ -27,9 +27,9 @@ run() {
   ip netns exec ${p}sw "$bin/netns_relay" --seed "${SEED:-1}" ${p}a1:$spec ${p}b1:$spec ${p}c1:$spec 2>"$out/$tag.relay" &
   local relay=$!
   sleep 0.3
-  COSIM_BUS_COPIES=$copies ip netns exec ${p}b "$bin/oscillator_participant" --side mass1 --bus "$url" --wait 60 2>"$out/$tag.m1" &
+  COSIM_BUS_COPIES=$copies ip netns exec ${p}b "$bin/oscillator_adapter" --side mass1 --bus "$url" --wait 60 2>"$out/$tag.m1" &
   local m1=$!
-  COSIM_BUS_COPIES=$copies ip netns exec ${p}c "$bin/oscillator_participant" --side mass2 --bus "$url" --wait 60 2>"$out/$tag.m2" &
+  COSIM_BUS_COPIES=$copies ip netns exec ${p}c "$bin/oscillator_adapter" --side mass2 --bus "$url" --wait 60 2>"$out/$tag.m2" &
   local m2=$!
   local start end
   start=$(date +%s.%N)

@@ -1,4 +1,4 @@
-// oscillator_participant --side mass1|mass2 [--name NAME] [--bus URL] ...
+// oscillator_adapter --side mass1|mass2 [--name NAME] [--bus URL] ...
 #include <cstdio>
 #include <cstring>
 #include <iostream>
@@ -15,8 +15,8 @@ int main(int argc, char** argv) {
     else rest.push_back(argv[i]);
   }
   if (side != "mass1" && side != "mass2") {
-    std::cerr << "oscillator_participant: --side must be mass1 or mass2 (got '" << side << "')\n"
-              << "usage: oscillator_participant --side mass1|mass2 [--name NAME] [--bus URL]\n";
+    std::cerr << "oscillator_adapter: --side must be mass1 or mass2 (got '" << side << "')\n"
+              << "usage: oscillator_adapter --side mass1|mass2 [--name NAME] [--bus URL]\n";
     return 2;
   }
   oscillator::OscillatorAdapter model(side == "mass1" ? oscillator::Side::Mass1

@@ -1,4 +1,4 @@
-// prescribed_participant [CONFIG.yaml] [--set dotted.key=value ...] [--name NAME] [--bus URL] ...
+// prescribed_adapter [CONFIG.yaml] [--set dotted.key=value ...] [--name NAME] [--bus URL] ...
 // Plays tool trajectories (keyframes or CSV) as kinematic outputs and records the wrenches it
 // receives; docs/prescribed.md.
 #include <cstdio>
@@ -16,10 +16,10 @@ int main(int argc, char** argv) {
     return cosim::run_participant(model, "prescribed", static_cast<int>(args.rest.size()),
                                   args.rest.data());
   } catch (const cosim::config::ConfigError& e) {
-    std::cerr << "prescribed_participant: config error: " << e.what() << "\n";
+    std::cerr << "prescribed_adapter: config error: " << e.what() << "\n";
     return 2;
   } catch (const std::exception& e) {
-    std::cerr << "prescribed_participant: error: " << e.what() << "\n";
+    std::cerr << "prescribed_adapter: error: " << e.what() << "\n";
     return 1;
   }
 }

@@ -562,7 +562,7 @@ TEST(FmuReference, FeedthroughAloneMatchesItsReferenceOverLcm) {
     EXPECT_EQ(ours.number(i, "ft.boolean"), ref.rows[i][ref.column("Boolean_output")] == "true" ? 1.0 : 0.0) << i;
 }
 
-// Feedthrough with its input CSV played by prescribed_participant: Int32_input (the one column of
+// Feedthrough with its input CSV played by prescribed_adapter: Int32_input (the one column of
 // Feedthrough_in.csv that FMI 2.0's Feedthrough has) becomes the motion's x, x / 2^31 its y. The
 // master holds each input over the step (order 0), the FMU copies it: the output at t_{i+1} is
 // the input at t_i, exactly (Int32: the nearest integer of the linearly interpolated value).

@@ -310,7 +310,7 @@ TEST(DemFmu, FailuresAreFmi2ErrorsThatSayWhy) {
 }
 
 // The blade test of docs/dem_service.md with the DEM behind dem_fmu, the FMU run by fmu_adapter
-// under cosim_master (tests/fmu_export/dem_fmu_cosim.yaml): prescribed_participant plays the
+// under cosim_master (tests/fmu_export/dem_fmu_cosim.yaml): prescribed_adapter plays the
 // blade, the master predicts its pose (linear) and the adapter hands the FMU the pose at each
 // step's start and its derivatives; dem_service runs on a bus of its own, started here.
 namespace {

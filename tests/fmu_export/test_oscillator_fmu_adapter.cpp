@@ -1,6 +1,6 @@
 // The dual-mass oscillator with both halves as FMUs (build/fmu/oscillator_mass*.fmu) run by
 // fmu_adapter under cosim_master over LCM (configs/oscillator_fmu.yaml), against the native
-// oscillator_participant halves (configs/oscillator.yaml): the same results, convergence
+// oscillator_adapter halves (configs/oscillator.yaml): the same results, convergence
 // orders and critical macro steps as test_convergence.cpp and test_instability.cpp measure.
 #include <cmath>
 #include <cstdio>

@@ -144,8 +144,8 @@ TEST(Records, AFullDiskDuringAResumePutsTheRecordBackAndItResumesLater) {
   const std::string dir = folder(), h5 = dir + "/o.h5", url = harness::bus_url();
   const std::vector<std::string> sets{
       "bus.url=" + url, "time.end=5", "checkpoints.every=0.05", "output.progress=off", "output.csv=",
-      "participants.mass1.launch=[oscillator_participant, --side, mass1, --idle-timeout, 2]",
-      "participants.mass2.launch=[oscillator_participant, --side, mass2, --idle-timeout, 2]"};
+      "participants.mass1.launch=[oscillator_adapter, --side, mass1, --idle-timeout, 2]",
+      "participants.mass2.launch=[oscillator_adapter, --side, mass2, --idle-timeout, 2]"};
   std::vector<std::string> args{harness::bin("cosim_master"), harness::source("configs/oscillator.yaml"),
                                 "--output", h5};
   for (const auto& s : sets) args.insert(args.end(), {"--set", s});

@@ -143,7 +143,7 @@ struct Oscillator {
   std::vector<harness::Process> start(const std::string& log) const {
     std::vector<harness::Process> p;
     for (const char* side : {"mass1", "mass2"})
-      p.push_back(harness::spawn({harness::bin("oscillator_participant"), "--side", side, "--bus", url,
+      p.push_back(harness::spawn({harness::bin("oscillator_adapter"), "--side", side, "--bus", url,
                                   "--wait", "60"},
                                  log + "." + side + ".log"));
     return p;
@@ -284,8 +284,8 @@ TEST(Resume, KilledMasterWithLaunchedParticipantsResumes) {
   fs::remove_all(h5 + ".checkpoints");
   const std::vector<std::string> sets{
       "bus.url=" + url, "time.end=5", "checkpoints.every=0.05", "output.progress=off", "output.csv=",
-      "participants.mass1.launch=[oscillator_participant, --side, mass1, --idle-timeout, 2]",
-      "participants.mass2.launch=[oscillator_participant, --side, mass2, --idle-timeout, 2]"};
+      "participants.mass1.launch=[oscillator_adapter, --side, mass1, --idle-timeout, 2]",
+      "participants.mass2.launch=[oscillator_adapter, --side, mass2, --idle-timeout, 2]"};
   auto first = harness::spawn(master_args("configs/oscillator.yaml", full, sets), full + ".log");
   ASSERT_EQ(harness::wait_for(first, 120), 0) << harness::read_text(full + ".log");
   auto master = harness::spawn(master_args("configs/oscillator.yaml", h5, sets), h5 + ".log");
@@ -318,7 +318,7 @@ TEST(Resume, DemCoSimulationAfterAKilledDemServiceEqualsAnUninterruptedRun) {
         harness::spawn({harness::bin("dem_service"), harness::source("tests/dem_service/scene.yaml"), "--bus",
                         url, "--wait", "60"},
                        log + ".dem.log"),
-        harness::spawn({harness::bin("prescribed_participant"), "--name", "tool", "--bus", url, "--wait", "60"},
+        harness::spawn({harness::bin("prescribed_adapter"), "--name", "tool", "--bus", url, "--wait", "60"},
                        log + ".tool.log")};
   };
   {
@@ -416,9 +416,9 @@ TEST(Resume, RefusesWhatCannotBeResumedNamingWhy) {
   // A stopped run with a checkpoint: --set of a key that changes results is refused by name.
   const std::string stopped = harness::temp_path("_stopped.h5");
   {
-    auto m1 = harness::spawn({harness::bin("oscillator_participant"), "--side", "mass1", "--bus", url, "--wait", "60"},
+    auto m1 = harness::spawn({harness::bin("oscillator_adapter"), "--side", "mass1", "--bus", url, "--wait", "60"},
                              stopped + ".mass1.log");
-    auto m2 = harness::spawn({harness::bin("oscillator_participant"), "--side", "mass2", "--bus", url, "--wait", "60"},
+    auto m2 = harness::spawn({harness::bin("oscillator_adapter"), "--side", "mass2", "--bus", url, "--wait", "60"},
                              stopped + ".mass2.log");
     auto master = harness::spawn(master_args("configs/oscillator.yaml", stopped,
                                               {"bus.url=" + url, "participants.mass1.launch=null", "bus.authenticate=false",

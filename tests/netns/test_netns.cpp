@@ -123,8 +123,8 @@ class Rig : public ::testing::Test {
 
   RunResult oscillator(const Impairment& imp, const std::string& tag, const std::vector<std::string>& overrides = {}) {
     return run(imp, tag, "configs/oscillator.yaml",
-               {{"mass1", {harness::bin("oscillator_participant"), "--side", "mass1"}},
-                {"mass2", {harness::bin("oscillator_participant"), "--side", "mass2"}}},
+               {{"mass1", {harness::bin("oscillator_adapter"), "--side", "mass1"}},
+                {"mass2", {harness::bin("oscillator_adapter"), "--side", "mass2"}}},
                overrides);
   }
 
@@ -203,7 +203,7 @@ TEST_F(Rig, DemCoSimulationAtFivePercentLossIsIdentical) {
   const std::vector<std::string> overrides{"time.end=0.015", "time.macro_step=2e-5"};
   const std::vector<std::pair<std::string, std::vector<std::string>>> parts{
       {"dem", {harness::bin("dem_service"), harness::source("tests/dem_service/scene.yaml"), "--name", "dem"}},
-      {"tool", {harness::bin("prescribed_participant"), "--name", "tool"}}};
+      {"tool", {harness::bin("prescribed_adapter"), "--name", "tool"}}};
   const RunResult clean = run({}, "dem_clean", "tests/dem_service/cosim.yaml", parts, overrides);
   ASSERT_EQ(clean.code, 0) << clean.log;
   const RunResult lossy = run({0.05, 0.01, 0.05, 0.001}, "dem_loss5", "tests/dem_service/cosim.yaml", parts, overrides);
@@ -241,7 +241,7 @@ TEST_F(Rig, LargeConfigureLosingOneFragmentIsSentAgainAndTheRunIsIdentical) {
   const std::vector<std::string> overrides{"time.end=0.004", "time.macro_step=2e-5", params};
   const std::vector<std::pair<std::string, std::vector<std::string>>> parts{
       {"dem", {harness::bin("dem_service"), harness::source("tests/dem_service/scene.yaml"), "--name", "dem"}},
-      {"tool", {harness::bin("prescribed_participant"), "--name", "tool"}}};  // on host c
+      {"tool", {harness::bin("prescribed_adapter"), "--name", "tool"}}};  // on host c
   const RunResult clean = run({}, "fragment_clean", "tests/dem_service/cosim.yaml", parts, overrides);
   ASSERT_EQ(clean.code, 0) << clean.log;
   const RunResult lost = run({}, "fragment_lost", "tests/dem_service/cosim.yaml", parts, overrides, "drop_fragment=1");

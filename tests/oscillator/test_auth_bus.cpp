@@ -339,10 +339,10 @@ TEST(AuthenticatedBus, ParticipantWithoutTheKeyCannotJoin) {
   std::remove(h5.c_str());
   ScopedEnv key_file("COSIM_KEY_FILE", "");
   ScopedEnv key("COSIM_KEY", "");
-  auto m1 = harness::spawn({harness::bin("oscillator_participant"), "--side", "mass1", "--bus", url, "--wait", "20"},
+  auto m1 = harness::spawn({harness::bin("oscillator_adapter"), "--side", "mass1", "--bus", url, "--wait", "20"},
                            h5 + ".mass1.log");
   key.set(cosim::auth::new_key_hex());
-  auto m2 = harness::spawn({harness::bin("oscillator_participant"), "--side", "mass2", "--bus", url, "--wait", "20"},
+  auto m2 = harness::spawn({harness::bin("oscillator_adapter"), "--side", "mass2", "--bus", url, "--wait", "20"},
                            h5 + ".mass2.log");
   key.set(cosim::auth::new_key_hex());
   auto master = harness::spawn({harness::bin("cosim_master"), harness::source("configs/oscillator.yaml"), "--output",
@@ -381,9 +381,9 @@ TEST(AuthenticatedBus, ForgedBusyHeartbeatsDoNotKeepAKilledParticipantAlive) {
   ScopedEnv key("COSIM_KEY", cosim::auth::new_key_hex());
   Attacker attacker(url, Attacker::busy_heartbeats_for_mass2);
   ASSERT_TRUE(attacker.good());
-  auto m1 = harness::spawn({harness::bin("oscillator_participant"), "--side", "mass1", "--bus", url, "--wait", "60"},
+  auto m1 = harness::spawn({harness::bin("oscillator_adapter"), "--side", "mass1", "--bus", url, "--wait", "60"},
                            h5 + ".mass1.log");
-  auto m2 = harness::spawn({harness::bin("oscillator_participant"), "--side", "mass2", "--bus", url, "--wait", "60"},
+  auto m2 = harness::spawn({harness::bin("oscillator_adapter"), "--side", "mass2", "--bus", url, "--wait", "60"},
                            h5 + ".mass2.log");
   auto master = harness::spawn(
       {harness::bin("cosim_master"), harness::source("configs/oscillator.yaml"), "--output", h5, "--set",

@@ -229,7 +229,7 @@ TEST(MasterBus, HandStartedParticipantsWithoutAKeyAreToldHowToJoinAKeyedRun) {
   // With a key in the environment they join as before (the master launches mass2, mass1 by hand).
   ScopedEnv key("COSIM_KEY", cosim::auth::new_key_hex());
   const std::string h5b = harness::temp_path("_keyed.h5");
-  harness::Process mass1 = harness::spawn({harness::bin("oscillator_participant"), "--side", "mass1", "--name",
+  harness::Process mass1 = harness::spawn({harness::bin("oscillator_adapter"), "--side", "mass1", "--name",
                                            "mass1", "--bus", harness::bus_url(), "--wait", "30"},
                                           h5b + ".mass1.log");
   EXPECT_EQ(harness::run_master({"participants.mass1.launch=null", "time.end=0.05"}, h5b, 60), 0)

@@ -109,9 +109,9 @@ TEST(MultiProcess, LostRequestAndReplyAreRetriedAndTheResultIsUnchanged) {
 TEST(MultiProcess, KilledParticipantIsNamedAndCompletedStepsAreKept) {
   const std::string url = harness::bus_url();
   const std::string h5 = harness::temp_path(".h5");
-  auto m1 = harness::spawn({harness::bin("oscillator_participant"), "--side", "mass1", "--bus", url, "--wait", "60"},
+  auto m1 = harness::spawn({harness::bin("oscillator_adapter"), "--side", "mass1", "--bus", url, "--wait", "60"},
                            h5 + ".mass1.log");
-  auto m2 = harness::spawn({harness::bin("oscillator_participant"), "--side", "mass2", "--bus", url, "--wait", "60"},
+  auto m2 = harness::spawn({harness::bin("oscillator_adapter"), "--side", "mass2", "--bus", url, "--wait", "60"},
                            h5 + ".mass2.log");
   auto master = harness::spawn(
       {harness::bin("cosim_master"), harness::source("configs/oscillator.yaml"), "--output", h5, "--set",
@@ -146,9 +146,9 @@ TEST(MultiProcess, KilledParticipantIsNamedAndCompletedStepsAreKept) {
 TEST(MultiProcess, ParticipantKilledBeforeItsFirstHeartbeatIsNamedWithItsLastReply) {
   const std::string url = harness::bus_url();
   const std::string h5 = harness::temp_path(".h5");
-  auto m1 = harness::spawn({harness::bin("oscillator_participant"), "--side", "mass1", "--bus", url, "--wait", "60"},
+  auto m1 = harness::spawn({harness::bin("oscillator_adapter"), "--side", "mass1", "--bus", url, "--wait", "60"},
                            h5 + ".mass1.log");
-  auto m2 = harness::spawn({harness::bin("oscillator_participant"), "--side", "mass2", "--bus", url, "--wait", "60"},
+  auto m2 = harness::spawn({harness::bin("oscillator_adapter"), "--side", "mass2", "--bus", url, "--wait", "60"},
                            h5 + ".mass2.log");
   auto master = harness::spawn(
       {harness::bin("cosim_master"), harness::source("configs/oscillator.yaml"), "--output", h5, "--set",
@@ -256,7 +256,7 @@ TEST(MultiProcess, TwoFreeParticipantsWithOneNameAreAnErrorNamingBoth) {
   std::remove(h5.c_str());
   std::vector<harness::Process> parts;
   for (const char* side : {"mass1", "mass1", "mass2"})
-    parts.push_back(harness::spawn({harness::bin("oscillator_participant"), "--side", side, "--bus", url,
+    parts.push_back(harness::spawn({harness::bin("oscillator_adapter"), "--side", side, "--bus", url,
                                     "--wait", "20"},
                                    h5 + "." + side + std::to_string(parts.size()) + ".log"));
   auto master = harness::spawn({harness::bin("cosim_master"), harness::source("configs/oscillator.yaml"), "--output",
@@ -282,9 +282,9 @@ TEST(MultiProcess, TwoFreeParticipantsWithOneNameAreAnErrorNamingBoth) {
 TEST(MultiProcess, InterruptedMasterWritesItsStatusAndStopsTheParticipants) {
   const std::string url = harness::bus_url();
   const std::string h5 = harness::temp_path(".h5");
-  auto m1 = harness::spawn({harness::bin("oscillator_participant"), "--side", "mass1", "--bus", url, "--wait", "60"},
+  auto m1 = harness::spawn({harness::bin("oscillator_adapter"), "--side", "mass1", "--bus", url, "--wait", "60"},
                            h5 + ".mass1.log");
-  auto m2 = harness::spawn({harness::bin("oscillator_participant"), "--side", "mass2", "--bus", url, "--wait", "60"},
+  auto m2 = harness::spawn({harness::bin("oscillator_adapter"), "--side", "mass2", "--bus", url, "--wait", "60"},
                            h5 + ".mass2.log");
   auto master = harness::spawn(
       {harness::bin("cosim_master"), harness::source("configs/oscillator.yaml"), "--output", h5, "--set",

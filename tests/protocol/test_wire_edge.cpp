@@ -387,9 +387,9 @@ TEST(Liveness, AParticipantStoppedFor5sAndContinuedFinishesIdentical) {
   ASSERT_EQ(harness::run_master({end}, quiet, 300), 0) << harness::read_text(quiet + ".log");
 
   const std::string url = harness::bus_url();
-  auto m1 = harness::spawn({harness::bin("oscillator_participant"), "--side", "mass1", "--bus", url, "--wait", "60"},
+  auto m1 = harness::spawn({harness::bin("oscillator_adapter"), "--side", "mass1", "--bus", url, "--wait", "60"},
                            paused + ".mass1.log");
-  auto m2 = harness::spawn({harness::bin("oscillator_participant"), "--side", "mass2", "--bus", url, "--wait", "60"},
+  auto m2 = harness::spawn({harness::bin("oscillator_adapter"), "--side", "mass2", "--bus", url, "--wait", "60"},
                            paused + ".mass2.log");
   auto master = harness::spawn({harness::bin("cosim_master"), harness::source("configs/oscillator.yaml"), "--output",
                                 paused, "--set", "bus.url=" + url, "--set", "participants.mass1.launch=null", "--set",

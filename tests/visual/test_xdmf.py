@@ -2,7 +2,7 @@
 
 * a dem_run of tests/visual/scene.yaml (a blade that moves on a straight line and turns at a
   constant rate through 400 spheres in a bin on a floor) and the same scene under dem_service,
-  driven over the bus by prescribed_participant (cosim_master, tests/visual/cosim.yaml);
+  driven over the bus by prescribed_adapter (cosim_master, tests/visual/cosim.yaml);
 * the XDMF is one temporal collection: at every snapshot time the particles, the blade (triangles)
   and the walls (quads), each DataItem naming a dataset of the HDF5 file with the shape it says;
 * the blade's triangles are the OBJ file's faces (read here from the file, as coordinates), its
