@@ -24,22 +24,9 @@ const char* status_name(fmi2Status s) {
   return "unknown status";
 }
 
-Fmi2Library::Fmi2Library(const std::string& so_path, const std::string& fmu) {
-  // RTLD_LOCAL: two FMUs that export the same fmi2* names never see each other's symbols.
-  handle_ = dlopen(so_path.c_str(), RTLD_NOW | RTLD_LOCAL);
-  if (!handle_) {
-    const char* e = dlerror();
-    throw FmuError("FMU '" + fmu + "': cannot load its binary " + so_path + ": " +
-                   (e ? e : "unknown error") +
-                   " (is it built for linux64 (x86_64) and are the libraries it needs installed?)");
-  }
-  std::string missing;
-  auto need = [&](auto*& fn, const char* name, bool required) {
-    dlerror();
-    void* p = dlsym(handle_, name);
-    fn = reinterpret_cast<std::remove_reference_t<decltype(fn)>>(p);
-    if (!p && required) missing += (missing.empty() ? "" : ", ") + std::string(name);
-  };
+Fmi2Library::Fmi2Library(const std::string& so_path, const std::string& fmu)
+    : lib_(so_path, fmu, "linux64 (x86_64)") {
+  auto need = [&](auto*& fn, const char* name, bool required) { lib_.find(fn, name, required); };
   need(getTypesPlatform, "fmi2GetTypesPlatform", true);
   need(getVersion, "fmi2GetVersion", true);
   need(setDebugLogging, "fmi2SetDebugLogging", true);
@@ -68,12 +55,7 @@ Fmi2Library::Fmi2Library(const std::string& so_path, const std::string& fmu) {
   need(serializedFMUstateSize, "fmi2SerializedFMUstateSize", false);
   need(serializeFMUstate, "fmi2SerializeFMUstate", false);
   need(deSerializeFMUstate, "fmi2DeSerializeFMUstate", false);
-  if (!missing.empty()) {
-    dlclose(handle_);
-    handle_ = nullptr;
-    throw FmuError("FMU '" + fmu + "': its binary " + so_path + " does not export " + missing +
-                   " (not an FMI 2.0 co-simulation binary, or built with a function prefix)");
-  }
+  lib_.check_complete("not an FMI 2.0 co-simulation binary, or built with a function prefix");
   const std::string version = getVersion();
   if (version != "2.0")
     throw FmuError("FMU '" + fmu + "': its binary reports fmi2GetVersion() = \"" + version +
@@ -84,9 +66,6 @@ Fmi2Library::Fmi2Library(const std::string& so_path, const std::string& fmu) {
                    "\", fmu_adapter supports \"" COSIM_FMI2_TYPES_PLATFORM "\"");
 }
 
-Fmi2Library::~Fmi2Library() {
-  if (handle_) dlclose(handle_);
-}
 
 namespace {
 

@@ -12,6 +12,7 @@
 
 #include "cosim_fmi2.h"
 #include "instance.hpp"
+#include "shared_library.hpp"
 #include "model_description.hpp"
 
 namespace fmu {
@@ -22,7 +23,6 @@ class Fmi2Library {
   // loaded or a required function is missing (optional ones: the FMU state functions, checked
   // by the caller through has_state_functions()).
   Fmi2Library(const std::string& so_path, const std::string& fmu);
-  ~Fmi2Library();
   Fmi2Library(const Fmi2Library&) = delete;
   Fmi2Library& operator=(const Fmi2Library&) = delete;
 
@@ -61,7 +61,7 @@ class Fmi2Library {
   fmi2SetRealInputDerivativesTYPE* setRealInputDerivatives = nullptr;  // optional
 
  private:
-  void* handle_ = nullptr;
+  SharedLibrary lib_;  // the binary the functions above point into
 };
 
 class Fmi2Instance final : public FmuInstance {

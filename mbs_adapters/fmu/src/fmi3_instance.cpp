@@ -22,20 +22,9 @@ const char* status_name(fmi3Status s) {
   return "unknown status";
 }
 
-Fmi3Library::Fmi3Library(const std::string& so_path, const std::string& fmu) {
-  handle_ = dlopen(so_path.c_str(), RTLD_NOW | RTLD_LOCAL);
-  if (!handle_) {
-    const char* e = dlerror();
-    throw FmuError("FMU '" + fmu + "': cannot load its binary " + so_path + ": " + (e ? e : "unknown error") +
-                   " (is it built for x86_64-linux and are the libraries it needs installed?)");
-  }
-  std::string missing;
-  auto need = [&](auto*& fn, const char* name, bool required) {
-    dlerror();
-    void* p = dlsym(handle_, name);
-    fn = reinterpret_cast<std::remove_reference_t<decltype(fn)>>(p);
-    if (!p && required) missing += (missing.empty() ? "" : ", ") + std::string(name);
-  };
+Fmi3Library::Fmi3Library(const std::string& so_path, const std::string& fmu)
+    : lib_(so_path, fmu, "x86_64-linux") {
+  auto need = [&](auto*& fn, const char* name, bool required) { lib_.find(fn, name, required); };
   need(getVersion, "fmi3GetVersion", true);
   need(instantiate, "fmi3InstantiateCoSimulation", true);
   need(freeInstance, "fmi3FreeInstance", true);
@@ -77,23 +66,12 @@ Fmi3Library::Fmi3Library(const std::string& so_path, const std::string& fmu) {
   need(serializedFMUStateSize, "fmi3SerializedFMUStateSize", false);
   need(serializeFMUState, "fmi3SerializeFMUState", false);
   need(deserializeFMUState, "fmi3DeserializeFMUState", false);
-  if (!missing.empty()) {
-    dlclose(handle_);
-    handle_ = nullptr;
-    throw FmuError("FMU '" + fmu + "': its binary " + so_path + " does not export " + missing +
-                   " (not an FMI 3.0 co-simulation binary, or built with a function prefix)");
-  }
+  lib_.check_complete("not an FMI 3.0 co-simulation binary, or built with a function prefix");
   const std::string version = getVersion();
-  if (version.rfind("3.", 0) != 0) {
-    dlclose(handle_);
-    handle_ = nullptr;
+  if (version.rfind("3.", 0) != 0)
     throw FmuError("FMU '" + fmu + "': its binary reports fmi3GetVersion() = \"" + version + "\", expected \"3.x\"");
-  }
 }
 
-Fmi3Library::~Fmi3Library() {
-  if (handle_) dlclose(handle_);
-}
 
 namespace {
 

@@ -12,6 +12,7 @@
 
 #include "cosim_fmi3.h"
 #include "instance.hpp"
+#include "shared_library.hpp"
 #include "model_description.hpp"
 
 namespace fmu {
@@ -19,7 +20,6 @@ namespace fmu {
 class Fmi3Library {
  public:
   Fmi3Library(const std::string& so_path, const std::string& fmu);
-  ~Fmi3Library();
   Fmi3Library(const Fmi3Library&) = delete;
   Fmi3Library& operator=(const Fmi3Library&) = delete;
 
@@ -71,7 +71,7 @@ class Fmi3Library {
   fmi3DeserializeFMUStateTYPE* deserializeFMUState = nullptr;
 
  private:
-  void* handle_ = nullptr;
+  SharedLibrary lib_;  // the binary the functions above point into
 };
 
 class Fmi3Instance final : public FmuInstance {
