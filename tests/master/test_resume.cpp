@@ -1,7 +1,7 @@
 // cosim_master --resume (docs/protocol.md#checkpoints-and-resume): a run whose participant is
 // killed (kill -9) or whose master is interrupted (SIGINT) mid-run, continued from its last
 // checkpoint with restarted participants, ends with a record whose every dataset is
-// bit-identical to an uninterrupted run's, except the ones listed in kRunMetadata. Also the
+// bit-identical to an uninterrupted run's, except the run metadata that record_compare.hpp lists. Also the
 // refusals of --resume and of the checkpoint keys. Participants are started by hand (as across
 // hosts), each test on its own UDP port.
 #include <cosim/bus.hpp>
@@ -11,6 +11,7 @@
 #include <regex>
 
 #include "harness.hpp"
+#include "record_compare.hpp"
 #include "recorder.hpp"
 #include "resume.hpp"
 
@@ -18,81 +19,16 @@ namespace fs = std::filesystem;
 
 namespace {
 
-// What differs between two runs of the same config by nature, and nothing else: wall times
-// (the master's per step, each participant's compute and round trip, the DEM's seconds_<section>
-// diagnostics), the bus counters (a resumed record counts its last session's messages), and
-// the resume log. The config, every coupling quantity sent, predicted and received, every
-// participant output and diagnostic, the deviations, power, energy residuals, iteration counts,
-// /status and /checkpoint/steps_done are compared.
-const std::regex kRunMetadata(
-    R"(^(timing/(master|step_wall)|participants/[^/]+/timing/.*|participants/[^/]+/diagnostics/seconds_.*|bus/.*|participants/[^/]+/bus/.*|checkpoint/resumed_at)$)");
-
-std::vector<std::string> dataset_names(hid_t file) {
-  std::vector<std::string> out;
-  H5Ovisit(
-      file, H5_INDEX_NAME, H5_ITER_INC,
-      [](hid_t, const char* name, const H5O_info_t* info, void* data) -> herr_t {
-        if (info->type == H5O_TYPE_DATASET) static_cast<std::vector<std::string>*>(data)->push_back(name);
-        return 0;
-      },
-      &out);
-  return out;
-}
-
-// The raw bytes of a dataset in its own type (no conversion): equal bytes, equal bits.
-std::vector<char> raw(hid_t file, const std::string& name, std::vector<hsize_t>* dims) {
-  const hid_t d = H5Dopen2(file, name.c_str(), H5P_DEFAULT);
-  const hid_t type = H5Dget_type(d), space = H5Dget_space(d);
-  dims->assign(static_cast<std::size_t>(std::max(0, H5Sget_simple_extent_ndims(space))), 0);
-  if (!dims->empty()) H5Sget_simple_extent_dims(space, dims->data(), nullptr);
-  std::vector<char> out(static_cast<std::size_t>(H5Sget_simple_extent_npoints(space)) * H5Tget_size(type));
-  if (!out.empty()) H5Dread(d, type, H5S_ALL, H5S_ALL, H5P_DEFAULT, out.data());
-  H5Sclose(space);
-  H5Tclose(type);
-  H5Dclose(d);
-  return out;
-}
-
-struct Comparison {
-  std::vector<std::string> differ;  // in both, different (or not readable)
-  std::vector<std::string> missing;  // in one only
-  int compared = 0, skipped = 0;
-  std::string text() const {
-    std::string s;
-    for (const auto& n : differ) s += " differs: " + n + "\n";
-    for (const auto& n : missing) s += " in one only: " + n + "\n";
-    return s;
-  }
-};
+// What differs between two runs of the same config by nature, and nothing else, is left out
+// (record_compare::run_metadata: wall times, the bus counters, the resume log). The config,
+// every coupling quantity sent, predicted and received, every participant output and
+// diagnostic, the deviations, power, energy residuals, iteration counts, /status and
+// /checkpoint/steps_done are compared.
+using record_compare::Comparison;
 
 Comparison compare_records(const std::string& a, const std::string& b) {
-  H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
-  Comparison c;
-  const hid_t fa = H5Fopen(a.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
-  const hid_t fb = H5Fopen(b.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
-  EXPECT_GE(fa, 0) << a;
-  EXPECT_GE(fb, 0) << b;
-  if (fa < 0 || fb < 0) return c;
-  const auto na = dataset_names(fa), nb = dataset_names(fb);
-  for (const auto& n : na) {
-    if (std::regex_match(n, kRunMetadata)) {
-      ++c.skipped;
-      continue;
-    }
-    if (std::find(nb.begin(), nb.end(), n) == nb.end()) {
-      c.missing.push_back(n);
-      continue;
-    }
-    std::vector<hsize_t> da, db;
-    const auto ra = raw(fa, n, &da), rb = raw(fb, n, &db);
-    ++c.compared;
-    if (da != db || ra != rb) c.differ.push_back(n);
-  }
-  for (const auto& n : nb)
-    if (!std::regex_match(n, kRunMetadata) && std::find(na.begin(), na.end(), n) == na.end())
-      c.missing.push_back(n);
-  H5Fclose(fa);
-  H5Fclose(fb);
+  Comparison c = record_compare::compare(a, b);
+  EXPECT_TRUE(c.opened) << a << " or " << b << " cannot be opened";
   return c;
 }
 
