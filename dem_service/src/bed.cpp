@@ -13,16 +13,15 @@
 
 namespace dem {
 
-namespace {
-
-// splitmix64 to a uniform double in [0, 1): the same numbers on every platform, unlike std::
-// distributions.
 double uniform01(std::uint64_t& rng) {
   std::uint64_t z = (rng += 0x9E3779B97F4A7C15ull);
   z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
   z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
   return static_cast<double>((z ^ (z >> 31)) >> 11) * 0x1.0p-53;
 }
+
+namespace {
+
 
 std::string gb(double bytes) {
   std::ostringstream o;

@@ -17,14 +17,6 @@ namespace h5 = cosim::h5;
 
 namespace {
 
-// splitmix64 to a uniform double in [0, 1): the same numbers on every platform.
-double uniform01(std::uint64_t& rng) {
-  std::uint64_t z = (rng += 0x9E3779B97F4A7C15ull);
-  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-  z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-  return static_cast<double>((z ^ (z >> 31)) >> 11) * 0x1.0p-53;
-}
-
 // A hashed cell grid over points, cell size `cell`.
 class CellGrid {
  public:

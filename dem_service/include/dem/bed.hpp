@@ -9,6 +9,10 @@
 
 namespace dem {
 
+// splitmix64 to a uniform double in [0, 1), advancing `rng`: the same numbers on every platform,
+// unlike std:: distributions (fills, random insertion, lab samples).
+double uniform01(std::uint64_t& rng);
+
 // A box to fill with `count` particles of one species (index into Scene::species).
 struct FillRegion {
   int species = 0;

@@ -7,19 +7,11 @@
 #include <unordered_map>
 
 #include "cosim/yaml_config.hpp"
+#include "dem/bed.hpp"
 #include "dem/stability.hpp"
 
 namespace dem::lab {
 namespace cfg = cosim::config;
-
-namespace {
-double uniform01(std::uint64_t& rng) {
-  std::uint64_t z = (rng += 0x9E3779B97F4A7C15ull);
-  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-  z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-  return static_cast<double>((z ^ (z >> 31)) >> 11) * 0x1.0p-53;
-}
-}  // namespace
 
 double Grains::mean_volume() const {
   const double a = radius_min, b = radius_max;
