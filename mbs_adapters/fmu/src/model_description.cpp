@@ -125,6 +125,32 @@ std::optional<double> double_attribute(const pugi::xml_node& n, const char* name
   return v;
 }
 
+// The <CoSimulation> element (an FMU without it is refused, naming what it offers instead) and
+// its modelIdentifier into `md`.
+pugi::xml_node cosimulation_element(const pugi::xml_node& root, ModelDescription& md, const std::string& what) {
+  const pugi::xml_node cs = root.child("CoSimulation");
+  if (!cs)
+    throw FmuError(what + ": no <CoSimulation> element: the FMU offers " +
+                   (md.has_model_exchange ? std::string("Model Exchange only")
+                    : root.child("ScheduledExecution") ? std::string("Scheduled Execution only")
+                                                       : std::string("no interface")) +
+                   "; fmu_adapter needs a co-simulation FMU (export it with the co-simulation interface, solver included)");
+  md.model_identifier = cs.attribute("modelIdentifier").value();
+  if (md.model_identifier.empty()) throw FmuError(what + ": <CoSimulation> has no modelIdentifier");
+  return cs;
+}
+
+// <DefaultExperiment>, where there is one, into `md`.
+void read_default_experiment(const pugi::xml_node& root, ModelDescription& md, const std::string& what) {
+  if (const pugi::xml_node de = root.child("DefaultExperiment")) {
+    const std::string de_what = what + " <DefaultExperiment>";
+    md.default_experiment.start_time = double_attribute(de, "startTime", de_what);
+    md.default_experiment.stop_time = double_attribute(de, "stopTime", de_what);
+    md.default_experiment.tolerance = double_attribute(de, "tolerance", de_what);
+    md.default_experiment.step_size = double_attribute(de, "stepSize", de_what);
+  }
+}
+
 }  // namespace
 
 namespace {
@@ -178,15 +204,7 @@ ModelDescription parse_fmi3(const pugi::xml_node& root, ModelDescription md, con
   md.generation_tool = root.attribute("generationTool").value();
   if (md.guid.empty()) throw FmuError(what + ": no instantiationToken attribute (required by FMI 3.0)");
   md.has_model_exchange = static_cast<bool>(root.child("ModelExchange"));
-  const pugi::xml_node cs = root.child("CoSimulation");
-  if (!cs)
-    throw FmuError(what + ": no <CoSimulation> element: the FMU offers " +
-                   (md.has_model_exchange ? std::string("Model Exchange only")
-                    : root.child("ScheduledExecution") ? std::string("Scheduled Execution only")
-                                                       : std::string("no interface")) +
-                   "; fmu_adapter needs a co-simulation FMU (export it with the co-simulation interface, solver included)");
-  md.model_identifier = cs.attribute("modelIdentifier").value();
-  if (md.model_identifier.empty()) throw FmuError(what + ": <CoSimulation> has no modelIdentifier");
+  const pugi::xml_node cs = cosimulation_element(root, md, what);
   const std::string cs_what = what + " <CoSimulation>";
   md.can_get_and_set_fmu_state = bool_attribute(cs, "canGetAndSetFMUState", cs_what);
   md.can_serialize_fmu_state = bool_attribute(cs, "canSerializeFMUState", cs_what);
@@ -197,13 +215,7 @@ ModelDescription parse_fmi3(const pugi::xml_node& root, ModelDescription md, con
   md.might_return_early = bool_attribute(cs, "mightReturnEarlyFromDoStep", cs_what);
   md.has_event_mode = bool_attribute(cs, "hasEventMode", cs_what);
   md.fixed_internal_step_size = double_attribute(cs, "fixedInternalStepSize", cs_what);
-  if (const pugi::xml_node de = root.child("DefaultExperiment")) {
-    const std::string de_what = what + " <DefaultExperiment>";
-    md.default_experiment.start_time = double_attribute(de, "startTime", de_what);
-    md.default_experiment.stop_time = double_attribute(de, "stopTime", de_what);
-    md.default_experiment.tolerance = double_attribute(de, "tolerance", de_what);
-    md.default_experiment.step_size = double_attribute(de, "stepSize", de_what);
-  }
+  read_default_experiment(root, md, what);
   std::map<std::string, std::string> units;  // declared type -> unit
   if (const pugi::xml_node types = root.child("TypeDefinitions"))
     for (const pugi::xml_node t : types.children()) {
@@ -315,13 +327,7 @@ ModelDescription parse_model_description(const std::string& xml, const std::stri
   md.generation_tool = root.attribute("generationTool").value();
   if (md.guid.empty()) throw FmuError(what + ": no guid attribute (required by FMI 2.0)");
   md.has_model_exchange = static_cast<bool>(root.child("ModelExchange"));
-  const pugi::xml_node cs = root.child("CoSimulation");
-  if (!cs)
-    throw FmuError(what + ": no <CoSimulation> element: the FMU offers " +
-                   (md.has_model_exchange ? std::string("Model Exchange only") : std::string("no interface")) +
-                   "; fmu_adapter needs a co-simulation FMU (export it with the co-simulation interface, solver included)");
-  md.model_identifier = cs.attribute("modelIdentifier").value();
-  if (md.model_identifier.empty()) throw FmuError(what + ": <CoSimulation> has no modelIdentifier");
+  const pugi::xml_node cs = cosimulation_element(root, md, what);
   const std::string cs_what = what + " <CoSimulation>";
   md.can_get_and_set_fmu_state = bool_attribute(cs, "canGetAndSetFMUstate", cs_what);
   md.can_serialize_fmu_state = bool_attribute(cs, "canSerializeFMUstate", cs_what);
@@ -329,13 +335,7 @@ ModelDescription parse_model_description(const std::string& xml, const std::stri
   md.can_interpolate_inputs = bool_attribute(cs, "canInterpolateInputs", cs_what);
   md.needs_execution_tool = bool_attribute(cs, "needsExecutionTool", cs_what);
 
-  if (const pugi::xml_node de = root.child("DefaultExperiment")) {
-    const std::string de_what = what + " <DefaultExperiment>";
-    md.default_experiment.start_time = double_attribute(de, "startTime", de_what);
-    md.default_experiment.stop_time = double_attribute(de, "stopTime", de_what);
-    md.default_experiment.tolerance = double_attribute(de, "tolerance", de_what);
-    md.default_experiment.step_size = double_attribute(de, "stepSize", de_what);
-  }
+  read_default_experiment(root, md, what);
 
   if (const pugi::xml_node types = root.child("TypeDefinitions")) {
     for (const pugi::xml_node st : types.children("SimpleType")) {
