@@ -1,0 +1,423 @@
+#!/usr/bin/python3
+"""Blade against earthmoving theory (docs/soil_blade.md), one command.
+
+A wide straight blade is pushed at a constant speed through a plane-strain bin of a random
+packing (smooth side walls, a rough floor), at two depths and two rake angles. Its horizontal
+draft force over the steady part of the travel is compared with Reece's equation (the passive
+wedge N_gamma of `soil_wedge`, dem_service/src/earthmoving.cpp) for the friction angle that the
+project's own triaxial test (`dem_lab triaxial`) measures on the same grains and particle law,
+and for the soil-blade friction angle delta = atan(blade friction).
+
+    /usr/bin/python3 bench/soil/blade_validation.py [--out results/blade] [--build build]
+        [--seeds 2] [--jobs 2] [--quick]
+
+Steps (each skipped when its output exists and --fresh is not given):
+  1. triaxial: dem_lab triaxial bench/soil/blade_triaxial.yaml (the blade's law) -> phi
+  2. beds: one prepared bed per seed (random insertion, frictionless deposition, frozen with
+     the law's friction), configs written to OUT/bed_s<seed>.yaml
+  3. cases: per seed, depth and rake, a dem_run config OUT/case_*.yaml loading the bed, with
+     the blade's mesh (two triangles, generated into OUT/meshes/) moving at --speed
+  4. table (stdout and OUT/blade_summary.csv) and chart OUT/blade_validation.png
+
+The soil that rises more than `--skim` grain diameters above the bed's surface is taken away
+(`scene.region`): Reece's gamma term is the blade without a surcharge, and without the skim the
+heap in front of the blade grows with the travel and the force never levels off.
+"""
+import argparse
+import csv
+import math
+import os
+import re
+import subprocess
+import sys
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+
+# --- the soil (one place: the triaxial config must hold the same grains and law) ----------
+GRAIN = dict(density=2600.0, r_min=0.0045, r_max=0.0055)
+LAW = dict(normal_stiffness=2.0e4, stiffness_unit="N/m", restitution=0.3,
+           tangential_stiffness_ratio=0.5, tangential_damping_ratio=0.5, friction=0.2)
+BLADE_FRICTION = 0.2          # soil-blade mu: delta = atan(0.2) = 11.3 deg (about phi / 3)
+DT = 2.0e-5                   # s; the engine checks it against the contact period
+G = 9.81
+
+# --- the bin (plane strain: thin in y, smooth side walls) ---------------------------------
+BIN_L, BIN_W = 0.30, 0.04     # m: length along the travel, thickness (4 mean diameters)
+BED_H = 0.09                  # m: target bed height (the deepest cut leaves 3 D below the tip)
+DEPTHS = [0.04, 0.06]          # m: 4 and 6 mean grain diameters
+RAKES = [90.0, 45.0]          # deg from the horizontal
+TRAVEL = 0.10                 # m of blade travel
+STEADY_FROM = 0.05            # m: the steady window is [STEADY_FROM, TRAVEL] of travel
+
+
+def law_yaml(law, indent):
+    pad = " " * indent
+    return "".join(f"{pad}{k}: {v}\n" for k, v in law.items())
+
+
+def mean_grain_volume():
+    a, b = GRAIN["r_min"], GRAIN["r_max"]
+    r3 = (b ** 4 - a ** 4) / (4 * (b - a))
+    return 4.0 / 3.0 * math.pi * r3
+
+
+def walls_yaml():
+    smooth = "{friction: 0.0}"
+    return (
+        "walls:\n"
+        f"  - {{name: floor, type: plane, point: [0, 0, 0], normal: [0, 0, 1]}}\n"
+        f"  - {{name: back, type: plane, point: [0, 0, 0], normal: [1, 0, 0], contact: {smooth}}}\n"
+        f"  - {{name: front, type: plane, point: [{BIN_L}, 0, 0], normal: [-1, 0, 0], contact: {smooth}}}\n"
+        f"  - {{name: side0, type: plane, point: [0, 0, 0], normal: [0, 1, 0], contact: {smooth}}}\n"
+        f"  - {{name: side1, type: plane, point: [0, {BIN_W}, 0], normal: [0, -1, 0], contact: {smooth}}}\n")
+
+
+def head_yaml(threads=1, region_top=None):
+    s = ("scene:\n"
+         f"  dt: {DT}\n"
+         "  gravity: [0, 0, -9.81]\n"
+         "  broad_phase_interval: 5\n"
+         "  skin: 0.5\n"
+         f"  threads: {threads}\n")
+    if region_top is not None:
+        s += f"  region: {{min: [-1, -1, -1], max: [{BIN_L + 1}, {BIN_W + 1}, {region_top:.6f}]}}\n"
+    s += ("materials:\n"
+          f"  sand: {{density: {GRAIN['density']}}}\n"
+          "species:\n"
+          "  - name: grain\n"
+          "    material: sand\n"
+          f"    radius: {{distribution: uniform, min: {GRAIN['r_min']}, max: {GRAIN['r_max']}}}\n"
+          "contact:\n"
+          "  particle_particle:\n" + law_yaml(LAW, 4))
+    return s
+
+
+def bed_config(seed, out):
+    n = int(round(0.63 * BIN_L * BIN_W * BED_H / mean_grain_volume()))
+    top = BED_H * 0.63 / 0.27   # insertion at a solid fraction of 0.27 (at most 0.3 allowed)
+    return n, (head_yaml() + walls_yaml() +
+               "particles:\n  insert:\n"
+               f"    - {{species: grain, min: [0, 0, 0], max: [{BIN_L}, {BIN_W}, {top:.4f}], count: {n}, seed: {seed}}}\n"
+               "prepare:\n"
+               "  deposition_friction: 0.0\n"
+               "  ke_per_particle: 1.0e-8\n"
+               "  max_time: 3.0\n"
+               "  margin: 1.0\n"
+               f"  checkpoint: {out}/bed_s{seed}.h5\n"
+               "run:\n  duration: 0\n"
+               f"output:\n  file: {out}/bed_s{seed}_run.h5\n  progress_every: 30\n")
+
+
+def blade_mesh(path, rake_deg, length):
+    """Two triangles: the blade's tip line along y at the origin, the blade leaning back
+    (towards -x) at the rake angle from the horizontal; wider than the bin by 5 mm a side."""
+    a = math.radians(rake_deg)
+    tx, tz = -length * math.cos(a), length * math.sin(a)
+    y0, y1 = -0.005, BIN_W + 0.005
+    with open(path, "w") as f:
+        f.write("# generated by bench/soil/blade_validation.py\n")
+        for v in [(0, y0, 0), (0, y1, 0), (tx, y1, tz), (tx, y0, tz)]:
+            f.write("v %.6f %.6f %.6f\n" % v)
+        f.write("f 1 2 3\nf 1 3 4\n")
+
+
+def case_config(out, seed, depth, rake, surface, speed, skim):
+    name = f"case_s{seed}_d{int(round(depth * 1000))}_a{int(rake)}" + ("" if speed == ARGS.speed else f"_v{speed:g}")
+    mesh = f"meshes/blade_a{int(rake)}.obj"
+    length = (depth + 0.06) / math.sin(math.radians(rake))   # reaches 6 cm above the surface
+    blade_mesh(os.path.join(out, mesh), rake, length)
+    ztip = surface - depth
+    dur = TRAVEL / speed
+    region_top = surface + skim * (GRAIN["r_min"] + GRAIN["r_max"])
+    txt = (head_yaml(region_top=region_top) + walls_yaml() +
+           "tools:\n"
+           "  - name: blade\n"
+           f"    mesh: {mesh}\n"
+           f"    contact: {{friction: {BLADE_FRICTION}}}\n"
+           "    motion:\n"
+           "      interpolation: linear\n"
+           "      keyframes:\n"
+           f"        - {{time: 0.0, position: [0.0, 0.0, {ztip:.6f}], orientation: [1, 0, 0, 0]}}\n"
+           f"        - {{time: {dur:.6f}, position: [{TRAVEL}, 0.0, {ztip:.6f}], orientation: [1, 0, 0, 0]}}\n"
+           f"particles:\n  checkpoint: bed_s{seed}.h5\n"
+           f"run:\n  duration: {dur:.6f}\n"
+           f"output:\n  file: {name}.h5\n  particles_every: {dur / 4:.6f}\n"
+           f"  wrenches_every: {max(DT, 0.0005 / speed * 0.02):.6g}\n  progress_every: 60\n")
+    path = os.path.join(out, name + ".yaml")
+    with open(path, "w") as f:
+        f.write(txt)
+    return name, path
+
+
+def run(cmd, log, cwd=None):
+    with open(log, "w") as f:
+        r = subprocess.run(["nice"] + cmd, stdout=f, stderr=subprocess.STDOUT, cwd=cwd)
+    if r.returncode != 0:
+        sys.exit(f"blade_validation: {' '.join(cmd)} failed ({r.returncode}); see {log}")
+
+
+def triaxial(out, build):
+    fit = os.path.join(out, "triaxial", "triaxial_summary.csv")
+    if ARGS.fresh or not os.path.exists(fit):
+        cfg = os.path.join(os.path.dirname(os.path.abspath(__file__)), "blade_triaxial.yaml")
+        sets = [f"--set=grains.contact.{k}={v}" for k, v in LAW.items()]
+        sets += [f"--set=grains.density={GRAIN['density']}",
+                 f"--set=grains.radius={{min: {GRAIN['r_min']}, max: {GRAIN['r_max']}}}"]
+        print("triaxial: dem_lab triaxial", cfg, flush=True)
+        run([os.path.join(build, "bin", "dem_lab"), "triaxial", cfg, "--out",
+             os.path.join(out, "triaxial"), "--no-plot"] +
+            sum([["--set", s[len("--set="):]] for s in sets], []), os.path.join(out, "triaxial.log"))
+    rows = list(csv.DictReader(open(fit)))
+    s3 = np.array([float(r["sigma3_peak_Pa"]) for r in rows])
+    s1 = np.array([float(r["sigma1_peak_Pa"]) for r in rows])
+    # Mohr-Coulomb through the origin (cohesionless): sin phi = sum(s t) / sum(s^2).
+    s, t = (s1 + s3) / 2, (s1 - s3) / 2
+    phi = math.degrees(math.asin(float(np.sum(s * t) / np.sum(s * s))))
+    per = [(float(r["confining_Pa"]), float(r["phi_peak_deg"]), float(r["peak_axial_strain"]),
+            float(r["packing_inner"])) for r in rows]
+    return phi, per
+
+
+def bed_measures(h5):
+    import h5py
+    with h5py.File(h5, "r") as f:
+        a = dict(f["/bed"].attrs)
+        pos = None
+        for k in ("state/position", "position", "particles/position"):
+            if k in f:
+                pos = f[k][()]
+                rad = f[k.replace("position", "radius")][()]
+                break
+        if pos is None:
+            raise SystemExit(f"blade_validation: no particle positions found in {h5}")
+    # Surface: the highest grain top in each 1 cm column along x (away from the end walls),
+    # averaged.
+    tops = []
+    for x0 in np.arange(0.02, BIN_L - 0.02, 0.01):
+        m = (pos[:, 0] >= x0) & (pos[:, 0] < x0 + 0.01)
+        if m.any():
+            tops.append(float(np.max(pos[m, 2] + rad[m])))
+    # Bulk density of the whole bin width (the wedge's weight includes the grains the side walls
+    # order): the grains with their centre in the slab from 2 diameters above the floor to 2
+    # below the surface, over the bin's whole length and width.
+    surface = float(np.mean(tops))
+    d = GRAIN["r_min"] + GRAIN["r_max"]
+    z1, z2 = 2 * d, surface - 2 * d
+    m = (pos[:, 2] >= z1) & (pos[:, 2] < z2)
+    slab = float(np.sum(4.0 / 3.0 * np.pi * rad[m] ** 3)) / (BIN_L * BIN_W * (z2 - z1))
+    return dict(packing=float(a["packing_fraction"]), inner_density=float(a["bulk_density"]),
+                slab_packing=slab, density=slab * GRAIN["density"],
+                coordination=float(a["coordination"]), grains=len(pos),
+                surface=surface, surface_sd=float(np.std(tops)))
+
+
+def wedge(build, phi, delta, rake, gamma, depth, width):
+    r = subprocess.run([os.path.join(build, "bin", "soil_wedge"), "--phi", f"{phi}", "--delta",
+                        f"{delta}", "--alpha", f"{rake}", "--gamma", f"{gamma}", "--depth",
+                        f"{depth}", "--width", f"{width}"], capture_output=True, text=True, check=True)
+    m = re.search(r"draft force ([0-9.eE+-]+) N", r.stdout)
+    ng = re.search(r"N_gamma ([0-9.eE+-]+)", r.stdout)
+    return float(m.group(1)), float(ng.group(1))
+
+
+def blade_forces(h5, rake, speed):
+    import h5py
+    with h5py.File(h5, "r") as f:
+        s = f["/tools/blade/samples"][()]
+        if int(f.attrs.get("complete", 0)) != 1:
+            raise SystemExit(f"blade_validation: {h5} is incomplete")
+    t, fx, fz = s[:, 0], s[:, 1], s[:, 3]
+    travel = t * speed
+    draft, lift = -fx, fz
+    a = math.radians(rake)
+    # Normal into the soil n = (sin a, cos a), up the blade b = (-cos a, sin a): the soil pushes
+    # the blade along -n and drags it along b while it rides up.
+    N = -(fx * math.sin(a) + fz * math.cos(a))
+    T = -fx * math.cos(a) + fz * math.sin(a)
+    return travel, draft, lift, N, T
+
+
+def main():
+    global ARGS
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--out", default="results/blade")
+    p.add_argument("--build", default="build")
+    p.add_argument("--seeds", type=int, default=2, help="beds (insertion seeds) per case")
+    p.add_argument("--jobs", type=int, default=2)
+    p.add_argument("--speed", type=float, default=0.02, help="blade speed, m/s")
+    p.add_argument("--rate-check", action="store_true",
+                   help="also run the deep vertical case of seed 1 at half the speed")
+    p.add_argument("--skim", type=float, default=1.0,
+                   help="grains whose centre rises this many mean diameters above the surface are removed")
+    p.add_argument("--fresh", action="store_true", help="rerun every step")
+    ARGS = p.parse_args()
+    out = os.path.abspath(ARGS.out)
+    build = os.path.abspath(ARGS.build)
+    os.makedirs(os.path.join(out, "meshes"), exist_ok=True)
+    dem_run = os.path.join(build, "bin", "dem_run")
+
+    phi, per = triaxial(out, build)
+    print(f"triaxial (dem_lab, {len(per)} tests): peak phi through the origin {phi:.2f} deg; per test " +
+          ", ".join(f"{s3 / 1e3:g} kPa {ph:.1f} deg at {100 * e:.1f} %" for s3, ph, e, _ in per), flush=True)
+
+    seeds = list(range(1, ARGS.seeds + 1))
+
+    def prep(seed):
+        h5 = os.path.join(out, f"bed_s{seed}.h5")
+        if ARGS.fresh or not os.path.exists(h5):
+            n, txt = bed_config(seed, out)
+            cfg = os.path.join(out, f"bed_s{seed}.yaml")
+            open(cfg, "w").write(txt)
+            print(f"bed seed {seed}: {n} grains", flush=True)
+            run([dem_run, cfg], os.path.join(out, f"bed_s{seed}.log"), cwd=out)
+        return bed_measures(h5)
+
+    with ThreadPoolExecutor(ARGS.jobs) as ex:
+        beds = dict(zip(seeds, ex.map(prep, seeds)))
+    for s, b in beds.items():
+        print(f"bed seed {s}: {b['grains']} grains, packing {b['packing']:.3f} inside (1 diameter from "
+              f"the walls), {b['slab_packing']:.3f} over the bin's width; bulk density {b['density']:.0f} "
+              f"kg/m^3 over the width, coordination {b['coordination']:.2f}, surface at "
+              f"{b['surface'] * 100:.2f} cm (+- {b['surface_sd'] * 100:.2f})", flush=True)
+
+    cases = []
+    for s in seeds:
+        for d in DEPTHS:
+            for a in RAKES:
+                cases.append((s, d, a, ARGS.speed))
+    if ARGS.rate_check:
+        cases.append((1, DEPTHS[-1], RAKES[0], ARGS.speed / 2))
+
+    def go(c):
+        s, d, a, v = c
+        name, cfg = case_config(out, s, d, a, beds[s]["surface"], v, ARGS.skim)
+        h5 = os.path.join(out, name + ".h5")
+        if ARGS.fresh or not os.path.exists(h5):
+            print(f"run {name}", flush=True)
+            run([dem_run, cfg], os.path.join(out, name + ".log"), cwd=out)
+        return name, h5
+
+    with ThreadPoolExecutor(ARGS.jobs) as ex:
+        files = list(ex.map(go, cases))
+
+    delta = math.degrees(math.atan(BLADE_FRICTION))
+    rho_b = float(np.mean([b["density"] for b in beds.values()]))
+    gamma = rho_b * G
+    d50 = GRAIN["r_min"] + GRAIN["r_max"]
+    rows, curves = [], {}
+    for (s, d, a, v), (name, h5) in zip(cases, files):
+        travel, draft, lift, N, T = blade_forces(h5, a, v)
+        w = (travel >= STEADY_FROM) & (travel <= TRAVEL)
+        theory, ng = wedge(build, phi, delta, a, gamma, d, BIN_W)
+        # Inertial number of the wedge: shear rate v / d, mean stress at mid-depth of the wedge
+        # gamma (d / 2) (1 + K) / 2 with K the passive ratio of the wedge's normal force.
+        p_mid = gamma * d / 2 * (1 + 2 * ng) / 2
+        inertial = v / d * d50 * math.sqrt(GRAIN["density"] / p_mid)
+        rows.append(dict(seed=s, depth=d, rake=a, speed=v, mean=float(np.mean(draft[w])),
+                         std=float(np.std(draft[w])), peak=float(np.max(draft)),
+                         lift=float(np.mean(lift[w])),
+                         delta_mob=math.degrees(math.atan(np.mean(T[w]) / np.mean(N[w]))),
+                         theory=theory, n_gamma=ng, inertial=inertial))
+        curves[(s, d, a, v)] = (travel, draft)
+
+    # Per case: mean over seeds of the window means; the scatter is the larger of the seeds'
+    # spread and the window std of a seed divided by sqrt(windows) (reported both).
+    print()
+    print(f"phi {phi:.2f} deg (triaxial peak), delta {delta:.2f} deg (atan {BLADE_FRICTION}), "
+          f"gamma {gamma:.0f} N/m^3 (bulk density {rho_b:.0f}), width {BIN_W} m, speed {ARGS.speed} m/s, "
+          f"steady window {STEADY_FROM}-{TRAVEL} m of travel")
+    hdr = "depth m | rake deg | speed m/s | DEM draft N (window sd) per seed | mean | theory N | DEM/theory | peak N | delta_mob deg | I"
+    print(hdr)
+    summary = []
+    keys = sorted({(r["depth"], r["rake"], r["speed"]) for r in rows}, key=lambda k: (-k[1], k[0], -k[2]))
+    for k in keys:
+        rs = [r for r in rows if (r["depth"], r["rake"], r["speed"]) == k]
+        m = float(np.mean([r["mean"] for r in rs]))
+        sd_seeds = float(np.std([r["mean"] for r in rs], ddof=1)) if len(rs) > 1 else float("nan")
+        th = rs[0]["theory"]
+        summary.append(dict(depth=k[0], rake=k[1], speed=k[2], seeds=len(rs), dem=m, sd_seeds=sd_seeds,
+                            window_sd=float(np.mean([r["std"] for r in rs])), theory=th, ratio=m / th,
+                            peak=float(np.mean([r["peak"] for r in rs])),
+                            lift=float(np.mean([r["lift"] for r in rs])),
+                            delta_mob=float(np.mean([r["delta_mob"] for r in rs])),
+                            inertial=rs[0]["inertial"], n_gamma=rs[0]["n_gamma"]))
+        per_seed = ", ".join(f"{r['mean']:.2f} ({r['std']:.2f})" for r in rs)
+        print(f"{k[0]:.3f} | {k[1]:.0f} | {k[2]:g} | {per_seed} | {m:.2f} +- {sd_seeds:.2f} | {th:.2f} | "
+              f"{m / th:.3f} | {summary[-1]['peak']:.2f} | {summary[-1]['delta_mob']:.1f} | {rs[0]['inertial']:.1e}")
+    with open(os.path.join(out, "blade_summary.csv"), "w", newline="") as f:
+        wr = csv.DictWriter(f, fieldnames=list(summary[0].keys()))
+        wr.writeheader()
+        wr.writerows(summary)
+
+    print()
+    main_speed = [r for r in summary if r["speed"] == ARGS.speed]
+    d1, d2 = DEPTHS[0], DEPTHS[-1]
+    for a in RAKES:
+        f1 = [r for r in main_speed if r["rake"] == a and r["depth"] == d1][0]
+        f2 = [r for r in main_speed if r["rake"] == a and r["depth"] == d2][0]
+        print(f"depth trend, rake {a:.0f}: F({d2})/F({d1}) DEM {f2['dem'] / f1['dem']:.3f}, theory "
+              f"(d2/d1)^2 {(d2 / d1) ** 2:.3f}, ratio {f2['dem'] / f1['dem'] / (d2 / d1) ** 2:.3f}")
+    for d in DEPTHS:
+        fa = [r for r in main_speed if r["rake"] == RAKES[0] and r["depth"] == d][0]
+        fb = [r for r in main_speed if r["rake"] == RAKES[1] and r["depth"] == d][0]
+        print(f"rake trend, depth {d}: F({RAKES[1]:.0f})/F({RAKES[0]:.0f}) DEM {fb['dem'] / fa['dem']:.3f}, "
+              f"theory {fb['theory'] / fa['theory']:.3f}")
+    rc = [r for r in summary if r["speed"] != ARGS.speed]
+    if rc:
+        base = [r for r in main_speed if r["rake"] == rc[0]["rake"] and r["depth"] == rc[0]["depth"]][0]
+        seed1 = [r for r in rows if r["seed"] == 1 and r["depth"] == rc[0]["depth"] and r["rake"] == rc[0]["rake"]]
+        print(f"rate check (seed 1, depth {rc[0]['depth']}, rake {rc[0]['rake']:.0f}): speed {rc[0]['speed']:g} m/s "
+              f"{rc[0]['dem']:.2f} N against {[r['mean'] for r in seed1 if r['speed'] == ARGS.speed][0]:.2f} N at "
+              f"{ARGS.speed:g} m/s")
+
+    plot(out, summary, curves, phi, delta)
+
+
+def plot(out, summary, curves, phi, delta):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(1, 2, figsize=(12, 4.8))
+    colours = {}
+    for (s, d, a, v), (travel, draft) in sorted(curves.items()):
+        if v != ARGS.speed:
+            continue
+        key = (d, a)
+        c = colours.setdefault(key, f"C{len(colours)}")
+        # 5 mm running mean for the chart
+        n = max(1, int(len(travel) * 0.005 / TRAVEL))
+        k = np.ones(n) / n
+        ax[0].plot(travel[n - 1:] * 100, np.convolve(draft, k, mode="valid"), color=c, lw=0.8,
+                   label=f"d {d * 100:g} cm, rake {a:.0f} deg" if s == 1 else None)
+    for r in summary:
+        if r["speed"] != ARGS.speed:
+            continue
+        c = colours[(r["depth"], r["rake"])]
+        ax[0].axhline(r["theory"], color=c, ls="--", lw=1)
+    ax[0].axvspan(STEADY_FROM * 100, TRAVEL * 100, color="0.9", zorder=0)
+    ax[0].set_xlabel("blade travel (cm)")
+    ax[0].set_ylabel("draft force (N)")
+    ax[0].set_title("DEM draft (5 mm running mean; grey: steady window) and Reece (dashed)", fontsize=9)
+    ax[0].legend(fontsize=8)
+    for a, mk in zip(RAKES, ["o", "s"]):
+        rs = [r for r in summary if r["rake"] == a and r["speed"] == ARGS.speed]
+        d = np.array([r["depth"] for r in rs])
+        ax[1].errorbar(d * 100, [r["dem"] for r in rs],
+                       yerr=[r["sd_seeds"] if r["sd_seeds"] == r["sd_seeds"] else 0 for r in rs],
+                       fmt=mk, capsize=3, label=f"DEM rake {a:.0f} deg")
+        dd = np.linspace(0, max(DEPTHS) * 1.1, 50)
+        th = rs[0]["theory"] * (dd / rs[0]["depth"]) ** 2
+        ax[1].plot(dd * 100, th, "--", label=f"Reece rake {a:.0f} deg")
+    ax[1].set_xlabel("depth (cm)")
+    ax[1].set_ylabel("steady draft force (N)")
+    ax[1].set_title(f"phi {phi:.1f} deg (triaxial), delta {delta:.1f} deg, width {BIN_W * 100:g} cm", fontsize=9)
+    ax[1].legend(fontsize=8)
+    fig.tight_layout()
+    png = os.path.join(out, "blade_validation.png")
+    fig.savefig(png, dpi=120)
+    print("chart:", png)
+
+
+if __name__ == "__main__":
+    main()
