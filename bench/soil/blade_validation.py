@@ -211,7 +211,32 @@ def wedge(build, phi, delta, rake, gamma, depth, width):
                         f"{depth}", "--width", f"{width}"], capture_output=True, text=True, check=True)
     m = re.search(r"draft force ([0-9.eE+-]+) N", r.stdout)
     ng = re.search(r"N_gamma ([0-9.eE+-]+)", r.stdout)
-    return float(m.group(1)), float(ng.group(1))
+    beta = re.search(r"failure plane at ([0-9.eE+-]+) deg", r.stdout)
+    return float(m.group(1)), float(ng.group(1)), float(beta.group(1))
+
+
+def heave(h5, surface, depth, rake, beta, speed, packing):
+    """Soil above the bed's original surface over the wedge's top (from the blade's top edge at
+    the surface to where the failure plane comes out), as a height of soil at the bed's packing:
+    the surcharge q / gamma of Reece's equation. Mean over the snapshots in the steady window,
+    less the same measure at the start (the surface's own roughness)."""
+    import h5py
+    a, b = math.radians(rake), math.radians(beta)
+
+    def one(g, t):
+        x, r = g["position"][()], g["radius"][()]
+        tip = speed * t
+        lo, hi = tip - depth / math.tan(a), tip + depth / math.tan(b)
+        m = (x[:, 0] >= lo) & (x[:, 0] < hi)
+        h = np.clip(x[m, 2] + r[m] - surface, 0, 2 * r[m])
+        cap = np.pi * h ** 2 * (3 * r[m] - h) / 3
+        return float(np.sum(cap)) / ((hi - lo) * BIN_W * packing)
+
+    with h5py.File(h5, "r") as f:
+        snaps = [(float(f["particles"][k].attrs["time"]), f["particles"][k]) for k in sorted(f["particles"])]
+        start = one(snaps[0][1], 0.0)
+        steady = [one(g, t) for t, g in snaps if speed * t >= STEADY_FROM - 1e-9]
+    return float(np.mean(steady)) - start
 
 
 def first_peak(travel, draft):
@@ -321,7 +346,11 @@ def main():
     for (s, d, a, v), (name, h5) in zip(cases, files):
         travel, draft, lift, N, T = blade_forces(h5, a, v)
         w = (travel >= STEADY_FROM) & (travel <= TRAVEL)
-        theory, ng = wedge(build, phi, delta, a, gamma, d, BIN_W)
+        theory, ng, beta = wedge(build, phi, delta, a, gamma, d, BIN_W)
+        # Reece's surcharge term for this wedge: a uniform q on the wedge's top adds
+        # q d (cot a + cot beta) to the weight gamma d^2 (cot a + cot beta) / 2, the same factor
+        # at every beta, so F = gamma d^2 N_gamma w (1 + 2 h_q / d) with h_q = q / gamma.
+        hq = heave(h5, beds[s]["surface"], d, a, beta, v, beds[s]["slab_packing"])
         # Inertial number of the wedge: shear rate v / d, mean stress at mid-depth of the wedge
         # gamma (d / 2) (1 + K) / 2 with K the passive ratio of the wedge's normal force.
         p_mid = gamma * d / 2 * (1 + 2 * ng) / 2
@@ -329,11 +358,16 @@ def main():
         # Standard error of the window mean from 4 blocks of the window (the force swings with
         # each new shear band, about once per 1-2 cm of travel; samples are not independent).
         blocks = [float(np.mean(b)) for b in np.array_split(draft[w], 4)]
+        # The interface friction the blade mobilised (tangential over normal force in the window;
+        # above atan(mu_blade) where grains push on the tip edge), capped at phi.
+        delta_mob = math.degrees(math.atan(np.mean(T[w]) / np.mean(N[w])))
+        theory_qd = wedge(build, phi, min(max(delta_mob, 0.0), phi), a, gamma, d, BIN_W)[0] * (1 + 2 * hq / d)
         rows.append(dict(seed=s, depth=d, rake=a, speed=v, mean=float(np.mean(draft[w])),
                          std=float(np.std(draft[w])), se=float(np.std(blocks, ddof=1) / 2), peak=first_peak(travel, draft),
                          lift=float(np.mean(lift[w])),
-                         delta_mob=math.degrees(math.atan(np.mean(T[w]) / np.mean(N[w]))),
-                         theory=theory, n_gamma=ng, inertial=inertial))
+                         delta_mob=delta_mob, theory_qd=theory_qd,
+                         theory=theory, n_gamma=ng, inertial=inertial, hq=hq,
+                         theory_q=theory * (1 + 2 * hq / d)))
         curves[(s, d, a, v)] = (travel, draft)
 
     # Per case: mean over seeds of the window means; the scatter is the larger of the seeds'
@@ -343,7 +377,8 @@ def main():
           f"gamma {gamma:.0f} N/m^3 (bulk density {rho_b:.0f}), width {BIN_W} m, speed {ARGS.speed} m/s, "
           f"steady window {STEADY_FROM}-{TRAVEL} m of travel")
     hdr = ("depth m | rake deg | speed m/s | DEM draft N per seed (window sd, +- block se) | mean +- sd of seeds | "
-           "theory N | DEM/theory | first peak N | delta_mob deg | I")
+           "theory N | DEM/theory | heave h_q mm | theory with h_q N | DEM/that | delta_mob deg | "
+           "theory with h_q, delta_mob N | DEM/that | first peak N | I")
     print(hdr)
     summary = []
     keys = sorted({(r["depth"], r["rake"], r["speed"]) for r in rows}, key=lambda k: (-k[1], k[0], -k[2]))
@@ -358,10 +393,17 @@ def main():
                             peak=float(np.mean([r["peak"] for r in rs])),
                             lift=float(np.mean([r["lift"] for r in rs])),
                             delta_mob=float(np.mean([r["delta_mob"] for r in rs])),
-                            inertial=rs[0]["inertial"], n_gamma=rs[0]["n_gamma"]))
+                            inertial=rs[0]["inertial"], n_gamma=rs[0]["n_gamma"],
+                            hq=float(np.mean([r["hq"] for r in rs])),
+                            theory_q=float(np.mean([r["theory_q"] for r in rs]))))
+        summary[-1]["ratio_q"] = m / summary[-1]["theory_q"]
+        summary[-1]["theory_qd"] = float(np.mean([r["theory_qd"] for r in rs]))
+        summary[-1]["ratio_qd"] = m / summary[-1]["theory_qd"]
         per_seed = ", ".join(f"{r['mean']:.2f} ({r['std']:.2f}, +- {r['se']:.2f})" for r in rs)
         print(f"{k[0]:.3f} | {k[1]:.0f} | {k[2]:g} | {per_seed} | {m:.2f} +- {sd_seeds:.2f} | {th:.2f} | "
-              f"{m / th:.3f} | {summary[-1]['peak']:.2f} | {summary[-1]['delta_mob']:.1f} | {rs[0]['inertial']:.1e}")
+              f"{m / th:.3f} | {1000 * summary[-1]['hq']:.1f} | {summary[-1]['theory_q']:.2f} | {summary[-1]['ratio_q']:.3f} | "
+              f"{summary[-1]['delta_mob']:.1f} | {summary[-1]['theory_qd']:.2f} | {summary[-1]['ratio_qd']:.3f} | "
+              f"{summary[-1]['peak']:.2f} | {rs[0]['inertial']:.1e}")
     with open(os.path.join(out, "blade_summary.csv"), "w", newline="") as f:
         wr = csv.DictWriter(f, fieldnames=list(summary[0].keys()))
         wr.writeheader()
@@ -426,11 +468,13 @@ def plot(out, summary, curves, phi, delta):
                        fmt=mk, color=col, capsize=3, label=f"DEM rake {a:.0f} deg")
         dd = np.linspace(0, max(DEPTHS) * 1.1, 50)
         th = rs[0]["theory"] * (dd / rs[0]["depth"]) ** 2
-        ax[1].plot(dd * 100, th, "--", color=col, label=f"Reece rake {a:.0f} deg")
+        ax[1].plot(dd * 100, th, "--", color=col, label=f"Reece rake {a:.0f} deg (no surcharge)")
+        ax[1].plot(d * 100, [r["theory_q"] for r in rs], "x", color=col, ms=8,
+                   label=f"Reece rake {a:.0f} deg with the DEM's heave as surcharge")
     ax[1].set_xlabel("depth (cm)")
     ax[1].set_ylabel("steady draft force (N)")
     ax[1].set_title(f"phi {phi:.1f} deg (triaxial), delta {delta:.1f} deg, width {BIN_W * 100:g} cm", fontsize=9)
-    ax[1].legend(fontsize=8)
+    ax[1].legend(fontsize=7)
     fig.tight_layout()
     png = os.path.join(out, "blade_validation.png")
     fig.savefig(png, dpi=120)
