@@ -347,27 +347,31 @@ def main():
         travel, draft, lift, N, T = blade_forces(h5, a, v)
         w = (travel >= STEADY_FROM) & (travel <= TRAVEL)
         theory, ng, beta = wedge(build, phi, delta, a, gamma, d, BIN_W)
-        # Reece's surcharge term for this wedge: a uniform q on the wedge's top adds
-        # q d (cot a + cot beta) to the weight gamma d^2 (cot a + cot beta) / 2, the same factor
-        # at every beta, so F = gamma d^2 N_gamma w (1 + 2 h_q / d) with h_q = q / gamma.
+        # The heave: soil above the original surface over the wedge (a diagnostic; as a
+        # surcharge q = gamma h_q it would add F 2 h_q / d, since for this wedge N_q = 2 N_gamma,
+        # but it is the wedge's own dilated soil, not extra weight: docs/soil_blade.md).
         hq = heave(h5, beds[s]["surface"], d, a, beta, v, beds[s]["slab_packing"])
         # Inertial number of the wedge: shear rate v / d, mean stress at mid-depth of the wedge
         # gamma (d / 2) (1 + K) / 2 with K the passive ratio of the wedge's normal force.
         p_mid = gamma * d / 2 * (1 + 2 * ng) / 2
         inertial = v / d * d50 * math.sqrt(GRAIN["density"] / p_mid)
+        # The triaxial angle at the wedge's own stress: the per-test peaks interpolated linearly
+        # in log(sigma_3) at p_mid (held at the end values outside the tested range).
+        ps = np.log([q[0] for q in per])
+        phi_p = float(np.interp(math.log(p_mid), ps, [q[1] for q in per]))
+        theory_p = wedge(build, phi_p, delta, a, gamma, d, BIN_W)[0]
         # Standard error of the window mean from 4 blocks of the window (the force swings with
         # each new shear band, about once per 1-2 cm of travel; samples are not independent).
         blocks = [float(np.mean(b)) for b in np.array_split(draft[w], 4)]
         # The interface friction the blade mobilised (tangential over normal force in the window;
         # above atan(mu_blade) where grains push on the tip edge), capped at phi.
         delta_mob = math.degrees(math.atan(np.mean(T[w]) / np.mean(N[w])))
-        theory_qd = wedge(build, phi, min(max(delta_mob, 0.0), phi), a, gamma, d, BIN_W)[0] * (1 + 2 * hq / d)
+        theory_pd = wedge(build, phi_p, min(max(delta_mob, 0.0), phi_p), a, gamma, d, BIN_W)[0]
         rows.append(dict(seed=s, depth=d, rake=a, speed=v, mean=float(np.mean(draft[w])),
                          std=float(np.std(draft[w])), se=float(np.std(blocks, ddof=1) / 2), peak=first_peak(travel, draft),
                          lift=float(np.mean(lift[w])),
-                         delta_mob=delta_mob, theory_qd=theory_qd,
-                         theory=theory, n_gamma=ng, inertial=inertial, hq=hq,
-                         theory_q=theory * (1 + 2 * hq / d)))
+                         delta_mob=delta_mob, theory_pd=theory_pd, phi_p=phi_p, theory_p=theory_p,
+                         theory=theory, n_gamma=ng, inertial=inertial, hq=hq))
         curves[(s, d, a, v)] = (travel, draft)
 
     # Per case: mean over seeds of the window means; the scatter is the larger of the seeds'
@@ -377,8 +381,8 @@ def main():
           f"gamma {gamma:.0f} N/m^3 (bulk density {rho_b:.0f}), width {BIN_W} m, speed {ARGS.speed} m/s, "
           f"steady window {STEADY_FROM}-{TRAVEL} m of travel")
     hdr = ("depth m | rake deg | speed m/s | DEM draft N per seed (window sd, +- block se) | mean +- sd of seeds | "
-           "theory N | DEM/theory | heave h_q mm | theory with h_q N | DEM/that | delta_mob deg | "
-           "theory with h_q, delta_mob N | DEM/that | first peak N | I")
+           "theory N | DEM/theory | phi(p) deg | theory at phi(p) N | DEM/that | delta_mob deg | "
+           "theory at phi(p), delta_mob N | DEM/that | heave h_q mm | first peak N | I")
     print(hdr)
     summary = []
     keys = sorted({(r["depth"], r["rake"], r["speed"]) for r in rows}, key=lambda k: (-k[1], k[0], -k[2]))
@@ -394,16 +398,16 @@ def main():
                             lift=float(np.mean([r["lift"] for r in rs])),
                             delta_mob=float(np.mean([r["delta_mob"] for r in rs])),
                             inertial=rs[0]["inertial"], n_gamma=rs[0]["n_gamma"],
-                            hq=float(np.mean([r["hq"] for r in rs])),
-                            theory_q=float(np.mean([r["theory_q"] for r in rs]))))
-        summary[-1]["ratio_q"] = m / summary[-1]["theory_q"]
-        summary[-1]["theory_qd"] = float(np.mean([r["theory_qd"] for r in rs]))
-        summary[-1]["ratio_qd"] = m / summary[-1]["theory_qd"]
+                            hq=float(np.mean([r["hq"] for r in rs])), phi_p=rs[0]["phi_p"],
+                            theory_p=rs[0]["theory_p"]))
+        summary[-1]["ratio_p"] = m / summary[-1]["theory_p"]
+        summary[-1]["theory_pd"] = float(np.mean([r["theory_pd"] for r in rs]))
+        summary[-1]["ratio_pd"] = m / summary[-1]["theory_pd"]
         per_seed = ", ".join(f"{r['mean']:.2f} ({r['std']:.2f}, +- {r['se']:.2f})" for r in rs)
         print(f"{k[0]:.3f} | {k[1]:.0f} | {k[2]:g} | {per_seed} | {m:.2f} +- {sd_seeds:.2f} | {th:.2f} | "
-              f"{m / th:.3f} | {1000 * summary[-1]['hq']:.1f} | {summary[-1]['theory_q']:.2f} | {summary[-1]['ratio_q']:.3f} | "
-              f"{summary[-1]['delta_mob']:.1f} | {summary[-1]['theory_qd']:.2f} | {summary[-1]['ratio_qd']:.3f} | "
-              f"{summary[-1]['peak']:.2f} | {rs[0]['inertial']:.1e}")
+              f"{m / th:.3f} | {summary[-1]['phi_p']:.1f} | {summary[-1]['theory_p']:.2f} | {summary[-1]['ratio_p']:.3f} | "
+              f"{summary[-1]['delta_mob']:.1f} | {summary[-1]['theory_pd']:.2f} | {summary[-1]['ratio_pd']:.3f} | "
+              f"{1000 * summary[-1]['hq']:.1f} | {summary[-1]['peak']:.2f} | {rs[0]['inertial']:.1e}")
     with open(os.path.join(out, "blade_summary.csv"), "w", newline="") as f:
         wr = csv.DictWriter(f, fieldnames=list(summary[0].keys()))
         wr.writeheader()
@@ -416,12 +420,13 @@ def main():
         f1 = [r for r in main_speed if r["rake"] == a and r["depth"] == d1][0]
         f2 = [r for r in main_speed if r["rake"] == a and r["depth"] == d2][0]
         print(f"depth trend, rake {a:.0f}: F({d2})/F({d1}) DEM {f2['dem'] / f1['dem']:.3f}, theory "
-              f"(d2/d1)^2 {(d2 / d1) ** 2:.3f}, ratio {f2['dem'] / f1['dem'] / (d2 / d1) ** 2:.3f}")
+              f"(d2/d1)^2 {(d2 / d1) ** 2:.3f}, ratio {f2['dem'] / f1['dem'] / (d2 / d1) ** 2:.3f}; theory at phi(p) "
+              f"{f2['theory_p'] / f1['theory_p']:.3f}")
     for d in (DEPTHS if len(RAKES) > 1 else []):
         fa = [r for r in main_speed if r["rake"] == RAKES[0] and r["depth"] == d][0]
         fb = [r for r in main_speed if r["rake"] == RAKES[1] and r["depth"] == d][0]
         print(f"rake trend, depth {d}: F({RAKES[1]:.0f})/F({RAKES[0]:.0f}) DEM {fb['dem'] / fa['dem']:.3f}, "
-              f"theory {fb['theory'] / fa['theory']:.3f}")
+              f"theory {fb['theory'] / fa['theory']:.3f}, at phi(p) {fb['theory_p'] / fa['theory_p']:.3f}")
     rc = [r for r in summary if r["speed"] != ARGS.speed]
     if rc:
         base = [r for r in main_speed if r["rake"] == rc[0]["rake"] and r["depth"] == rc[0]["depth"]][0]
@@ -468,9 +473,9 @@ def plot(out, summary, curves, phi, delta):
                        fmt=mk, color=col, capsize=3, label=f"DEM rake {a:.0f} deg")
         dd = np.linspace(0, max(DEPTHS) * 1.1, 50)
         th = rs[0]["theory"] * (dd / rs[0]["depth"]) ** 2
-        ax[1].plot(dd * 100, th, "--", color=col, label=f"Reece rake {a:.0f} deg (no surcharge)")
-        ax[1].plot(d * 100, [r["theory_q"] for r in rs], "x", color=col, ms=8,
-                   label=f"Reece rake {a:.0f} deg with the DEM's heave as surcharge")
+        ax[1].plot(dd * 100, th, "--", color=col, label=f"Reece rake {a:.0f} deg, phi {phi:.1f} deg")
+        ax[1].plot(d * 100, [r["theory_p"] for r in rs], "x", color=col, ms=8,
+                   label=f"Reece rake {a:.0f} deg, triaxial phi at the wedge's stress")
     ax[1].set_xlabel("depth (cm)")
     ax[1].set_ylabel("steady draft force (N)")
     ax[1].set_title(f"phi {phi:.1f} deg (triaxial), delta {delta:.1f} deg, width {BIN_W * 100:g} cm", fontsize=9)
