@@ -9,9 +9,11 @@ project's own triaxial test (`dem_lab triaxial`) measures on the same grains and
 and for the soil-blade friction angle delta = atan(blade friction).
 
     /usr/bin/python3 bench/soil/blade_validation.py [--out results/blade] [--build build]
-        [--seeds 2] [--jobs 2] [--quick]
+        [--seeds 2] [--jobs 2] [--rate-check] [--skim 1.0] [--speed 0.02]
+        [--depths 0.04,0.06] [--rakes 90,45] [--bin-length 0.28] [--bed-height 0.09]
 
-Steps (each skipped when its output exists and --fresh is not given):
+Steps (each skipped when its output exists, made from the same config, and --fresh is not
+given):
   1. triaxial: dem_lab triaxial bench/soil/blade_triaxial.yaml (the blade's law) -> phi
   2. beds: one prepared bed per seed (random insertion, frictionless deposition, frozen with
      the law's friction), configs written to OUT/bed_s<seed>.yaml
@@ -104,9 +106,9 @@ def bed_config(seed, out):
                "  ke_per_particle: 1.0e-7\n"
                "  max_time: 3.0\n"
                "  margin: 1.0\n"
-               f"  checkpoint: {out}/bed_s{seed}.h5\n"
+               f"  checkpoint: bed_s{seed}.h5\n"
                "run:\n  duration: 0\n"
-               f"output:\n  file: {out}/bed_s{seed}_run.h5\n  progress_every: 30\n")
+               f"output:\n  file: bed_s{seed}_run.h5\n  progress_every: 30\n")
 
 
 def blade_mesh(path, rake_deg, length):
@@ -144,10 +146,16 @@ def case_config(out, seed, depth, rake, surface, speed, skim):
            f"run:\n  duration: {dur:.6f}\n"
            f"output:\n  file: {name}.h5\n  particles_every: {dur / 4:.6f}\n"
            f"  wrenches_every: {max(DT, 0.0005 / speed * 0.02):.6g}\n  progress_every: 60\n")
-    path = os.path.join(out, name + ".yaml")
-    with open(path, "w") as f:
-        f.write(txt)
-    return name, path
+    return name, os.path.join(out, name + ".yaml"), txt
+
+
+def same_config(path, txt):
+    """True when path holds exactly txt (a result made from it can be reused)."""
+    try:
+        with open(path) as f:
+            return f.read() == txt
+    except OSError:
+        return False
 
 
 def run(cmd, log, cwd=None):
@@ -297,10 +305,11 @@ def main():
 
     def prep(seed):
         h5 = os.path.join(out, f"bed_s{seed}.h5")
-        if ARGS.fresh or not os.path.exists(h5):
-            n, txt = bed_config(seed, out)
-            cfg = os.path.join(out, f"bed_s{seed}.yaml")
-            open(cfg, "w").write(txt)
+        n, txt = bed_config(seed, out)
+        cfg = os.path.join(out, f"bed_s{seed}.yaml")
+        if ARGS.fresh or not os.path.exists(h5) or not same_config(cfg, txt):
+            with open(cfg, "w") as f:
+                f.write(txt)
             print(f"bed seed {seed}: {n} grains", flush=True)
             run([dem_run, cfg], os.path.join(out, f"bed_s{seed}.log"), cwd=out)
         return bed_measures(h5)
@@ -328,9 +337,11 @@ def main():
 
     def go(c):
         s, d, a, v = c
-        name, cfg = case_config(out, s, d, a, beds[s]["surface"], v, ARGS.skim)
+        name, cfg, txt = case_config(out, s, d, a, beds[s]["surface"], v, ARGS.skim)
         h5 = os.path.join(out, name + ".h5")
-        if ARGS.fresh or not os.path.exists(h5):
+        if ARGS.fresh or not os.path.exists(h5) or not same_config(cfg, txt):
+            with open(cfg, "w") as f:
+                f.write(txt)
             print(f"run {name}", flush=True)
             run([dem_run, cfg], os.path.join(out, name + ".log"), cwd=out)
         return name, h5
