@@ -50,7 +50,9 @@ inline void grid_cells(Vec3 lo, Vec3 hi, double max_cells, double& h, long& nx, 
 // separate arrays in cell order. row_hits_vector does it 8 candidates at a time with AVX-512
 // where the processor has it (row_hits_vector_available) and makes exactly the decisions of
 // row_hits_scalar (same operations in the same order, no contraction), so the list does not
-// depend on the processor; without AVX-512 it is row_hits_scalar.
+// depend on the processor; without AVX-512 it is row_hits_scalar. `out` must have room for
+// kRowHitsSlack entries past the candidates: the vector test stores 8 lanes at a time.
+constexpr std::size_t kRowHitsSlack = 8;
 struct RowData {
   const double* x;
   const double* y;
