@@ -119,6 +119,11 @@ State load_checkpoint(const std::string& path) {
       // ... and the lists by partner: the first step with sleeping builds them.
       if ((key == "pair_row_offset" || key == "pair_row") && H5Lexists(file, name, H5P_DEFAULT) <= 0)
         return;
+      // ... and the rotating model's arrays (dem/rotation.hpp): a bed settled without them starts
+      // without spin and rolling springs.
+      if ((key == "w" || key == "wu" || key == "pair_roll" || key == "slot_roll") &&
+          H5Lexists(file, name, H5P_DEFAULT) <= 0)
+        return;
       read_array(file, name, array);
     });
   } catch (const std::exception& e) {

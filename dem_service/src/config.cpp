@@ -16,6 +16,7 @@
 #include "dem/bed.hpp"
 #include "dem/checkpoint.hpp"
 #include "dem/packing.hpp"
+#include "dem/rotation.hpp"
 
 namespace dem {
 namespace cfg = cosim::config;
@@ -388,7 +389,8 @@ std::vector<InsertRegion> parse_insert(const YAML::Node& ins, const Scene& sc);
 
 ParticleSources parse_particles(const YAML::Node& parts, const Scene& sc) {
   if (!parts) throw ConfigError("particles: missing (give fill, list or checkpoint)");
-  cfg::check_keys(parts, "particles", {"fill", "insert", "list", "checkpoint", "keep_time", "perturb"});
+  cfg::check_keys(parts, "particles", {"fill", "insert", "list", "checkpoint", "keep_time", "perturb",
+                                       "model", "rolling_resistance"});  // the last two: rotation.cpp
   ParticleSources src;
   if (const YAML::Node pt = parts["perturb"]) {
     cfg::check_keys(pt, "particles.perturb", {"amplitude", "seed"});
@@ -655,6 +657,7 @@ RunConfig load_config(const YAML::Node& root, const std::string& base_dir) {
     sc.tools.push_back(load_tool(t, base_dir, rc.inputs));
   parse_boundary_laws(root, sc);
   const ParticleSources particles = parse_particles(root["particles"], sc);
+  parse_rotation(root["particles"], sc);  // particles.model, particles.rolling_resistance
   rc.fill = particles.fill;
   rc.insert = particles.insert;
   rc.prepare = parse_prepare(root["prepare"]);
