@@ -288,7 +288,7 @@ bool BroadPhase::permute_state(State& s, std::size_t p0, std::size_t p1) {
   last_permuted_ = p1 - p0;
   if (p1 > p0) {
     for_each_array(s, [&](const char*, auto& a, Field field) {
-      if (field != Field::derived && !a.empty()) permute(a, p0, p1);  // w: rotating only
+      if (field != Field::derived && !a.empty()) permute(a, p0, p1);  // Field::model: maybe empty
     });
     permute(cell_of_, p0, p1);  // cell_of_ in the new order, for the stencil
   }

@@ -100,6 +100,8 @@ enum class Field {
   particle,  // one entry per particle, always: validated on load, moved by the broad phase sort
   sorted,    // one entry per particle once a broad phase ran (empty before): moved by the sort
   derived,   // anything else: lists, pools, tool poses; rebuilt or indexed, never permuted
+  model,     // one entry per particle when the particle model has it (the rotating model's w,
+             // wu), else empty: when not empty validated, moved and compacted like `sorted`
 };
 
 // Every array of State, listed once, in checkpoint order: f(name, array, field) for each. The
@@ -134,8 +136,8 @@ void for_each_array(S& s, F&& f) {
   f("slot_block", s.slot_block, Field::sorted);
   f("slot_particle", s.slot_particle, Field::derived);
   f("rest_steps", s.rest_steps, Field::sorted);
-  f("w", s.w, Field::sorted);  // rotating model only (empty otherwise)
-  f("wu", s.wu, Field::sorted);
+  f("w", s.w, Field::model);  // rotating model only (empty otherwise)
+  f("wu", s.wu, Field::model);
   f("pair_roll", s.pair_roll, Field::derived);
   f("slot_roll", s.slot_roll, Field::derived);
 }
