@@ -280,12 +280,21 @@ TEST(dem_Rotation, CheckpointRestartsBitForBit) {
   dem::save_checkpoint(st, path);
   State back = dem::load_checkpoint(path);
   EXPECT_EQ(dem::differing_arrays(st, back), "");
-  dem::Engine b(scene);
+  // Two threads (the boundary chunks and the integration split; the pair loop is one thread)
+  // give the same bits as one.
+  dem::Scene two = scene;
+  two.threads = 2;
+  two.min_particles_per_thread = 1;
+  State on_two = dem::load_checkpoint(path);
+  dem::Engine b(scene), c(two);
   for (int k = 0; k < 300; ++k) {
     a.step(st);
     b.step(back);
+    c.step(on_two);
   }
+  EXPECT_EQ(c.threads(), 2);
   EXPECT_EQ(dem::differing_arrays(st, back), "");
+  EXPECT_EQ(dem::differing_arrays(st, on_two), "");
   std::filesystem::remove(path);
 }
 
