@@ -64,9 +64,9 @@ TEST(dem_CoarseGrain, ParametersFollowTheDocumentedScaling) {
     const dem::ContactCoefficients ca = dem::coefficients(A.particle_wall, A.species[0].radius.max, m_a);
     const dem::ContactCoefficients cb = dem::coefficients(B.particle_wall, B.species[0].radius.max, m_b);
     EXPECT_NEAR(cb.eta / (2 * std::sqrt(m_b * cb.k)), ca.eta / (2 * std::sqrt(m_a * ca.k)), 1e-12);
-    // A grain resting on the floor overlaps by the same fraction of its radius times s (its
-    // weight ~ s^3 on k ~ s): delta / r = m g / (k r) grows with s for one grain, and a bed of
-    // depth h (h / 2r grains) keeps delta / r = rho g h / k_Pa: the Pa law's point.
+    // One grain on another overlaps by delta / r = m g / (k r) ~ s (weight ~ s^3, k ~ s), but
+    // the bottom contact of a column of depth h (h / 2r grains) keeps delta / r = rho g h / k_Pa
+    // up to a constant: the point of the Pa law.
     const double ka = dem::coefficients(A.particle_particle, A.species[0].radius.max / 2, m_a / 2).k;
     const double kb = dem::coefficients(B.particle_particle, B.species[0].radius.max / 2, m_b / 2).k;
     const double h = 0.3;
