@@ -10,6 +10,7 @@
 #include "cosim/stopwatch.hpp"
 #include "dem/contact_law.hpp"
 #include "dem/pair_blocks.hpp"
+#include "dem/rotation.hpp"
 
 namespace dem {
 namespace {
@@ -103,8 +104,9 @@ bool shares_vertex(const Scene& scene, std::uint64_t a, std::uint64_t b) {
 // same feature keeps its spring; a sphere sliding from a face onto an edge or vertex (or on to
 // the next face) keeps its tangential spring: the new feature inherits from an adjacent one that
 // just ended.
+// roll (the rotating model's rolling springs, else nullptr) goes with its spring.
 void carry_springs(const Scene& scene, const State& s, std::size_t base, const Contact* cs,
-                   int nc, int nold, Vec3* spring) {
+                   int nc, int nold, Vec3* spring, Vec3* roll) {
   std::uint64_t old_key[kBoundarySlots];
   Vec3 old_spring[kBoundarySlots];
   bool used[kBoundarySlots] = {}, matched[kBoundarySlots] = {};
@@ -115,15 +117,18 @@ void carry_springs(const Scene& scene, const State& s, std::size_t base, const C
     for (int o = 0; o < nold; ++o)
       if (!used[o] && old_key[o] == cs[c].key) {
         spring[c] = old_spring[o];
+        if (roll) roll[c] = s.slot_roll[base + o];
         used[o] = matched[c] = true;
         break;
       }
   for (int c = 0; c < nc; ++c) {
     if (matched[c]) continue;
     spring[c] = Vec3{};
+    if (roll) roll[c] = Vec3{};
     for (int o = 0; o < nold; ++o)
       if (!used[o] && shares_vertex(scene, old_key[o], cs[c].key)) {
         spring[c] = old_spring[o];
+        if (roll) roll[c] = s.slot_roll[base + o];
         used[o] = true;
         break;
       }
@@ -139,7 +144,7 @@ BoundaryContacts::BoundaryContacts(const Scene& scene, int max_threads) : scene_
 }
 
 void BoundaryContacts::forces(State& s, const ToolGeometry& tools, Vec3* force, int T,
-                              double* busy) {
+                              double* busy, Vec3* torque) {
   const ContactLaw& law = scene_.particle_wall;
   const bool per_body_laws = !scene_.boundary_laws.empty();
   const double dt = scene_.dt;
@@ -149,6 +154,10 @@ void BoundaryContacts::forces(State& s, const ToolGeometry& tools, Vec3* force, 
   std::int64_t overflow = -1;
   // Only particles with a slot block can touch a wall or a tool; they are cut into chunks.
   const std::size_t nb = s.slot_particle.size();
+  // The rotating model (torque != nullptr, dem/rotation.hpp): spins, torques, rolling springs.
+  const bool spin = torque != nullptr;
+  if (spin && s.slot_roll.size() != s.slot_key.size()) s.slot_roll.assign(s.slot_key.size(), Vec3{});
+  const RollingResistance& rolling = scene_.rotation.rolling;
   const std::size_t C = std::max<std::size_t>(1, std::min(kBoundaryChunks, nb));
   chunk_tool_wrench_.assign(C * ntools, Wrench{});
   chunk_wall_force_.assign(C * nwalls, Vec3{});
@@ -189,11 +198,11 @@ void BoundaryContacts::forces(State& s, const ToolGeometry& tools, Vec3* force, 
         const int nold = s.slot_count[i];
         if (nc == 0 && nold == 0) continue;
         const std::size_t base = k * kBoundarySlots;  // this particle's block
-        Vec3 spring[kBoundarySlots];
-        carry_springs(scene_, s, base, cs, nc, nold, spring);
+        Vec3 spring[kBoundarySlots], roll[kBoundarySlots];
+        carry_springs(scene_, s, base, cs, nc, nold, spring, spin ? roll : nullptr);
         const double ri = s.radius[i], mi = s.mass[i];
         const ContactCoefficients coef = coefficients(law, ri, mi);
-        Vec3 fi{};
+        Vec3 fi{}, ti{};
         int active = 0;
         for (int c = 0; c < nc; ++c) {
           Vec3 f;
@@ -205,9 +214,23 @@ void BoundaryContacts::forces(State& s, const ToolGeometry& tools, Vec3* force, 
             lw = key_kind(cs[c].key) == FeatureKind::wall ? &scene_.wall_law(b) : &scene_.tool_law(b);
             if (lw != &law) cw = coefficients(*lw, ri, mi);
           }
-          if (!contact_force(*lw, cw, cs[c].overlap, cs[c].normal, s.u[i] - cs[c].body_velocity,
-                             spring[c], dt, f))
+          Vec3 couple{};  // rotating model: the rolling torque on the particle
+          if (spin) {
+            const bool wall = key_kind(cs[c].key) == FeatureKind::wall;
+            const Vec3 body_w = wall ? Vec3{} : s.tool_pose[key_body(cs[c].key)].angular_velocity;
+            const BoundarySpin b{lw, cw,
+                                 rolling_coefficients(rolling, cw.k, ri,
+                                                      1.4 * mi * ri * ri)};  // I + m r^2
+            Vec3 tq;
+            if (!rotating_boundary_contact(b, cs[c].overlap, cs[c].normal, cs[c].point, s.x[i],
+                                           s.u[i], s.wu[i], cs[c].body_velocity, body_w,
+                                           spring[c], roll[c], dt, f, tq, couple))
+              continue;
+            ti += tq;
+          } else if (!contact_force(*lw, cw, cs[c].overlap, cs[c].normal,
+                                    s.u[i] - cs[c].body_velocity, spring[c], dt, f)) {
             continue;
+          }
           ++my_stats.boundary_contacts;
           my_stats.max_overlap = std::max(my_stats.max_overlap, cs[c].overlap);
           my_stats.max_overlap_ratio = std::max(my_stats.max_overlap_ratio, cs[c].overlap / ri);
@@ -218,13 +241,16 @@ void BoundaryContacts::forces(State& s, const ToolGeometry& tools, Vec3* force, 
           } else {
             tw[body].force -= f;
             tw[body].torque -= cross(cs[c].point - s.tool_pose[body].position, f);
+            if (spin) tw[body].torque -= couple;
           }
           s.slot_key[base + active] = cs[c].key;
           s.slot_spring[base + active] = spring[c];
+          if (spin) s.slot_roll[base + active] = roll[c];
           ++active;
         }
         s.slot_count[i] = static_cast<std::uint8_t>(active);
         force[i] += fi;
+        if (spin) torque[i] += ti;
       }
     }
     thread_stats_[t] = my_stats;

@@ -147,7 +147,7 @@ std::size_t held(const std::vector<T>& v) {
 std::size_t BroadPhase::workspace_bytes() const {
   std::size_t b = held(cell_of_) + held(cell_start_) + held(fill_) + held(order_) +
                   held(new_index_) + held(scratch_) + held(old_offset_) + held(old_j_) +
-                  held(old_spring_) + held(pool_key_) + held(pool_spring_) +
+                  held(old_spring_) + held(pool_key_) + held(pool_spring_) + held(old_roll_) + held(pool_roll_) +
                   held(tri_candidates_) + held(tri_count_) + held(px_) + held(py_) +
                   held(pz_) + held(pr_);
   for (const auto& v : thread_j_) b += held(v);
@@ -285,12 +285,14 @@ bool BroadPhase::permute_state(State& s, std::size_t p0, std::size_t p1) {
   old_offset_.swap(s.pair_offset);
   old_j_.swap(s.pair_j);
   old_spring_.swap(s.pair_spring);
+  old_roll_.swap(s.pair_roll);  // the rotating model's rolling springs (empty otherwise)
+  s.pair_roll.clear();
   s.slot_count.resize(n, 0);
   s.slot_block.resize(n, -1);
   last_permuted_ = p1 - p0;
   if (p1 > p0) {
     for_each_array(s, [&](const char*, auto& a, Field field) {
-      if (field != Field::derived) permute(a, p0, p1);
+      if (field != Field::derived && !a.empty()) permute(a, p0, p1);  // Field::model: maybe empty
     });
     permute(cell_of_, p0, p1);  // cell_of_ in the new order, for the stencil
   }
@@ -403,6 +405,10 @@ void BroadPhase::carry_history(State& s, int T) {
   // --- history: carry the tangential springs of pairs in contact over to the new list. Only
   // non-zero springs are looked up: most candidates are not touching. Each old pair maps to
   // at most one new entry, so the parallel writes never collide.
+  // The rotating model's rolling springs go with the tangential ones (the torque on the pair's
+  // lower index).
+  const bool rolls = !old_roll_.empty() && old_roll_.size() == old_j_.size();
+  if (rolls) s.pair_roll.assign(s.pair_j.size(), Vec3{});
   {
     new_index_.resize(n);
 #pragma omp parallel for schedule(static) num_threads(T)
@@ -411,13 +417,14 @@ void BroadPhase::carry_history(State& s, int T) {
     for (std::size_t oa = 0; oa < n; ++oa) {
       for (std::int32_t k = old_offset_[oa]; k < old_offset_[oa + 1]; ++k) {
         const Vec3 sp = old_spring_[k];
-        if (!nonzero(sp)) continue;
+        if (!nonzero(sp) && !(rolls && nonzero(old_roll_[k]))) continue;
         const std::int32_t na = new_index_[oa], nb = new_index_[old_j_[k]];
         const bool swap = na > nb;  // the spring is stored on the lower index of the pair
         const std::int32_t row = swap ? nb : na, col = swap ? na : nb;
         for (std::int32_t q = s.pair_offset[row]; q < s.pair_offset[row + 1]; ++q)
           if (s.pair_j[q] == col) {
             s.pair_spring[q] = swap ? -sp : sp;
+            if (rolls) s.pair_roll[q] = swap ? -old_roll_[k] : old_roll_[k];
             break;
           }
       }
@@ -509,6 +516,7 @@ void BroadPhase::boundary_slots(const Scene& scene, State& s, double skin) {
   thread_used_.assign(T, 0);
   thread_base_.assign(T + 1, 0);
   constexpr std::size_t B = kBoundarySlots;
+  const bool rolls = !s.slot_roll.empty() && s.slot_roll.size() == s.slot_key.size();  // rotating
 #pragma omp parallel num_threads(T)
   {
     const int t = omp_get_thread_num();
@@ -534,6 +542,7 @@ void BroadPhase::boundary_slots(const Scene& scene, State& s, double skin) {
       for (int k = 0; k < T; ++k) thread_base_[k + 1] = thread_base_[k] + thread_used_[k];
       pool_key_.resize(thread_base_[T] * B);
       pool_spring_.resize(thread_base_[T] * B);
+      pool_roll_.resize(rolls ? thread_base_[T] * B : 0);
       s.slot_particle.resize(thread_base_[T]);
     }
     std::size_t next = thread_base_[t];
@@ -551,14 +560,17 @@ void BroadPhase::boundary_slots(const Scene& scene, State& s, double skin) {
       if (old >= 0) {
         std::copy_n(s.slot_key.begin() + old * B, B, pool_key_.begin() + k * B);
         std::copy_n(s.slot_spring.begin() + old * B, B, pool_spring_.begin() + k * B);
+        if (rolls) std::copy_n(s.slot_roll.begin() + old * B, B, pool_roll_.begin() + k * B);
       } else {
         std::fill_n(pool_key_.begin() + k * B, B, 0);
         std::fill_n(pool_spring_.begin() + k * B, B, Vec3{});
+        if (rolls) std::fill_n(pool_roll_.begin() + k * B, B, Vec3{});
       }
     }
   }
   s.slot_key.swap(pool_key_);
   s.slot_spring.swap(pool_spring_);
+  s.slot_roll.swap(pool_roll_);
 }
 
 }  // namespace dem

@@ -64,6 +64,11 @@ void save_checkpoint(const State& s, const std::string& path) {
     h5::write(file, "removed_count", std::vector<std::int64_t>{s.removed_count});
     h5::write(file, "removed_mass", std::vector<double>{s.removed_mass});
     for_each_array(s, [&](const char* name, const auto& array, Field) {
+      // The rotating model's arrays are left out when empty (the translating model): its
+      // checkpoints stay those of the engine before rotation existed.
+      const std::string_view key(name);
+      if (array.empty() && (key == "w" || key == "wu" || key == "pair_roll" || key == "slot_roll"))
+        return;
       write_array(file, name, array);
     });
   } catch (const std::exception& e) {
@@ -119,6 +124,11 @@ State load_checkpoint(const std::string& path) {
       // ... and the lists by partner: the first step with sleeping builds them.
       if ((key == "pair_row_offset" || key == "pair_row") && H5Lexists(file, name, H5P_DEFAULT) <= 0)
         return;
+      // ... and the rotating model's arrays (dem/rotation.hpp): a bed settled without them starts
+      // without spin and rolling springs.
+      if ((key == "w" || key == "wu" || key == "pair_roll" || key == "slot_roll") &&
+          H5Lexists(file, name, H5P_DEFAULT) <= 0)
+        return;
       read_array(file, name, array);
     });
   } catch (const std::exception& e) {
@@ -133,7 +143,8 @@ State load_checkpoint(const std::string& path) {
     for (std::size_t i = 0; i < n; ++i) s.slot_block[i] = static_cast<std::int32_t>(i);
   }
   for_each_array(s, [&](const char* name, const auto& array, Field field) {
-    const bool sized = field == Field::particle || (field == Field::sorted && !array.empty());
+    const bool sized = field == Field::particle ||
+                       ((field == Field::sorted || field == Field::model) && !array.empty());
     if (sized && array.size() != n)
       throw std::runtime_error("checkpoint '" + path + "': per-particle array '" + name +
                                "' has " + std::to_string(array.size()) + " entries for " +

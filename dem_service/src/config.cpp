@@ -16,6 +16,8 @@
 #include "dem/bed.hpp"
 #include "dem/checkpoint.hpp"
 #include "dem/packing.hpp"
+#include "dem/coarse_grain.hpp"
+#include "dem/rotation.hpp"
 
 namespace dem {
 namespace cfg = cosim::config;
@@ -388,7 +390,9 @@ std::vector<InsertRegion> parse_insert(const YAML::Node& ins, const Scene& sc);
 
 ParticleSources parse_particles(const YAML::Node& parts, const Scene& sc) {
   if (!parts) throw ConfigError("particles: missing (give fill, list or checkpoint)");
-  cfg::check_keys(parts, "particles", {"fill", "insert", "list", "checkpoint", "keep_time", "perturb"});
+  cfg::check_keys(parts, "particles", {"fill", "insert", "list", "checkpoint", "keep_time", "perturb",
+                                       "model", "rolling_resistance",  // rotation.cpp
+                                       "coarse_grain"});               // coarse_grain.cpp
   ParticleSources src;
   if (const YAML::Node pt = parts["perturb"]) {
     cfg::check_keys(pt, "particles.perturb", {"amplitude", "seed"});
@@ -655,8 +659,19 @@ RunConfig load_config(const YAML::Node& root, const std::string& base_dir) {
     sc.tools.push_back(load_tool(t, base_dir, rc.inputs));
   parse_boundary_laws(root, sc);
   const ParticleSources particles = parse_particles(root["particles"], sc);
+  parse_rotation(root["particles"], sc);  // particles.model, particles.rolling_resistance
   rc.fill = particles.fill;
   rc.insert = particles.insert;
+  // particles.coarse_grain (dem/coarse_grain.hpp): the same material at larger grains.
+  if (const double cg = parse_coarse_grain(root["particles"]); cg != 1.0) {
+    if (!particles.checkpoint.empty() || !particles.list.empty())
+      throw ConfigError("particles.coarse_grain: a checkpoint or a list holds grains of their own "
+                        "size; coarse-grain the config that prepared the bed (its fill or insert) "
+                        "instead, or leave coarse_grain out");
+    coarse_grain_scene(sc, cg);
+    for (FillRegion& r : rc.fill) r.count = coarse_grain_count(r.count, cg);
+    for (InsertRegion& r : rc.insert) r.count = coarse_grain_count(r.count, cg);
+  }
   rc.prepare = parse_prepare(root["prepare"]);
   rc.settle = parse_settle(root["settle"]);
   rc.duration = parse_run(root["run"], rc.duration);

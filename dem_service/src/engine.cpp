@@ -12,6 +12,7 @@
 #include <thread>
 #include <utility>
 
+#include "dem/rotation.hpp"
 #include "dem/stability.hpp"
 
 namespace dem {
@@ -75,6 +76,7 @@ Engine::Engine(const Scene& scene, const EngineOptions& options)
   thread_stats_.assign(max_threads_, ContactStats{});
   broad_.use_vector_row_test(options.vector_row_test);
   reset_thread_busy();
+  validate_rotation(scene);  // the rotating model's rules (sleeping refused, ranges)
 }
 
 double Engine::thread_busy(std::size_t sec, int t) const {
@@ -102,6 +104,7 @@ void Engine::build_lists(State& s) {
 }
 
 void Engine::rebuild(State& s) {
+  if (scene_.rotation.rotating()) Rotation::size_arrays(s);
   choose_threads(s);
   cosim::Stopwatch watch;
   tools_.update(scene_, s);
@@ -111,6 +114,7 @@ void Engine::rebuild(State& s) {
 }
 
 void Engine::prepare(State& s) {
+  if (scene_.rotation.rotating()) Rotation::size_arrays(s);
   choose_threads(s);
   cosim::Stopwatch watch;
   tools_.update(scene_, s);
@@ -142,13 +146,21 @@ void Engine::prepare(State& s) {
 void Engine::step(State& s) {
   prepare(s);
   cosim::Stopwatch watch;
-  pair_forces(s);
+  // The rotating model (dem/rotation.hpp) has its own pair loop and spin integration; the
+  // translating model's loops are not touched by it.
+  const bool rotating = scene_.rotation.rotating();
+  if (rotating)
+    rotating_pair_forces(s);
+  else
+    pair_forces(s);
   timing_.lap(section::pair_forces, watch);
-  boundary_.forces(s, tools_, force_.data(), threads_, busy_row(section::mesh_contacts));
+  boundary_.forces(s, tools_, force_.data(), threads_, busy_row(section::mesh_contacts),
+                   rotating ? rotation_.torque() : nullptr);
   timing_.lap(section::mesh_contacts, watch);
   sum_contact_stats();
   watch.restart();
   integrate(s);
+  if (rotating) rotation_.integrate(scene_, s);
   timing_.lap(section::integration, watch);
 }
 
@@ -184,6 +196,14 @@ void Engine::start_forces(const State& s, std::size_t i0, std::size_t i1) {
   } else {
     for (std::size_t i = i0; i < i1; ++i) force_[i] = s.mass[i] * g;
   }
+}
+
+void Engine::rotating_pair_forces(State& s) {
+  const cosim::Stopwatch busy;
+  split_.clear();  // the integration splits the particles evenly
+  for (int t = 0; t < threads_; ++t) thread_stats_[t] = ContactStats{};
+  rotation_.pair_forces(scene_, s, force_, thread_stats_[0]);
+  add_busy(section::pair_forces, 0, busy.seconds());
 }
 
 void Engine::pair_forces(State& s) {
@@ -602,6 +622,7 @@ std::vector<Engine::MeshContact> Engine::mesh_contacts(const State& s) {
 std::size_t Engine::workspace_bytes() const {
   std::size_t b = broad_.workspace_bytes() + force_.capacity() * sizeof(Vec3) + sleepers_.bytes() +
                   tools_.bytes() + close_.bytes() + blocks_.bytes() + boundary_.bytes() +
+                  rotation_.bytes() +
                   split_.capacity() * sizeof(std::size_t);
   for (const auto& v : remote_) b += v.capacity() * sizeof(detail::PairRemote);
   return b;
@@ -655,6 +676,7 @@ double payload_mass(const State& s, const Mesh& mesh, const ToolPose& pose) {
 double kinetic_energy(const State& s) {
   double e = 0;
   for (std::size_t i = 0; i < s.size(); ++i) e += 0.5 * s.mass[i] * norm2(s.v[i]);
+  if (!s.w.empty()) e += rotational_energy(s);  // the rotating model's spins
   return e;
 }
 

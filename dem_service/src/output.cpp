@@ -260,6 +260,11 @@ void RunOutput::write_snapshot(const State& s, double time, const std::vector<To
   h5::write(g, "velocity", v);
   h5::write(g, "radius", r);
   h5::write(g, "id", id);
+  if (s.w.size() == s.size()) {  // the rotating model (dem/rotation.hpp): spins, rad/s
+    std::vector<Vec3> w(s.size());
+    for (std::size_t k = 0; k < order.size(); ++k) w[k] = s.w[order[k]];
+    h5::write(g, "angular_velocity", w);
+  }
   auto grow = [&](Vec3 p) {
     if (!have_extent_) {
       extent_lo_ = extent_hi_ = p;

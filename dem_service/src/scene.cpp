@@ -26,6 +26,10 @@ void add_particle(State& s, Vec3 x, Vec3 v, double radius, double mass, int spec
   s.mass.push_back(mass);
   s.species.push_back(species);
   s.id.push_back(id);
+  if (!s.w.empty()) {  // the rotating model: a new particle starts without spin
+    s.w.push_back(Vec3{});
+    s.wu.push_back(Vec3{});
+  }
   s.lists_valid = false;
 }
 
@@ -61,9 +65,10 @@ std::size_t remove_particles(State& s, const std::vector<std::uint8_t>& remove) 
   // entries naming one go; the rest keep their order (so i < j still holds).
   if (s.pair_offset.size() == n + 1) {
     std::vector<std::int32_t> off(m + 1, 0), J;
-    std::vector<Vec3> spring;
+    std::vector<Vec3> spring, roll;
     J.reserve(s.pair_j.size());
     spring.reserve(s.pair_spring.size());
+    const bool rolls = !s.pair_roll.empty() && s.pair_roll.size() == s.pair_j.size();
     for (std::size_t i = 0; i < n; ++i) {
       if (remove[i]) continue;
       for (std::int32_t k = s.pair_offset[i]; k < s.pair_offset[i + 1]; ++k) {
@@ -71,12 +76,14 @@ std::size_t remove_particles(State& s, const std::vector<std::uint8_t>& remove) 
         if (j < 0) continue;
         J.push_back(j);
         spring.push_back(s.pair_spring[k]);
+        if (rolls) roll.push_back(s.pair_roll[k]);  // the rotating model's rolling springs
       }
       off[new_index[i] + 1] = static_cast<std::int32_t>(J.size());
     }
     s.pair_offset.swap(off);
     s.pair_j.swap(J);
     s.pair_spring.swap(spring);
+    s.pair_roll.swap(roll);
   }
   if (s.tri_offset.size() == n + 1) {
     std::vector<std::int32_t> off(m + 1, 0), tool, tri;

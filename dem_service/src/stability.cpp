@@ -7,6 +7,7 @@
 #include <unordered_map>
 
 #include "dem/contact_law.hpp"
+#include "dem/rotation.hpp"
 
 namespace dem {
 double stiffest_contact_period(const Scene& scene, std::string* which) {
@@ -43,6 +44,11 @@ double stiffest_contact_period(const Scene& scene, std::string* which) {
         consider(stability_period(scene.boundary_laws[l], a.r, a.m),
                  w.str() + " (wall or tool law " + std::to_string(l) + ")");
     }
+  }
+  {  // the rotating model's tangential and rolling periods (dem/rotation.hpp)
+    std::string w;
+    const double t = rotating_contact_period(scene, &w);
+    consider(t, w);
   }
   return best;
 }

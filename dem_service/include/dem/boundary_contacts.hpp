@@ -24,8 +24,11 @@ class BoundaryContacts {
 
   // Adds the wall and mesh forces of this step to force[i] (sleepers have none) on T threads;
   // busy[t] gains thread t's working seconds. Throws SimulationError naming the particle that
-  // touches more than kBoundarySlots features.
-  void forces(State& s, const ToolGeometry& tools, Vec3* force, int T, double* busy);
+  // touches more than kBoundarySlots features. torque: the rotating model's torques
+  // (dem/rotation.hpp), which the contacts add to and whose contacts see the spins; nullptr:
+  // the translating model.
+  void forces(State& s, const ToolGeometry& tools, Vec3* force, int T, double* busy,
+              Vec3* torque = nullptr);
 
   const std::vector<Wrench>& tool_wrenches() const { return tool_wrench_; }
   const std::vector<Vec3>& wall_forces() const { return wall_force_; }

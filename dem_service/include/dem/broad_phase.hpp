@@ -144,6 +144,7 @@ class BroadPhase {
   std::vector<double> px_, py_, pz_, pr_;  // positions and radii in cell order, for the pair list
   std::vector<std::uint64_t> pool_key_;  // the next boundary slot pool, swapped in
   std::vector<Vec3> pool_spring_;
+  std::vector<Vec3> old_roll_, pool_roll_;  // the rotating model's rolling springs (dem/rotation.hpp)
   struct TriCandidate {
     std::int32_t particle, tool, tri;
   };

@@ -17,6 +17,7 @@
 #include "dem/far_movers.hpp"
 #include "dem/pair_blocks.hpp"
 #include "dem/pair_kernel.hpp"
+#include "dem/rotation.hpp"
 #include "dem/scene.hpp"
 #include "dem/sleepers.hpp"
 #include "dem/state.hpp"
@@ -91,6 +92,7 @@ class Engine {
   void build_lists(State& s);  // region, threads, broad phase
   // Pair forces: the threads' row ranges of equal work, then the rows by pair blocks or ranges.
   void pair_forces(State& s);
+  void rotating_pair_forces(State& s);  // Scene::rotation rotating: dem/rotation.hpp
   template <bool Sleep>
   void pair_forces_impl(State& s);
   void split_pair_work(const State& s);
@@ -131,6 +133,7 @@ class Engine {
   PairBlocks blocks_;
   Sleepers sleepers_;
   BoundaryContacts boundary_;
+  Rotation rotation_;  // the rotating model's torques (unused by the translating model)
   std::vector<Vec3> force_;
   std::vector<std::vector<detail::PairRemote>> remote_;  // per thread
   std::vector<std::size_t> bounds_;  // particle ranges of the threads in pair_forces

@@ -8,6 +8,7 @@
 
 #include "dem/contact_law.hpp"
 #include "dem/mesh.hpp"
+#include "dem/rotation_options.hpp"
 #include "dem/thread_wait.hpp"
 #include "dem/tool_motion.hpp"
 #include "dem/vec3.hpp"
@@ -127,6 +128,8 @@ struct Scene {
   StabilityOptions stability;
   SleepOptions sleep;
   RegionOptions region;
+  // The particle model (particles.model): translating by default; rotating adds State::w.
+  RotationOptions rotation;
   std::vector<Species> species;
   ContactLaw particle_particle;
   ContactLaw particle_wall;  // walls and tools without a law of their own

@@ -82,6 +82,12 @@ struct State {
   // when this reached scene.sleep.steps. Sized with the particles at every step while sleep
   // is enabled (all zero otherwise); empty in checkpoints written before sleeping existed.
   std::vector<std::int32_t> rest_steps;
+  // The rotating particle model (Scene::rotation, dem/rotation.hpp); all empty with the
+  // translating model. Per particle: angular velocity w and its estimate at the force time wu
+  // (as u for v). Per pair of the half list: the rolling spring torque on i (pair_roll, j feels
+  // the opposite); per boundary slot: the rolling spring torque on the particle (slot_roll).
+  std::vector<Vec3> w, wu;
+  std::vector<Vec3> pair_roll, slot_roll;
   // Particles removed because they left the region of interest (Scene::region) and their mass.
   std::int64_t removed_count = 0;
   double removed_mass = 0;
@@ -94,6 +100,8 @@ enum class Field {
   particle,  // one entry per particle, always: validated on load, moved by the broad phase sort
   sorted,    // one entry per particle once a broad phase ran (empty before): moved by the sort
   derived,   // anything else: lists, pools, tool poses; rebuilt or indexed, never permuted
+  model,     // one entry per particle when the particle model has it (the rotating model's w,
+             // wu), else empty: when not empty validated, moved and compacted like `sorted`
 };
 
 // Every array of State, listed once, in checkpoint order: f(name, array, field) for each. The
@@ -128,6 +136,10 @@ void for_each_array(S& s, F&& f) {
   f("slot_block", s.slot_block, Field::sorted);
   f("slot_particle", s.slot_particle, Field::derived);
   f("rest_steps", s.rest_steps, Field::sorted);
+  f("w", s.w, Field::model);  // rotating model only (empty otherwise)
+  f("wu", s.wu, Field::model);
+  f("pair_roll", s.pair_roll, Field::derived);
+  f("slot_roll", s.slot_roll, Field::derived);
 }
 
 // Bytes the arrays of State hold (capacity, not size): the memory of a scene.
