@@ -23,6 +23,8 @@ and the design. The method:
   4. Confirmation: the tests at the found parameters with fresh seeds give the reached values,
      mean +- 95 % t-interval; the size check repeats them at twice the grains (the result must
      not move beyond its scatter).
+     Where the confirmation misses a target, a Newton step from the miss with the surface's
+     slope (design.refinements, default 2), confirmed again.
   5. The material file (TARGETS' `output`) with the law, the grains, the deposition friction and
      a `calibration:` record of targets, reached values, intervals and sample sizes.
 
@@ -75,9 +77,10 @@ GRAIN_KEYS = ["density", "radius", "restitution", "tangential_stiffness_ratio",
               "tangential_damping_ratio", "normal_stiffness", "allowed_overlap", "friction",
               "deposition_friction"]
 DESIGN_KEYS = ["friction", "deposition_friction", "seeds", "triaxial_grains", "repose_grains",
-               "deposition_grains", "confining_pressure", "axial_strain", "freeze_friction"]
+               "deposition_grains", "confining_pressure", "axial_strain", "freeze_friction",
+               "confirmation_seeds", "refinements"]
 DESIGN_DEFAULTS = {"friction": [0.12, 0.18, 0.24, 0.30, 0.36],
-                   "deposition_friction": [0.0, 0.1, 0.2, 0.3], "seeds": 3,
+                   "deposition_friction": [0.0, 0.1, 0.2, 0.3], "seeds": 3, "confirmation_seeds": 3, "refinements": 2,
                    "triaxial_grains": 300, "repose_grains": 500, "deposition_grains": 1100,
                    "confining_pressure": 10.0e3, "axial_strain": 0.06, "freeze_friction": 0.25}
 
@@ -228,6 +231,10 @@ def read_targets(path):
         "friction": number_list(d, "design", "friction", 0.01, 1.0),
         "deposition_friction": number_list(d, "design", "deposition_friction", 0.0, 1.0),
         "seeds": int(number(d, "design", "seeds", lo=2, hi=20, default=DESIGN_DEFAULTS["seeds"])),
+        "confirmation_seeds": int(number(d, "design", "confirmation_seeds", lo=2, hi=20,
+                                         default=DESIGN_DEFAULTS["confirmation_seeds"])),
+        "refinements": int(number(d, "design", "refinements", lo=0, hi=5,
+                                  default=DESIGN_DEFAULTS["refinements"])),
         "triaxial_grains": int(number(d, "design", "triaxial_grains", lo=100, hi=20000,
                                       default=DESIGN_DEFAULTS["triaxial_grains"])),
         "repose_grains": int(number(d, "design", "repose_grains", lo=200, hi=50000,
@@ -474,7 +481,7 @@ def main():
     run = Runner(cfg, out, os.path.abspath(args.bin), args.jobs)
     d, g, targets = cfg["design"], cfg["grains"], cfg["targets"]
     seeds = list(range(1, d["seeds"] + 1))
-    fresh = list(range(101, 101 + d["seeds"]))  # confirmation seeds, not in the design
+    fresh = list(range(101, 101 + d["confirmation_seeds"]))  # confirmation seeds, not in the design
     kN = normal_stiffness(cfg)
     log = lambda s: print(s, flush=True)
     log(f"calibrate {cfg['name']}: targets " + ", ".join(
@@ -486,6 +493,7 @@ def main():
                         "a confirmation ensemble with fresh seeds (scripts/calibrate.py)"}
     try:
         # Step 2: bulk density -> deposition friction.
+        surf, surfaces = None, {}
         if "bulk_density" in targets:
             calls = [(run.deposition, (d["freeze_friction"], x, s, d["deposition_grains"]))
                      for x in d["deposition_friction"] for s in seeds]
@@ -553,6 +561,36 @@ def main():
             return {k: stats(v) for k, v in vals.items()}
 
         reached = confirm(1, fresh)
+        # Refinement: where the confirmation misses a target, a Newton step from its miss with
+        # the response surface's slope (mu: the weighted least-squares step over the angle
+        # targets), confirmed again; at most design.refinements steps, inside the design range.
+        steps = []
+        for _ in range(d["refinements"]):
+            miss = {k: reached[k]["mean"] - t["value"] for k, t in targets.items()
+                    if abs(reached[k]["mean"] - t["value"]) > t["tolerance"]}
+            if not miss:
+                break
+            new_dep, new_mu = dep, mu
+            if "bulk_density" in miss:
+                new_dep = dep - miss["bulk_density"] / surf.slope(dep)
+                new_dep = min(max(new_dep, surf.lo), surf.hi)
+            if any(k in miss for k in surfaces):
+                num = sum(surfaces[k].slope(mu) * (reached[k]["mean"] - targets[k]["value"])
+                          / targets[k]["tolerance"] ** 2 for k in surfaces)
+                den = sum(surfaces[k].slope(mu) ** 2 / targets[k]["tolerance"] ** 2
+                          for k in surfaces)
+                s0 = next(iter(surfaces.values()))
+                new_mu = min(max(mu - num / den, s0.lo), s0.hi)
+            new_dep, new_mu = round(new_dep, 4), round(new_mu, 4)
+            if (new_dep, new_mu) == (dep, mu):
+                break
+            log(f"  refinement: missed {', '.join(f'{k} by {v:+.3g}' for k, v in miss.items())}: "
+                f"deposition friction {dep} -> {new_dep}, mu {mu} -> {new_mu}")
+            steps.append({"missed": {k: round(v, 3) for k, v in miss.items()},
+                          "deposition_friction": new_dep, "friction": new_mu})
+            dep, mu = new_dep, new_mu
+            reached = confirm(1, fresh)
+        record["refinements"] = steps
         size = None if args.no_size_check else confirm(2, fresh)
     except Refused as e:
         print(f"calibrate: {e}", file=sys.stderr)
@@ -563,7 +601,7 @@ def main():
 
     missed = []
     log(f"calibrate {cfg['name']}: mu {mu}, k_T/k_N {g['kt']}, k_N {kN:.4g} Pa, deposition "
-        f"friction {dep}; reached ({d['seeds']} fresh samples each, mean +- 95 % interval):")
+        f"friction {dep}; reached ({d['confirmation_seeds']} fresh samples each, mean +- 95 % interval):")
     rec_reached = {}
     for k, t in targets.items():
         r = reached[k]
@@ -600,6 +638,7 @@ def main():
         "reached": rec_reached,
         "sizes": {"triaxial_grains": d["triaxial_grains"], "repose_grains": d["repose_grains"],
                   "deposition_grains": d["deposition_grains"], "seeds": d["seeds"],
+                  "confirmation_seeds": d["confirmation_seeds"],
                   "confining_pressure_Pa": d["confining_pressure"],
                   "axial_strain": d["axial_strain"]},
         "design": {"friction": d["friction"], "deposition_friction": d["deposition_friction"]},
