@@ -4,6 +4,7 @@ against closed forms (docs/soil.md#calibration)."""
 import copy
 import importlib.util
 import os
+import re
 import subprocess
 import sys
 import tempfile
@@ -154,6 +155,27 @@ class Method(unittest.TestCase):
         cfg = calibrate.read_targets(TARGETS)
         expect = 8 * 3.141592653589793 * 2650 * 9.81 * 3.0 / (4.5 * 0.01)
         self.assertAlmostEqual(calibrate.normal_stiffness(cfg) / expect, 1.0, places=9)
+
+
+class ShippedMaterial(unittest.TestCase):
+    def test_dry_sand_deposits_at_its_target_bulk_density(self):
+        """configs/lab/deposition.yaml with the shipped dry_sand.yaml (seed 1, not one of the
+        calibration's confirmation seeds): the bulk density within the recorded target's
+        tolerance, the packing a frictional random one (below random close packing)."""
+        with open(os.path.join(ROOT, "configs", "materials", "dry_sand.yaml")) as f:
+            mat = yaml.safe_load(f)
+        target = mat["calibration"]["targets"]["bulk_density"]
+        with tempfile.TemporaryDirectory() as tmp:
+            r = subprocess.run([os.path.join(BIN, "dem_run"), "configs/lab/deposition.yaml",
+                                "--set", f"output.file={tmp}/bed.h5"], cwd=ROOT,
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        self.assertEqual(r.returncode, 0, r.stderr[-2000:])
+        m = re.search(r"Prepared bed: packing fraction ([0-9.]+), bulk density ([0-9.]+)", r.stdout)
+        self.assertIsNotNone(m, r.stdout[-2000:])
+        packing, rho = float(m.group(1)), float(m.group(2))
+        self.assertLessEqual(abs(rho - target["value"]), target["tolerance"], rho)
+        self.assertGreater(packing, 0.55)
+        self.assertLess(packing, 0.63)
 
 
 if __name__ == "__main__":
