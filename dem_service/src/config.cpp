@@ -15,6 +15,7 @@
 #include "cosim/yaml_config.hpp"
 #include "dem/bed.hpp"
 #include "dem/checkpoint.hpp"
+#include "dem/material_file.hpp"
 #include "dem/packing.hpp"
 #include "dem/coarse_grain.hpp"
 #include "dem/rotation.hpp"
@@ -641,7 +642,9 @@ ThreadWait read_thread_wait(const YAML::Node& root) {
   return parse_thread_wait(s, Scene{}.thread_wait);
 }
 
-RunConfig load_config(const YAML::Node& root, const std::string& base_dir) {
+RunConfig load_config(const YAML::Node& given, const std::string& base_dir) {
+  std::vector<cosim::NamedFile> material_files;  // materials.<name>.file (docs/soil.md)
+  const YAML::Node root = resolve_material_files(given, base_dir, material_files);
   cfg::check_keys(root, "", {"scene", "materials", "species", "contact", "walls", "tools",
                              "particles", "prepare", "settle", "run", "output"});
   RunConfig rc;
@@ -650,6 +653,7 @@ RunConfig load_config(const YAML::Node& root, const std::string& base_dir) {
     text << root;
     rc.config_text = text.str();
   }
+  rc.inputs = material_files;
   Scene& sc = rc.scene;
   parse_scene_options(root["scene"], sc);
   sc.species = parse_species(root["materials"], root["species"]);
