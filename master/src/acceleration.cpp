@@ -107,13 +107,26 @@ std::vector<double> IqnIls::next(const std::vector<double>& x_in, const std::vec
 }
 
 void IqnIls::end_step() {
+  pushed_ = false;
+  dropped_.clear();
   if (reuse_ > 0 && !current_.empty()) {
     past_.push_front(std::move(current_));
-    while (past_.size() > static_cast<std::size_t>(reuse_)) past_.pop_back();
+    pushed_ = true;
+    while (past_.size() > static_cast<std::size_t>(reuse_)) {
+      dropped_.push_front(std::move(past_.back()));
+      past_.pop_back();
+    }
   }
   current_.clear();
   r_prev_.clear();
   x_prev_.clear();
+}
+
+void IqnIls::forget_step() {
+  if (pushed_) past_.pop_front();
+  for (auto& d : dropped_) past_.push_back(std::move(d));
+  pushed_ = false;
+  dropped_.clear();
 }
 
 std::unique_ptr<Acceleration> make_acceleration(const AccelerationSpec& spec) {

@@ -21,6 +21,9 @@ class Acceleration {
   virtual std::vector<double> next(const std::vector<double>& x_in, const std::vector<double>& x, int iteration) = 0;
   // The macro step was accepted.
   virtual void end_step() {}
+  // The macro step end_step closed last was rejected after all (an adaptive step redoes it
+  // shorter): the state is put back to before it.
+  virtual void forget_step() {}
   // Columns the last next() used (IQN-ILS; 0 otherwise), after the QR filter.
   virtual int columns_used() const { return 0; }
 
@@ -63,6 +66,7 @@ class IqnIls final : public Acceleration {
       : initial_(initial), reuse_(reuse), max_columns_(max_columns), filter_(filter) {}
   std::vector<double> next(const std::vector<double>& x_in, const std::vector<double>& x, int iteration) override;
   void end_step() override;
+  void forget_step() override;
   int columns_used() const override { return used_; }
 
  private:
@@ -74,6 +78,9 @@ class IqnIls final : public Acceleration {
   std::deque<std::deque<Column>> past_;      // earlier macro steps', newest first
   std::vector<double> r_prev_, x_prev_;
   int used_ = 0;
+  // What the last end_step changed in past_ (for forget_step).
+  bool pushed_ = false;
+  std::deque<std::deque<Column>> dropped_;
 };
 
 std::unique_ptr<Acceleration> make_acceleration(const AccelerationSpec& spec);

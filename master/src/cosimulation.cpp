@@ -1,5 +1,6 @@
 #include "cosimulation.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 
@@ -186,6 +187,46 @@ void CoSimulation::open_step(int64_t step, TimePoint t0, TimePoint t1) {
   open_->rec.t_end = t1;
   open_->sent.resize(config_.connections.size());
   open_->end.resize(config_.connections.size());
+  if (step == last_opened_) {  // a rejected step redone: on from the iterations already sent
+    iteration_base_ = highest_iteration_ + 1;
+  } else {
+    iteration_base_ = 0;
+    highest_iteration_ = -1;
+  }
+  last_opened_ = step;
+  if (hold_) predictors_before_ = predictors_;
+}
+
+void CoSimulation::hold_step() {
+  if (open_ || held_) throw std::logic_error("hold_step inside a macro step or with one held");
+  hold_ = true;
+}
+
+void CoSimulation::commit_step(double step_error, int rejected) {
+  hold_ = false;
+  if (!held_) return;  // a participant ended inside the step: no record
+  StepRecord& rec = *held_;
+  rec.step_error = step_error;
+  rec.rejected = rejected;
+  // The rejected attempts' time belongs to this step.
+  rec.wall_seconds += spent_.wall;
+  rec.master_seconds += spent_.wall - spent_.waiting;
+  for (const auto& [name, v] : spent_.compute) rec.compute_seconds[name] += v;
+  for (const auto& [name, v] : spent_.round_trip) rec.round_trip_seconds[name] += v;
+  spent_ = {};
+  for (auto* o : observers_) o->on_step(rec);
+  held_.reset();
+}
+
+void CoSimulation::reject_step() {
+  if (!held_) throw std::logic_error("reject_step without a held step");
+  spent_.wall += held_->wall_seconds;
+  spent_.waiting += held_->wall_seconds - held_->master_seconds;
+  for (const auto& [name, v] : held_->compute_seconds) spent_.compute[name] += v;
+  for (const auto& [name, v] : held_->round_trip_seconds) spent_.round_trip[name] += v;
+  held_.reset();
+  predictors_ = predictors_before_;
+  last_power_.clear();
 }
 
 cosim::Value CoSimulation::end_value(std::size_t i) const {
@@ -227,7 +268,8 @@ void CoSimulation::exchange(const std::vector<std::string>& group, int iteration
   StepRecord& rec = s.rec;
   const TimePoint t0 = rec.t_start, t1 = rec.t_end;
   if (iteration > 0 && !s.first_pass) s.first_pass = OpenStep::Pass{s.sent, rec.outputs, s.averages};
-  auto qs = requests(group, rec.step_index, iteration, t0, t1, checkpoint);
+  auto qs = requests(group, rec.step_index, iteration_base_ + iteration, t0, t1, checkpoint);
+  highest_iteration_ = std::max(highest_iteration_, iteration_base_ + iteration);
   for (std::size_t i = 0; i < config_.connections.size(); ++i)
     for (const auto& name : group)
       if (config_.connections[i].to.participant == name) s.sent[i] = predictors_[i].predict(t0, t1);
@@ -238,8 +280,9 @@ void CoSimulation::exchange(const std::vector<std::string>& group, int iteration
     const auto& name = group[g];
     rec.outputs[name] = answers[g].outputs;
     rec.diagnostics[name] = answers[g].diagnostics;
-    rec.compute_seconds[name] = answers[g].compute_seconds;
-    rec.round_trip_seconds[name] = answers[g].round_trip_seconds;
+    // Every iteration's time counts (the map's value starts at 0).
+    rec.compute_seconds[name] += answers[g].compute_seconds;
+    rec.round_trip_seconds[name] += answers[g].round_trip_seconds;
     if (answers[g].average) s.averages[name] = *answers[g].average;
     if (answers[g].ended_at) note_end(name, answers[g], t0, t1);
     for (std::size_t i = 0; i < config_.connections.size(); ++i) {
@@ -334,7 +377,11 @@ void CoSimulation::close_step(int iterations, bool checkpoint) {
   } else {
     for (const auto& p : s.rec.power) last_power_.emplace_back(p.force_side, p.motion_side);
   }
-  for (auto* o : observers_) o->on_step(s.rec);
+  if (hold_) {  // commit_step or reject_step decides
+    held_ = std::move(s.rec);
+  } else {
+    for (auto* o : observers_) o->on_step(s.rec);
+  }
   open_.reset();
 }
 

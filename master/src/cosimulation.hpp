@@ -4,6 +4,7 @@
 
 #include <cosim/link.hpp>
 
+#include <limits>
 #include <map>
 #include <memory>
 #include <optional>
@@ -44,6 +45,10 @@ struct StepRecord {
   int iterations = 1;
   // Implicit coupling: per coupling.convergence entry, |r| of the step's last iteration (else empty).
   std::vector<double> coupling_residuals;
+  // Adaptive step (coupling.adaptive): the controller's error estimate of the step (<= 1: within
+  // tolerance) and the attempts rejected before this one (reject_above); else NaN and 0.
+  double step_error = std::numeric_limits<double>::quiet_NaN();
+  int rejected = 0;
   std::map<std::string, cosim::Signals> outputs;
   std::map<std::string, std::vector<std::pair<std::string, double>>> diagnostics;
   std::vector<ConnectionRecord> connections;  // in config order
@@ -142,6 +147,9 @@ class CoSimulation final : private Coupling {
   void set_end_value(std::size_t connection, const cosim::Value& value) override;
   void set_residuals(std::vector<double> residuals) override;
   std::vector<std::pair<double, double>> last_power() const override { return last_power_; }
+  void hold_step() override;
+  void commit_step(double step_error, int rejected) override;
+  void reject_step() override;
 
   std::vector<cosim::step_request_t> requests(const std::vector<std::string>& group, int64_t step,
                                        int iteration, TimePoint t0, TimePoint t1, bool checkpoint);
@@ -166,6 +174,19 @@ class CoSimulation final : private Coupling {
   // The last closed step's bonds, from its first pass (the explicit prediction; the accepted
   // pass of an implicit step agrees with itself by construction).
   std::vector<std::pair<double, double>> last_power_;
+  // Rejecting steps (hold_step): the held record, the predictors from before the step, and the
+  // rejected attempts' times (added to the accepted attempt's record).
+  bool hold_ = false;
+  std::optional<StepRecord> held_;
+  std::vector<Predictor> predictors_before_;
+  struct Spent {
+    double wall = 0, waiting = 0;
+    std::map<std::string, double> compute, round_trip;
+  } spent_;
+  // The iterations of a step are numbered on across its attempts: a redo's iteration 0 goes out
+  // as iteration_base_ (the participants then restore the step's start).
+  int64_t last_opened_ = -1;
+  int iteration_base_ = 0, highest_iteration_ = -1;
   int64_t run_id_ = 0;
   std::string checkpoint_folder_;
   std::optional<ResumePoint> resume_;
