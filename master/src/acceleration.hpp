@@ -26,6 +26,10 @@ class Acceleration {
   virtual void forget_step() {}
   // Columns the last next() used (IQN-ILS; 0 otherwise), after the QR filter.
   virtual int columns_used() const { return 0; }
+  // What carries over from one macro step to the next (IQN-ILS: the reused columns), as numbers
+  // (for a checkpoint); restore takes them back and raises std::runtime_error for a bad list.
+  virtual std::vector<double> save() const { return {}; }
+  virtual void restore(const std::vector<double>& state);
 
  protected:
   std::vector<double> weights_;
@@ -68,6 +72,8 @@ class IqnIls final : public Acceleration {
   void end_step() override;
   void forget_step() override;
   int columns_used() const override { return used_; }
+  std::vector<double> save() const override;
+  void restore(const std::vector<double>& state) override;
 
  private:
   struct Column { std::vector<double> v, w; };

@@ -315,9 +315,6 @@ AdaptiveSpec parse_adaptive(const YAML::Node& n, const Config& c) {
     throw ConfigError(path + ".reject_above: " + number_text(a.reject_above) +
                       " is not allowed (allowed: 0, never reject; or an error estimate from 1, the "
                       "tolerance, to 1e6)");
-  if (c.checkpoints.every > Duration::zero())
-    throw ConfigError(path + ": an adaptive macro step does not take checkpoints yet (checkpoints are at "
-                      "whole numbers of fixed macro steps); set checkpoints.every: 0");
   if (c.power.empty())
     throw ConfigError(path + ": the controller measures the energy residual of the power bonds, and `power` "
                       "lists none; add a {name, force, velocity} pair under power");
@@ -343,10 +340,6 @@ CouplingSpec parse_coupling(const YAML::Node& n, const Config& c) {
                           "set coupling.type: implicit or remove the key");
     return out;
   }
-  if (c.checkpoints.every > Duration::zero())
-    throw ConfigError("coupling.type: implicit does not take checkpoints yet (checkpoints.every: " +
-                      number_text(cosim::to_seconds(c.checkpoints.every)) +
-                      "); set checkpoints.every: 0, or use coupling.type: explicit for a resumable run");
   const long long lo = cfg::get_int_or(n, "coupling", "min_iterations", out.min_iterations);
   const long long hi = cfg::get_int_or(n, "coupling", "max_iterations", out.max_iterations);
   if (hi < 1 || hi > 1000)

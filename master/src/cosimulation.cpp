@@ -49,11 +49,27 @@ void CoSimulation::set_checkpoints(int64_t run_id, std::string folder) {
 
 void CoSimulation::set_resume(ResumePoint resume) { resume_ = std::move(resume); }
 
-bool CoSimulation::checkpoint_due(int64_t step) const {
+bool CoSimulation::checkpoint_due(int64_t step, TimePoint t0, TimePoint t1) {
   if (config_.checkpoints.every <= Duration::zero()) return false;
-  const int64_t every = config_.checkpoints.every / config_.macro_step;
-  // Not after the last step: the run is over then.
-  return (step + 1) % every == 0 && step + 1 < setup_.steps;
+  // A rejected attempt of a due step wrote its checkpoint file: the redo rewrites it.
+  if (step == due_step_) return true;
+  // Not after the last step: the run is over then. With fixed steps of H and every = m H this
+  // is (step + 1) % m == 0.
+  const Duration every = config_.checkpoints.every;
+  if (t1 >= config_.t_end || (t1 - config_.t_start) / every == (t0 - config_.t_start) / every) return false;
+  due_step_ = step;
+  return true;
+}
+
+TimePoint CoSimulation::time_after(int64_t steps) const {
+  if (resume_ && !resume_->times.empty() && steps <= resume_->steps_done)
+    return resume_->times.at(static_cast<std::size_t>(steps));
+  return config_.t_start + steps * config_.macro_step;
+}
+
+void CoSimulation::emit(StepRecord& rec) {
+  if (rec.checkpoint) rec.algorithm_state = algorithm_->save_state();
+  for (auto* o : observers_) o->on_step(rec);
 }
 
 void CoSimulation::connect() {
@@ -74,7 +90,7 @@ void CoSimulation::connect() {
     c.checkpoint_folder = checkpoint_folder_;
     c.run_id = run_id_;
     c.resume_steps_done = resume_steps;
-    c.resume_t_ns = cosim::to_ns(config_.t_start + resume_steps * config_.macro_step);
+    c.resume_t_ns = cosim::to_ns(time_after(resume_steps));
     configs.push_back(c);
   }
   setup_.config = &config_;
@@ -86,6 +102,7 @@ void CoSimulation::connect() {
   setup_.run_id = run_id_;
   setup_.checkpoint_folder = checkpoint_folder_;
   setup_.first_step = resume_steps;
+  setup_.first_time = time_after(resume_steps);
   if (config_.checkpoints.every > Duration::zero()) {
     // A resumed participant that cannot checkpoint has refused its configuration already.
     std::string cannot;
@@ -99,6 +116,14 @@ void CoSimulation::connect() {
   }
   start_predictors();
   algorithm_->initialize({&setup_.participants, max_order_});
+  if (resume_ && !resume_->algorithm_state.empty()) {
+    try {
+      algorithm_->restore_state(resume_->algorithm_state);
+    } catch (const std::exception& e) {
+      throw cosim::config::ConfigError("--resume: the record's /checkpoint/algorithm_state cannot be restored (" +
+                                       std::string(e.what()) + "); the record is damaged or of another build");
+    }
+  }
 }
 
 void CoSimulation::start_predictors() {
@@ -123,13 +148,11 @@ void CoSimulation::start_predictors() {
       throw std::logic_error("resume: received history of the wrong length");
     for (int64_t j = 0; j <= resume_steps; ++j) {
       if (k.use == Use::Average && j > 0) continue;  // its samples: the initial output only
-      predictors_.back().record(config_.t_start + j * config_.macro_step,
-                                received[static_cast<std::size_t>(j)]);
+      predictors_.back().record(time_after(j), received[static_cast<std::size_t>(j)]);
     }
     if (k.use == Use::Average)
       for (int64_t j = 1; j <= resume_steps; ++j)
-        predictors_.back().record_mean(config_.t_start + (j - 1) * config_.macro_step,
-                                       config_.t_start + j * config_.macro_step,
+        predictors_.back().record_mean(time_after(j - 1), time_after(j),
                                        resume_->received_average.at(i).at(static_cast<std::size_t>(j)));
   }
 }
@@ -214,7 +237,7 @@ void CoSimulation::commit_step(double step_error, int rejected) {
   for (const auto& [name, v] : spent_.compute) rec.compute_seconds[name] += v;
   for (const auto& [name, v] : spent_.round_trip) rec.round_trip_seconds[name] += v;
   spent_ = {};
-  for (auto* o : observers_) o->on_step(rec);
+  emit(rec);
   held_.reset();
 }
 
@@ -380,7 +403,7 @@ void CoSimulation::close_step(int iterations, bool checkpoint) {
   if (hold_) {  // commit_step or reject_step decides
     held_ = std::move(s.rec);
   } else {
-    for (auto* o : observers_) o->on_step(s.rec);
+    emit(s.rec);
   }
   open_.reset();
 }
@@ -389,7 +412,7 @@ void CoSimulation::run() {
   for (auto* o : observers_) o->on_start(setup_);
   const int64_t step = setup_.first_step;
   try {
-    algorithm_->run(*this, step, config_.t_start + step * config_.macro_step, config_.t_end);
+    algorithm_->run(*this, step, setup_.first_time, config_.t_end);
   } catch (const std::exception& e) {
     open_.reset();
     transport_.terminate(true, e.what());

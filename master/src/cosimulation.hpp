@@ -59,6 +59,9 @@ struct StepRecord {
   // Every participant wrote its checkpoint after this step (checkpoints.every): a stopped run
   // can be resumed from here once the recorder has recorded it.
   bool checkpoint = false;
+  // With checkpoint: the coupling algorithm's state after this step (CouplingAlgorithm::save_state;
+  // "" for one without state), which the record keeps for a resume.
+  std::string algorithm_state;
 };
 
 // Where a resumed run continues (cosim_master --resume, master/src/resume.hpp reads it from
@@ -70,6 +73,11 @@ struct ResumePoint {
   // use: average connections the means of connections/<to>/received_average (row i: the
   // step ending at row i's time; row 0 unused).
   std::vector<std::vector<cosim::Value>> received, received_average;
+  // The times of rows 0..steps_done (/time): an adaptive step's are not multiples of
+  // time.macro_step. Empty: t_start + i macro steps.
+  std::vector<TimePoint> times;
+  // /checkpoint/algorithm_state ("" when the record has none).
+  std::string algorithm_state;
 };
 
 struct RunSetup {
@@ -84,6 +92,7 @@ struct RunSetup {
   // Steps recorded before this process started: 0, or the resume point's steps_done (the
   // observers continue the record after that many steps instead of starting it).
   int64_t first_step = 0;
+  TimePoint first_time{};  // the time after them
 };
 
 class Observer {
@@ -140,7 +149,11 @@ class CoSimulation final : private Coupling {
   void open_step(int64_t step, TimePoint t0, TimePoint t1) override;
   void exchange(const std::vector<std::string>& group, int iteration, bool checkpoint) override;
   void close_step(int iterations, bool checkpoint) override;
-  bool checkpoint_due(int64_t step) const override;
+  bool checkpoint_due(int64_t step, TimePoint t0, TimePoint t1) override;
+  // The time after `steps` steps of this run (a resumed run's recorded times, else fixed steps).
+  TimePoint time_after(int64_t steps) const;
+  // Emits a closed step's record to the observers, with the algorithm's state at a checkpoint.
+  void emit(StepRecord& rec);
   bool ended() const override { return ended_.has_value(); }
   void note_end(const std::string& name, const cosim::StepAnswer& answer, TimePoint t0, TimePoint t1);
   cosim::Value end_value(std::size_t connection) const override;
@@ -186,6 +199,7 @@ class CoSimulation final : private Coupling {
   // The iterations of a step are numbered on across its attempts: a redo's iteration 0 goes out
   // as iteration_base_ (the participants then restore the step's start).
   int64_t last_opened_ = -1;
+  int64_t due_step_ = -1;  // the last step checkpoint_due found due
   int iteration_base_ = 0, highest_iteration_ = -1;
   int64_t run_id_ = 0;
   std::string checkpoint_folder_;

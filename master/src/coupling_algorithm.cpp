@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <limits>
 #include <numeric>
 #include <sstream>
@@ -32,6 +33,49 @@ void Coupling::commit_step(double, int) {
 void Coupling::reject_step() {
   throw std::logic_error("this coupling cannot reject a step (an adaptive step needs a CoSimulation)");
 }
+
+void CouplingAlgorithm::restore_state(const std::string& state) {
+  if (!state.empty())
+    throw std::runtime_error(name() + " keeps no state between macro steps, but the checkpoint holds some");
+}
+
+namespace {
+
+// An algorithm's state as lines "<key> <n> <number> ..." with numbers in C's %a (exact).
+void put_line(std::string& out, const std::string& key, const std::vector<double>& values) {
+  out += key + " " + std::to_string(values.size());
+  char buf[64];
+  for (double v : values) {
+    std::snprintf(buf, sizeof buf, " %a", v);
+    out += buf;
+  }
+  out += "\n";
+}
+
+// The numbers of line `key`; raises naming the key when it is missing or damaged.
+std::vector<double> get_line(const std::string& text, const std::string& key) {
+  std::istringstream in(text);
+  std::string line;
+  while (std::getline(in, line)) {
+    std::istringstream l(line);
+    std::string k;
+    std::size_t n = 0;
+    if (!(l >> k) || k != key) continue;
+    if (!(l >> n)) break;
+    std::vector<double> v;
+    std::string word;
+    while (l >> word) {
+      char* end = nullptr;
+      v.push_back(std::strtod(word.c_str(), &end));
+      if (!end || *end) throw std::runtime_error("algorithm state: '" + key + "' holds '" + word + "', not a number");
+    }
+    if (v.size() != n) break;
+    return v;
+  }
+  throw std::runtime_error("algorithm state: '" + key + "' is missing or damaged");
+}
+
+}  // namespace
 
 void CouplingAlgorithm::set_step(Duration) {
   throw std::logic_error(name() + " has no settable macro step");
@@ -95,7 +139,7 @@ Duration FixedStepAlgorithm::do_step(Coupling& coupling, int64_t step, TimePoint
   // the step's start with the new end sample) keeps the start-up from capping the order.
   const bool iterate = step < max_order_ && can_iterate_;
   const int iterations = iterate ? 1 + startup_iterations_ : 1;
-  const bool checkpoint = coupling.checkpoint_due(step);
+  const bool checkpoint = coupling.checkpoint_due(step, t, t + macro_step_);
   coupling.open_step(step, t, t + macro_step_);
   int done = 0;
   for (int it = 0; it < iterations && !coupling.ended(); ++it, ++done)
@@ -176,7 +220,7 @@ std::string number(double v) {
 }  // namespace
 
 Duration ImplicitAlgorithm::do_step(Coupling& coupling, int64_t step, TimePoint t) {
-  const bool checkpoint = coupling.checkpoint_due(step);
+  const bool checkpoint = coupling.checkpoint_due(step, t, t + macro_step_);
   const std::size_t n = connection_names_.size();
   int min_iterations = spec_.min_iterations;
   if (step < max_order_) min_iterations = std::max(min_iterations, 1 + startup_iterations_);
@@ -273,6 +317,22 @@ Duration ImplicitAlgorithm::do_step(Coupling& coupling, int64_t step, TimePoint 
   return macro_step_;
 }
 
+std::string ImplicitAlgorithm::save_state() const {
+  std::string out;
+  put_line(out, "implicit.scale", scale_);
+  put_line(out, "implicit.acceleration", acceleration_->save());
+  return out;
+}
+
+void ImplicitAlgorithm::restore_state(const std::string& state) {
+  auto scale = get_line(state, "implicit.scale");
+  if (scale.size() != scale_.size())
+    throw std::runtime_error("algorithm state: " + std::to_string(scale.size()) + " connection scales for " +
+                             std::to_string(scale_.size()) + " fed-back connections");
+  acceleration_->restore(get_line(state, "implicit.acceleration"));
+  scale_ = std::move(scale);
+}
+
 void ImplicitAlgorithm::forget_step() {
   scale_ = scale_before_;
   acceleration_->forget_step();
@@ -367,20 +427,23 @@ Duration AdaptiveStepAlgorithm::do_step(Coupling& coupling, int64_t step, TimePo
     // Rejected: above the threshold (or not finite), longer than min_step, and no participant
     // has ended the run in it. Redone with the I part of the controller only (the step's own
     // error says how much shorter), at most min_change and at least one quantum shorter.
-    const bool reject = spec_.reject_above > 0 && !(error <= spec_.reject_above) && taken > min_ && !coupling.ended();
-    if (!reject) break;
+    if (!(spec_.reject_above > 0 && !(error <= spec_.reject_above) && taken > min_ && !coupling.ended())) break;
+    // The energy residual of a step falls about as H^2 (first-order extrapolation): the redo's
+    // length from the square root, at least 10 % shorter, at most min_change shorter.
+    double factor = std::isfinite(error) ? spec_.safety * std::sqrt(1.0 / error) : spec_.min_change;
+    factor = std::clamp(factor, spec_.min_change, 0.9);
+    const Duration shorter = static_cast<int64_t>(std::floor(cosim::to_seconds(taken) * factor * 1e9 /
+                                                             static_cast<double>(quantum_.count()))) * quantum_;
+    const Duration redo = fit(std::clamp(std::min(shorter, taken - quantum_), min_, max_), t);
+    // Near time.end the rest may allow no shorter step that leaves min_step: accepted then.
+    if (redo >= taken) break;
     history_.push_back({t, taken, error, true});
     ++rejected_;
     ++rejected;
     coupling.reject_step();
     inner_->forget_step();
-    double factor = std::isfinite(error) ? spec_.safety * std::pow(1.0 / error, spec_.i_gain) : spec_.min_change;
-    factor = std::clamp(factor, spec_.min_change, 1.0);
-    const Duration shorter = static_cast<int64_t>(std::floor(cosim::to_seconds(taken) * factor * 1e9 /
-                                                             static_cast<double>(quantum_.count()))) * quantum_;
-    H = fit(std::clamp(std::min(shorter, taken - quantum_), min_, max_), t);
+    H = redo;
   }
-  coupling.commit_step(error, rejected);
   history_.push_back({t, taken, error, false});
   // PI controller: factor = safety (1/e_n)^i_gain (e_(n-1)/e_n)^p_gain, within [min_change,
   // max_change]; not above 1 right after a rejection.
@@ -395,7 +458,33 @@ Duration AdaptiveStepAlgorithm::do_step(Coupling& coupling, int64_t step, TimePo
   const double wanted = cosim::to_seconds(taken) * factor;
   const Duration next = static_cast<int64_t>(std::floor(wanted * 1e9 / static_cast<double>(quantum_.count()))) * quantum_;
   next_ = std::clamp(next, min_, max_);
+  // After the update: a checkpoint after this step saves the state the next step starts from.
+  coupling.commit_step(error, rejected);
   return taken;
+}
+
+std::string AdaptiveStepAlgorithm::save_state() const {
+  std::string out;
+  put_line(out, "adaptive", {static_cast<double>(next_.count()), previous_error_, static_cast<double>(rejected_)});
+  return out + inner_->save_state();
+}
+
+void AdaptiveStepAlgorithm::restore_state(const std::string& state) {
+  const auto a = get_line(state, "adaptive");
+  if (a.size() != 3 || !(a[0] > 0) || a[0] != std::floor(a[0]) || !(a[1] > 0) || !(a[2] >= 0))
+    throw std::runtime_error("algorithm state: 'adaptive' holds no step, error and count");
+  const Duration next(static_cast<int64_t>(a[0]));
+  if (next < min_ || next > max_ || next % quantum_ != Duration::zero())
+    throw std::runtime_error("algorithm state: the next step " + std::to_string(next.count()) +
+                             " ns is not a multiple of the inner steps within the bounds");
+  std::string inner;  // the inner algorithm's lines
+  std::istringstream in(state);
+  for (std::string line; std::getline(in, line);)
+    if (line.rfind("adaptive ", 0) != 0) inner += line + "\n";
+  inner_->restore_state(inner);
+  next_ = next;
+  previous_error_ = a[1];
+  rejected_ = static_cast<int64_t>(a[2]);
 }
 
 std::unique_ptr<CouplingAlgorithm> make_algorithm(const Config& config) {

@@ -35,8 +35,10 @@ class Coupling {
   // Closes the open step after `iterations` iterations (the record's count); `checkpoint`: the
   // participants confirmed a checkpoint in it. Builds the step's record for the observers.
   virtual void close_step(int iterations, bool checkpoint) = 0;
-  // Whether the participants save a checkpoint after step `step` (checkpoints.every).
-  virtual bool checkpoint_due(int64_t step) const = 0;
+  // Whether the participants save a checkpoint after step `step` over [t0, t1]
+  // (checkpoints.every: the step reaches a multiple of it past time.start, and is not the last).
+  // Asked before every attempt of a step; a step found due stays due in its redone attempts.
+  virtual bool checkpoint_due(int64_t step, TimePoint t0, TimePoint t1) = 0;
   // A participant ended the run itself (an FMU's terminate) in the open step: no further
   // exchange in it and no further step.
   virtual bool ended() const = 0;
@@ -92,6 +94,12 @@ class CouplingAlgorithm {
   // The step do_step just did was rejected (an adaptive step redoes it shorter): the
   // algorithm's state is put back to before it (IQN-ILS's reused columns, counters).
   virtual void forget_step() {}
+  // What a resumed run needs to continue as the uninterrupted one would (the state after the
+  // last step: IQN-ILS's reused columns, the adaptive step's next length and last error), as
+  // text with exact (hexadecimal) numbers; "" for none. restore_state takes it back after
+  // initialize; it raises std::runtime_error for text it cannot read.
+  virtual std::string save_state() const { return {}; }
+  virtual void restore_state(const std::string& state);
 };
 
 // The explicit fixed-step scheme: every macro step once, Jacobi (all participants in one
@@ -133,6 +141,8 @@ class ImplicitAlgorithm final : public CouplingAlgorithm {
   Duration do_step(Coupling& coupling, int64_t step, TimePoint t) override;
   void set_step(Duration step) override { macro_step_ = step; }
   void forget_step() override;
+  std::string save_state() const override;
+  void restore_state(const std::string& state) override;
 
   const std::vector<std::size_t>& fed_back() const { return fed_back_; }
   // Accepted steps and their iterations (a rejected attempt's are in rejected_iterations).
@@ -172,6 +182,8 @@ class AdaptiveStepAlgorithm final : public CouplingAlgorithm {
   void setup(const Config& config) override;
   void initialize(const AlgorithmSetup& setup) override;
   Duration do_step(Coupling& coupling, int64_t step, TimePoint t) override;
+  std::string save_state() const override;
+  void restore_state(const std::string& state) override;
 
   struct Record {
     TimePoint t_start;

@@ -263,8 +263,7 @@ void H5Recorder::on_start(const RunSetup& s) {
       // The checkpoint the participants and this record agree on so far (steps_done 0: none).
       set_number(I.file, "checkpoint/steps_done", static_cast<double>(s.first_step));
       I.checkpoint_steps = s.first_step;
-      set_number(I.file, "checkpoint/time",
-                 cosim::to_seconds(s.config->t_start + s.first_step * s.config->macro_step));
+      set_number(I.file, "checkpoint/time", cosim::to_seconds(s.first_time));
     }
     I.flush_all();
     // The run has started: now the file replaces one of its name (kept aside until closed).
@@ -488,6 +487,9 @@ void H5Recorder::step(const StepRecord& r) {
     // Every participant has its checkpoint after this step: with the rows up to here on disk
     // first, the record now says a resume may start here.
     I.flush_all();
+    // The coupling algorithm's state after this step (implicit, adaptive), for the resume.
+    remove_if_present(I.file, "checkpoint/algorithm_state");
+    if (!r.algorithm_state.empty()) cosim::h5::write_string(I.file, "checkpoint/algorithm_state", r.algorithm_state);
     set_number(I.file, "checkpoint/steps_done", static_cast<double>(r.step_index + 1));
     I.checkpoint_steps = r.step_index + 1;
     set_number(I.file, "checkpoint/time", cosim::to_seconds(r.t_end));
@@ -598,6 +600,9 @@ void CsvWriter::on_start(const RunSetup& s) {
     cosim::h5::Handle f(H5Fopen(continue_from_.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
     if (!f.ok()) throw std::runtime_error("cannot read the record '" + continue_from_ + "' for the CSV");
     std::map<std::string, std::vector<double>> data;
+    const auto times = cosim::h5::read_doubles(f, "time");  // an adaptive step's are not i macro steps
+    if (times.size() < static_cast<std::size_t>(s.first_step) + 1)
+      throw std::runtime_error("the record '" + continue_from_ + "' is shorter than its checkpoint");
     for (const auto& [name, sig] : columns_)
       data[name + "/" + sig] = cosim::h5::read_doubles(f, "participants/" + name + "/outputs/" + sig);
     for (int64_t i = 0; i <= s.first_step; ++i) {
@@ -610,7 +615,10 @@ void CsvWriter::on_start(const RunSetup& s) {
           throw std::runtime_error("the record '" + continue_from_ + "' is shorter than its checkpoint");
         v.assign(all.begin() + static_cast<std::ptrdiff_t>(i * w), all.begin() + static_cast<std::ptrdiff_t>((i + 1) * w));
       }
-      row(s.config->t_start + i * s.config->macro_step, outputs);
+      row(s.config->coupling.adaptive.enabled
+              ? TimePoint(Duration(std::llround(times[static_cast<std::size_t>(i)] * 1e9)))
+              : s.config->t_start + i * s.config->macro_step,
+          outputs);
     }
   }
   if (std::fflush(file_) != 0) fail();
@@ -667,7 +675,7 @@ void Progress::on_start(const RunSetup& s) {
   since_print_.restart();
   // A resumed run counts on from its resume point; rates are of this process's steps.
   steps_done_ = s.first_step;
-  t_begin_ = t_done_ = s.config->t_start + s.first_step * s.config->macro_step;
+  t_begin_ = t_done_ = s.first_time;
 }
 
 void Progress::on_step(const StepRecord& r) {

@@ -94,7 +94,6 @@ TEST(master_ImplicitConfig, BadSettingsAreRefusedNamingTheKeyAndTheFix) {
       {{"coupling.type=implicit", kConv, "coupling.acceleration={type: aitken, reuse: 3}"}, {"coupling.acceleration", "reuse"}},
       {{"coupling.type=implicit", kConv, "coupling.acceleration={type: iqn_ils, reuse: -1}"}, {"coupling.acceleration.reuse", "0 to 100"}},
       {{"coupling.type=implicit", kConv, "coupling.acceleration={type: iqn_ils, filter: 1}"}, {"coupling.acceleration.filter", "0 <= filter < 1"}},
-      {{"coupling.type=implicit", kConv, "checkpoints.every=0.01"}, {"does not take checkpoints yet", "checkpoints.every: 0"}},
       {{"power=[{name: p, force: b.f, velocity: a.x}]", "coupling.adaptive={min_step: 1.0e-4}"}, {"coupling.adaptive", "max_step"}},
       {{"power=[{name: p, force: b.f, velocity: a.x}]", "coupling.adaptive={min_step: 2.0e-3, max_step: 1.0e-2}"},
        {"coupling.adaptive: min_step 0.002 s <= time.macro_step 0.001 s"}},
@@ -103,8 +102,6 @@ TEST(master_ImplicitConfig, BadSettingsAreRefusedNamingTheKeyAndTheFix) {
        {"coupling.adaptive.safety: 1.5", "<= 1"}},
       {{"power=[{name: p, force: b.f, velocity: a.x}]", "coupling.adaptive={min_step: 1.0e-4, max_step: 1.0e-2, gain: 1}"},
        {"coupling.adaptive", "gain"}},
-      {{"power=[{name: p, force: b.f, velocity: a.x}]", "checkpoints.every=0.01",
-        "coupling.adaptive={min_step: 1.0e-4, max_step: 1.0e-2}"}, {"coupling.adaptive", "checkpoints.every: 0"}},
   };
   for (const auto& c : cases) {
     const std::string e = error(c.sets);
@@ -167,6 +164,14 @@ TEST(master_ImplicitConfig, AParticipantThatCannotRepeatAStepIsRefusedByName) {
   }
   infos["b"].can_repeat = true;
   EXPECT_NO_THROW(alg.initialize({&infos, 1}));
+}
+
+TEST(master_ImplicitConfig, ImplicitAndAdaptiveRunsTakeCheckpoints) {
+  EXPECT_EQ(parse({"coupling.type=implicit", kConv, "checkpoints.every=0.01"}).checkpoints.every, cosim::Duration(10000000));
+  EXPECT_EQ(parse({"power=[{name: p, force: b.f, velocity: a.x}]", "checkpoints.every=0.01",
+                   "coupling.adaptive={min_step: 1.0e-4, max_step: 1.0e-2, reject_above: 2}"})
+                .checkpoints.every,
+            cosim::Duration(10000000));
 }
 
 TEST(master_ImplicitConfig, RejectingStepsParsesIsBoundedAndNeedsParticipantsThatRepeat) {
