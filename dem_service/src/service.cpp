@@ -206,8 +206,10 @@ void ServiceModel::save_snapshot() {
 
 void ServiceModel::restore_snapshot() {
   if (!snapshot_) throw std::logic_error("dem_service: restore_snapshot without a snapshot");
+  const cosim::Stopwatch watch;
   rc_->state = *snapshot_;
   if (out_) out_->discard_rows_after(snapshot_rows_);  // samples of the abandoned attempt
+  snapshot_seconds_ += watch.seconds();
 }
 
 void ServiceModel::save_checkpoint(const std::string& path) {

@@ -107,13 +107,72 @@ std::vector<double> IqnIls::next(const std::vector<double>& x_in, const std::vec
 }
 
 void IqnIls::end_step() {
+  pushed_ = false;
+  dropped_.clear();
   if (reuse_ > 0 && !current_.empty()) {
     past_.push_front(std::move(current_));
-    while (past_.size() > static_cast<std::size_t>(reuse_)) past_.pop_back();
+    pushed_ = true;
+    while (past_.size() > static_cast<std::size_t>(reuse_)) {
+      dropped_.push_front(std::move(past_.back()));
+      past_.pop_back();
+    }
   }
   current_.clear();
   r_prev_.clear();
   x_prev_.clear();
+}
+
+void Acceleration::restore(const std::vector<double>& state) {
+  if (!state.empty()) throw std::runtime_error("this acceleration keeps no state across macro steps, but some was given");
+}
+
+// [steps, then per step: columns, size, then per column v..., w...]
+std::vector<double> IqnIls::save() const {
+  std::vector<double> out{static_cast<double>(past_.size())};
+  for (const auto& step : past_) {
+    out.push_back(static_cast<double>(step.size()));
+    out.push_back(step.empty() ? 0.0 : static_cast<double>(step.front().v.size()));
+    for (const auto& c : step) {
+      out.insert(out.end(), c.v.begin(), c.v.end());
+      out.insert(out.end(), c.w.begin(), c.w.end());
+    }
+  }
+  return out;
+}
+
+void IqnIls::restore(const std::vector<double>& s) {
+  std::size_t at = 0;
+  auto count = [&]() {
+    if (at >= s.size() || !(s[at] >= 0) || s[at] != std::floor(s[at]) || s[at] > 1e9)
+      throw std::runtime_error("IQN-ILS state: a count is missing or not a count");
+    return static_cast<std::size_t>(s[at++]);
+  };
+  std::deque<std::deque<Column>> past;
+  const std::size_t steps = count();
+  for (std::size_t k = 0; k < steps; ++k) {
+    const std::size_t cols = count(), n = count();
+    std::deque<Column> step;
+    for (std::size_t j = 0; j < cols; ++j) {
+      if (s.size() - at < 2 * n) throw std::runtime_error("IQN-ILS state: shorter than its counts say");
+      Column c{std::vector<double>(s.begin() + static_cast<std::ptrdiff_t>(at), s.begin() + static_cast<std::ptrdiff_t>(at + n)),
+               std::vector<double>(s.begin() + static_cast<std::ptrdiff_t>(at + n), s.begin() + static_cast<std::ptrdiff_t>(at + 2 * n))};
+      at += 2 * n;
+      step.push_back(std::move(c));
+    }
+    past.push_back(std::move(step));
+  }
+  if (at != s.size()) throw std::runtime_error("IQN-ILS state: longer than its counts say");
+  past_ = std::move(past);
+  current_.clear(), r_prev_.clear(), x_prev_.clear();
+  pushed_ = false;
+  dropped_.clear();
+}
+
+void IqnIls::forget_step() {
+  if (pushed_) past_.pop_front();
+  for (auto& d : dropped_) past_.push_back(std::move(d));
+  pushed_ = false;
+  dropped_.clear();
 }
 
 std::unique_ptr<Acceleration> make_acceleration(const AccelerationSpec& spec) {

@@ -21,8 +21,15 @@ class Acceleration {
   virtual std::vector<double> next(const std::vector<double>& x_in, const std::vector<double>& x, int iteration) = 0;
   // The macro step was accepted.
   virtual void end_step() {}
+  // The macro step end_step closed last was rejected after all (an adaptive step redoes it
+  // shorter): the state is put back to before it.
+  virtual void forget_step() {}
   // Columns the last next() used (IQN-ILS; 0 otherwise), after the QR filter.
   virtual int columns_used() const { return 0; }
+  // What carries over from one macro step to the next (IQN-ILS: the reused columns), as numbers
+  // (for a checkpoint); restore takes them back and raises std::runtime_error for a bad list.
+  virtual std::vector<double> save() const { return {}; }
+  virtual void restore(const std::vector<double>& state);
 
  protected:
   std::vector<double> weights_;
@@ -63,7 +70,10 @@ class IqnIls final : public Acceleration {
       : initial_(initial), reuse_(reuse), max_columns_(max_columns), filter_(filter) {}
   std::vector<double> next(const std::vector<double>& x_in, const std::vector<double>& x, int iteration) override;
   void end_step() override;
+  void forget_step() override;
   int columns_used() const override { return used_; }
+  std::vector<double> save() const override;
+  void restore(const std::vector<double>& state) override;
 
  private:
   struct Column { std::vector<double> v, w; };
@@ -74,6 +84,9 @@ class IqnIls final : public Acceleration {
   std::deque<std::deque<Column>> past_;      // earlier macro steps', newest first
   std::vector<double> r_prev_, x_prev_;
   int used_ = 0;
+  // What the last end_step changed in past_ (for forget_step).
+  bool pushed_ = false;
+  std::deque<std::deque<Column>> dropped_;
 };
 
 std::unique_ptr<Acceleration> make_acceleration(const AccelerationSpec& spec);

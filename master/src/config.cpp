@@ -289,7 +289,7 @@ AdaptiveSpec parse_adaptive(const YAML::Node& n, const Config& c) {
   const std::string path = "coupling.adaptive";
   if (!n.IsMap()) throw ConfigError(path + ": expected a map {min_step, max_step, abs_tolerance, ...}");
   cfg::check_keys(n, path, {"min_step", "max_step", "abs_tolerance", "rel_tolerance", "p_gain", "i_gain",
-                            "safety", "min_change", "max_change"});
+                            "safety", "min_change", "max_change", "reject_above"});
   a.enabled = true;
   a.min_step = cosim::seconds_to_duration(positive_limit(n, path, "min_step"), path + ".min_step");
   a.max_step = cosim::seconds_to_duration(positive_limit(n, path, "max_step"), path + ".max_step");
@@ -310,9 +310,11 @@ AdaptiveSpec parse_adaptive(const YAML::Node& n, const Config& c) {
   get("safety", a.safety, 0, 1, true);
   get("min_change", a.min_change, 0, 1, true);
   get("max_change", a.max_change, 1, 100, false);
-  if (c.checkpoints.every > Duration::zero())
-    throw ConfigError(path + ": an adaptive macro step does not take checkpoints yet (checkpoints are at "
-                      "whole numbers of fixed macro steps); set checkpoints.every: 0");
+  a.reject_above = cfg::get_double_or(n, path, "reject_above", a.reject_above);
+  if (!(a.reject_above == 0 || (a.reject_above >= 1 && a.reject_above <= 1e6)))
+    throw ConfigError(path + ".reject_above: " + number_text(a.reject_above) +
+                      " is not allowed (allowed: 0, never reject; or an error estimate from 1, the "
+                      "tolerance, to 1e6)");
   if (c.power.empty())
     throw ConfigError(path + ": the controller measures the energy residual of the power bonds, and `power` "
                       "lists none; add a {name, force, velocity} pair under power");
@@ -338,10 +340,6 @@ CouplingSpec parse_coupling(const YAML::Node& n, const Config& c) {
                           "set coupling.type: implicit or remove the key");
     return out;
   }
-  if (c.checkpoints.every > Duration::zero())
-    throw ConfigError("coupling.type: implicit does not take checkpoints yet (checkpoints.every: " +
-                      number_text(cosim::to_seconds(c.checkpoints.every)) +
-                      "); set checkpoints.every: 0, or use coupling.type: explicit for a resumable run");
   const long long lo = cfg::get_int_or(n, "coupling", "min_iterations", out.min_iterations);
   const long long hi = cfg::get_int_or(n, "coupling", "max_iterations", out.max_iterations);
   if (hi < 1 || hi > 1000)

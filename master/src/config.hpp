@@ -106,6 +106,9 @@ struct AdaptiveSpec {
   double p_gain = 0.2, i_gain = 0.15;
   double safety = 0.8;
   double min_change = 0.2, max_change = 1.5;  // of the step, per step
+  // A step whose error estimate exceeds reject_above is rolled back and redone shorter (unless it
+  // is at min_step already); 0: every step is accepted. Needs participants that can repeat a step.
+  double reject_above = 0;
 };
 
 struct CouplingSpec {

@@ -1,5 +1,6 @@
 #include "cosimulation.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 
@@ -48,11 +49,27 @@ void CoSimulation::set_checkpoints(int64_t run_id, std::string folder) {
 
 void CoSimulation::set_resume(ResumePoint resume) { resume_ = std::move(resume); }
 
-bool CoSimulation::checkpoint_due(int64_t step) const {
+bool CoSimulation::checkpoint_due(int64_t step, TimePoint t0, TimePoint t1) {
   if (config_.checkpoints.every <= Duration::zero()) return false;
-  const int64_t every = config_.checkpoints.every / config_.macro_step;
-  // Not after the last step: the run is over then.
-  return (step + 1) % every == 0 && step + 1 < setup_.steps;
+  // A rejected attempt of a due step wrote its checkpoint file: the redo rewrites it.
+  if (step == due_step_) return true;
+  // Not after the last step: the run is over then. With fixed steps of H and every = m H this
+  // is (step + 1) % m == 0.
+  const Duration every = config_.checkpoints.every;
+  if (t1 >= config_.t_end || (t1 - config_.t_start) / every == (t0 - config_.t_start) / every) return false;
+  due_step_ = step;
+  return true;
+}
+
+TimePoint CoSimulation::time_after(int64_t steps) const {
+  if (resume_ && !resume_->times.empty() && steps <= resume_->steps_done)
+    return resume_->times.at(static_cast<std::size_t>(steps));
+  return config_.t_start + steps * config_.macro_step;
+}
+
+void CoSimulation::emit(StepRecord& rec) {
+  if (rec.checkpoint) rec.algorithm_state = algorithm_->save_state();
+  for (auto* o : observers_) o->on_step(rec);
 }
 
 void CoSimulation::connect() {
@@ -73,7 +90,7 @@ void CoSimulation::connect() {
     c.checkpoint_folder = checkpoint_folder_;
     c.run_id = run_id_;
     c.resume_steps_done = resume_steps;
-    c.resume_t_ns = cosim::to_ns(config_.t_start + resume_steps * config_.macro_step);
+    c.resume_t_ns = cosim::to_ns(time_after(resume_steps));
     configs.push_back(c);
   }
   setup_.config = &config_;
@@ -85,6 +102,7 @@ void CoSimulation::connect() {
   setup_.run_id = run_id_;
   setup_.checkpoint_folder = checkpoint_folder_;
   setup_.first_step = resume_steps;
+  setup_.first_time = time_after(resume_steps);
   if (config_.checkpoints.every > Duration::zero()) {
     // A resumed participant that cannot checkpoint has refused its configuration already.
     std::string cannot;
@@ -98,6 +116,14 @@ void CoSimulation::connect() {
   }
   start_predictors();
   algorithm_->initialize({&setup_.participants, max_order_});
+  if (resume_ && !resume_->algorithm_state.empty()) {
+    try {
+      algorithm_->restore_state(resume_->algorithm_state);
+    } catch (const std::exception& e) {
+      throw cosim::config::ConfigError("--resume: the record's /checkpoint/algorithm_state cannot be restored (" +
+                                       std::string(e.what()) + "); the record is damaged or of another build");
+    }
+  }
 }
 
 void CoSimulation::start_predictors() {
@@ -122,13 +148,11 @@ void CoSimulation::start_predictors() {
       throw std::logic_error("resume: received history of the wrong length");
     for (int64_t j = 0; j <= resume_steps; ++j) {
       if (k.use == Use::Average && j > 0) continue;  // its samples: the initial output only
-      predictors_.back().record(config_.t_start + j * config_.macro_step,
-                                received[static_cast<std::size_t>(j)]);
+      predictors_.back().record(time_after(j), received[static_cast<std::size_t>(j)]);
     }
     if (k.use == Use::Average)
       for (int64_t j = 1; j <= resume_steps; ++j)
-        predictors_.back().record_mean(config_.t_start + (j - 1) * config_.macro_step,
-                                       config_.t_start + j * config_.macro_step,
+        predictors_.back().record_mean(time_after(j - 1), time_after(j),
                                        resume_->received_average.at(i).at(static_cast<std::size_t>(j)));
   }
 }
@@ -186,6 +210,46 @@ void CoSimulation::open_step(int64_t step, TimePoint t0, TimePoint t1) {
   open_->rec.t_end = t1;
   open_->sent.resize(config_.connections.size());
   open_->end.resize(config_.connections.size());
+  if (step == last_opened_) {  // a rejected step redone: on from the iterations already sent
+    iteration_base_ = highest_iteration_ + 1;
+  } else {
+    iteration_base_ = 0;
+    highest_iteration_ = -1;
+  }
+  last_opened_ = step;
+  if (hold_) predictors_before_ = predictors_;
+}
+
+void CoSimulation::hold_step() {
+  if (open_ || held_) throw std::logic_error("hold_step inside a macro step or with one held");
+  hold_ = true;
+}
+
+void CoSimulation::commit_step(double step_error, int rejected) {
+  hold_ = false;
+  if (!held_) return;  // a participant ended inside the step: no record
+  StepRecord& rec = *held_;
+  rec.step_error = step_error;
+  rec.rejected = rejected;
+  // The rejected attempts' time belongs to this step.
+  rec.wall_seconds += spent_.wall;
+  rec.master_seconds += spent_.wall - spent_.waiting;
+  for (const auto& [name, v] : spent_.compute) rec.compute_seconds[name] += v;
+  for (const auto& [name, v] : spent_.round_trip) rec.round_trip_seconds[name] += v;
+  spent_ = {};
+  emit(rec);
+  held_.reset();
+}
+
+void CoSimulation::reject_step() {
+  if (!held_) throw std::logic_error("reject_step without a held step");
+  spent_.wall += held_->wall_seconds;
+  spent_.waiting += held_->wall_seconds - held_->master_seconds;
+  for (const auto& [name, v] : held_->compute_seconds) spent_.compute[name] += v;
+  for (const auto& [name, v] : held_->round_trip_seconds) spent_.round_trip[name] += v;
+  held_.reset();
+  predictors_ = predictors_before_;
+  last_power_.clear();
 }
 
 cosim::Value CoSimulation::end_value(std::size_t i) const {
@@ -227,7 +291,8 @@ void CoSimulation::exchange(const std::vector<std::string>& group, int iteration
   StepRecord& rec = s.rec;
   const TimePoint t0 = rec.t_start, t1 = rec.t_end;
   if (iteration > 0 && !s.first_pass) s.first_pass = OpenStep::Pass{s.sent, rec.outputs, s.averages};
-  auto qs = requests(group, rec.step_index, iteration, t0, t1, checkpoint);
+  auto qs = requests(group, rec.step_index, iteration_base_ + iteration, t0, t1, checkpoint);
+  highest_iteration_ = std::max(highest_iteration_, iteration_base_ + iteration);
   for (std::size_t i = 0; i < config_.connections.size(); ++i)
     for (const auto& name : group)
       if (config_.connections[i].to.participant == name) s.sent[i] = predictors_[i].predict(t0, t1);
@@ -238,8 +303,9 @@ void CoSimulation::exchange(const std::vector<std::string>& group, int iteration
     const auto& name = group[g];
     rec.outputs[name] = answers[g].outputs;
     rec.diagnostics[name] = answers[g].diagnostics;
-    rec.compute_seconds[name] = answers[g].compute_seconds;
-    rec.round_trip_seconds[name] = answers[g].round_trip_seconds;
+    // Every iteration's time counts (the map's value starts at 0).
+    rec.compute_seconds[name] += answers[g].compute_seconds;
+    rec.round_trip_seconds[name] += answers[g].round_trip_seconds;
     if (answers[g].average) s.averages[name] = *answers[g].average;
     if (answers[g].ended_at) note_end(name, answers[g], t0, t1);
     for (std::size_t i = 0; i < config_.connections.size(); ++i) {
@@ -334,7 +400,11 @@ void CoSimulation::close_step(int iterations, bool checkpoint) {
   } else {
     for (const auto& p : s.rec.power) last_power_.emplace_back(p.force_side, p.motion_side);
   }
-  for (auto* o : observers_) o->on_step(s.rec);
+  if (hold_) {  // commit_step or reject_step decides
+    held_ = std::move(s.rec);
+  } else {
+    emit(s.rec);
+  }
   open_.reset();
 }
 
@@ -342,7 +412,7 @@ void CoSimulation::run() {
   for (auto* o : observers_) o->on_start(setup_);
   const int64_t step = setup_.first_step;
   try {
-    algorithm_->run(*this, step, config_.t_start + step * config_.macro_step, config_.t_end);
+    algorithm_->run(*this, step, setup_.first_time, config_.t_end);
   } catch (const std::exception& e) {
     open_.reset();
     transport_.terminate(true, e.what());

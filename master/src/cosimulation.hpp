@@ -4,6 +4,7 @@
 
 #include <cosim/link.hpp>
 
+#include <limits>
 #include <map>
 #include <memory>
 #include <optional>
@@ -44,6 +45,10 @@ struct StepRecord {
   int iterations = 1;
   // Implicit coupling: per coupling.convergence entry, |r| of the step's last iteration (else empty).
   std::vector<double> coupling_residuals;
+  // Adaptive step (coupling.adaptive): the controller's error estimate of the step (<= 1: within
+  // tolerance) and the attempts rejected before this one (reject_above); else NaN and 0.
+  double step_error = std::numeric_limits<double>::quiet_NaN();
+  int rejected = 0;
   std::map<std::string, cosim::Signals> outputs;
   std::map<std::string, std::vector<std::pair<std::string, double>>> diagnostics;
   std::vector<ConnectionRecord> connections;  // in config order
@@ -54,6 +59,9 @@ struct StepRecord {
   // Every participant wrote its checkpoint after this step (checkpoints.every): a stopped run
   // can be resumed from here once the recorder has recorded it.
   bool checkpoint = false;
+  // With checkpoint: the coupling algorithm's state after this step (CouplingAlgorithm::save_state;
+  // "" for one without state), which the record keeps for a resume.
+  std::string algorithm_state;
 };
 
 // Where a resumed run continues (cosim_master --resume, master/src/resume.hpp reads it from
@@ -65,6 +73,11 @@ struct ResumePoint {
   // use: average connections the means of connections/<to>/received_average (row i: the
   // step ending at row i's time; row 0 unused).
   std::vector<std::vector<cosim::Value>> received, received_average;
+  // The times of rows 0..steps_done (/time): an adaptive step's are not multiples of
+  // time.macro_step. Empty: t_start + i macro steps.
+  std::vector<TimePoint> times;
+  // /checkpoint/algorithm_state ("" when the record has none).
+  std::string algorithm_state;
 };
 
 struct RunSetup {
@@ -79,6 +92,7 @@ struct RunSetup {
   // Steps recorded before this process started: 0, or the resume point's steps_done (the
   // observers continue the record after that many steps instead of starting it).
   int64_t first_step = 0;
+  TimePoint first_time{};  // the time after them
 };
 
 class Observer {
@@ -135,13 +149,20 @@ class CoSimulation final : private Coupling {
   void open_step(int64_t step, TimePoint t0, TimePoint t1) override;
   void exchange(const std::vector<std::string>& group, int iteration, bool checkpoint) override;
   void close_step(int iterations, bool checkpoint) override;
-  bool checkpoint_due(int64_t step) const override;
+  bool checkpoint_due(int64_t step, TimePoint t0, TimePoint t1) override;
+  // The time after `steps` steps of this run (a resumed run's recorded times, else fixed steps).
+  TimePoint time_after(int64_t steps) const;
+  // Emits a closed step's record to the observers, with the algorithm's state at a checkpoint.
+  void emit(StepRecord& rec);
   bool ended() const override { return ended_.has_value(); }
   void note_end(const std::string& name, const cosim::StepAnswer& answer, TimePoint t0, TimePoint t1);
   cosim::Value end_value(std::size_t connection) const override;
   void set_end_value(std::size_t connection, const cosim::Value& value) override;
   void set_residuals(std::vector<double> residuals) override;
   std::vector<std::pair<double, double>> last_power() const override { return last_power_; }
+  void hold_step() override;
+  void commit_step(double step_error, int rejected) override;
+  void reject_step() override;
 
   std::vector<cosim::step_request_t> requests(const std::vector<std::string>& group, int64_t step,
                                        int iteration, TimePoint t0, TimePoint t1, bool checkpoint);
@@ -166,6 +187,20 @@ class CoSimulation final : private Coupling {
   // The last closed step's bonds, from its first pass (the explicit prediction; the accepted
   // pass of an implicit step agrees with itself by construction).
   std::vector<std::pair<double, double>> last_power_;
+  // Rejecting steps (hold_step): the held record, the predictors from before the step, and the
+  // rejected attempts' times (added to the accepted attempt's record).
+  bool hold_ = false;
+  std::optional<StepRecord> held_;
+  std::vector<Predictor> predictors_before_;
+  struct Spent {
+    double wall = 0, waiting = 0;
+    std::map<std::string, double> compute, round_trip;
+  } spent_;
+  // The iterations of a step are numbered on across its attempts: a redo's iteration 0 goes out
+  // as iteration_base_ (the participants then restore the step's start).
+  int64_t last_opened_ = -1;
+  int64_t due_step_ = -1;  // the last step checkpoint_due found due
+  int iteration_base_ = 0, highest_iteration_ = -1;
   int64_t run_id_ = 0;
   std::string checkpoint_folder_;
   std::optional<ResumePoint> resume_;

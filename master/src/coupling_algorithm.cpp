@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <limits>
 #include <numeric>
 #include <sstream>
@@ -22,6 +23,59 @@ void Coupling::set_residuals(std::vector<double>) {}
 std::vector<std::pair<double, double>> Coupling::last_power() const {
   throw std::logic_error("this coupling cannot tell the power bonds (an adaptive step needs a CoSimulation)");
 }
+
+void Coupling::hold_step() {
+  throw std::logic_error("this coupling cannot hold a step back (an adaptive step needs a CoSimulation)");
+}
+void Coupling::commit_step(double, int) {
+  throw std::logic_error("this coupling cannot hold a step back (an adaptive step needs a CoSimulation)");
+}
+void Coupling::reject_step() {
+  throw std::logic_error("this coupling cannot reject a step (an adaptive step needs a CoSimulation)");
+}
+
+void CouplingAlgorithm::restore_state(const std::string& state) {
+  if (!state.empty())
+    throw std::runtime_error(name() + " keeps no state between macro steps, but the checkpoint holds some");
+}
+
+namespace {
+
+// An algorithm's state as lines "<key> <n> <number> ..." with numbers in C's %a (exact).
+void put_line(std::string& out, const std::string& key, const std::vector<double>& values) {
+  out += key + " " + std::to_string(values.size());
+  char buf[64];
+  for (double v : values) {
+    std::snprintf(buf, sizeof buf, " %a", v);
+    out += buf;
+  }
+  out += "\n";
+}
+
+// The numbers of line `key`; raises naming the key when it is missing or damaged.
+std::vector<double> get_line(const std::string& text, const std::string& key) {
+  std::istringstream in(text);
+  std::string line;
+  while (std::getline(in, line)) {
+    std::istringstream l(line);
+    std::string k;
+    std::size_t n = 0;
+    if (!(l >> k) || k != key) continue;
+    if (!(l >> n)) break;
+    std::vector<double> v;
+    std::string word;
+    while (l >> word) {
+      char* end = nullptr;
+      v.push_back(std::strtod(word.c_str(), &end));
+      if (!end || *end) throw std::runtime_error("algorithm state: '" + key + "' holds '" + word + "', not a number");
+    }
+    if (v.size() != n) break;
+    return v;
+  }
+  throw std::runtime_error("algorithm state: '" + key + "' is missing or damaged");
+}
+
+}  // namespace
 
 void CouplingAlgorithm::set_step(Duration) {
   throw std::logic_error(name() + " has no settable macro step");
@@ -85,7 +139,7 @@ Duration FixedStepAlgorithm::do_step(Coupling& coupling, int64_t step, TimePoint
   // the step's start with the new end sample) keeps the start-up from capping the order.
   const bool iterate = step < max_order_ && can_iterate_;
   const int iterations = iterate ? 1 + startup_iterations_ : 1;
-  const bool checkpoint = coupling.checkpoint_due(step);
+  const bool checkpoint = coupling.checkpoint_due(step, t, t + macro_step_);
   coupling.open_step(step, t, t + macro_step_);
   int done = 0;
   for (int it = 0; it < iterations && !coupling.ended(); ++it, ++done)
@@ -134,7 +188,7 @@ void ImplicitAlgorithm::setup(const Config& config) {
       fed_back_.push_back(i);
   scale_.assign(fed_back_.size(), 0.0);
   acceleration_ = make_acceleration(spec_.acceleration);
-  steps_ = total_iterations_ = unconverged_ = 0;
+  steps_ = total_iterations_ = unconverged_ = rejected_iterations_ = 0;
 }
 
 void ImplicitAlgorithm::initialize(const AlgorithmSetup& setup) {
@@ -166,11 +220,13 @@ std::string number(double v) {
 }  // namespace
 
 Duration ImplicitAlgorithm::do_step(Coupling& coupling, int64_t step, TimePoint t) {
-  const bool checkpoint = coupling.checkpoint_due(step);
+  const bool checkpoint = coupling.checkpoint_due(step, t, t + macro_step_);
   const std::size_t n = connection_names_.size();
   int min_iterations = spec_.min_iterations;
   if (step < max_order_) min_iterations = std::max(min_iterations, 1 + startup_iterations_);
   coupling.open_step(step, t, t + macro_step_);
+  scale_before_ = scale_;
+  last_unconverged_ = false;
   std::vector<cosim::Value> in(n), out(n);
   // Per entry of the flat vector the acceleration sees: 1 / the largest rms value its connection
   // has had (so that metres and newtons weigh alike in IQN-ILS's least squares).
@@ -235,6 +291,7 @@ Duration ImplicitAlgorithm::do_step(Coupling& coupling, int64_t step, TimePoint 
         std::fprintf(stderr, "cosim_master: warning: %s; accepted (coupling.at_max_iterations: accept)%s\n",
                      what.c_str(), unconverged_ == 9 ? "; further such warnings are not printed" : "");
       ++unconverged_;
+      last_unconverged_ = true;
       break;
     }
     std::vector<double> x_in, x;
@@ -256,7 +313,33 @@ Duration ImplicitAlgorithm::do_step(Coupling& coupling, int64_t step, TimePoint 
   coupling.close_step(k + 1, checkpoint);
   ++steps_;
   total_iterations_ += k + 1;
+  last_iterations_ = k + 1;
   return macro_step_;
+}
+
+std::string ImplicitAlgorithm::save_state() const {
+  std::string out;
+  put_line(out, "implicit.scale", scale_);
+  put_line(out, "implicit.acceleration", acceleration_->save());
+  return out;
+}
+
+void ImplicitAlgorithm::restore_state(const std::string& state) {
+  auto scale = get_line(state, "implicit.scale");
+  if (scale.size() != scale_.size())
+    throw std::runtime_error("algorithm state: " + std::to_string(scale.size()) + " connection scales for " +
+                             std::to_string(scale_.size()) + " fed-back connections");
+  acceleration_->restore(get_line(state, "implicit.acceleration"));
+  scale_ = std::move(scale);
+}
+
+void ImplicitAlgorithm::forget_step() {
+  scale_ = scale_before_;
+  acceleration_->forget_step();
+  --steps_;
+  total_iterations_ -= last_iterations_;
+  rejected_iterations_ += last_iterations_;
+  if (last_unconverged_) --unconverged_;
 }
 
 // --- Adaptive macro step
@@ -273,10 +356,19 @@ void AdaptiveStepAlgorithm::setup(const Config& config) {
   next_ = config.macro_step;
   previous_error_ = 1.0;
   history_.clear();
+  rejected_ = 0;
 }
 
 void AdaptiveStepAlgorithm::initialize(const AlgorithmSetup& setup) {
   inner_->initialize(setup);
+  if (spec_.reject_above > 0)  // a rejected step is repeated from its start: refused before any step
+    for (const auto& [name, info] : *setup.participants)
+      if (!info.can_repeat)
+        throw cosim::config::ConfigError(
+            "coupling.adaptive.reject_above: " + number(spec_.reject_above) +
+            " redoes a rejected macro step from its start, but participant '" + name + "' cannot repeat a step" +
+            (info.repeat_note.empty() ? std::string() : " (" + info.repeat_note + ")") +
+            "; set coupling.adaptive.reject_above: 0 (every step accepted), or make the participant able to repeat steps");
   // The quantum: the least common multiple of the inner steps (time.macro_step is a multiple of
   // each, check_wiring, so time.end - time.start is a multiple of the quantum too).
   int64_t q = 1;
@@ -295,33 +387,104 @@ void AdaptiveStepAlgorithm::initialize(const AlgorithmSetup& setup) {
         number(cosim::to_seconds(spec_.max_step)) + "] s; widen the bounds");
 }
 
-Duration AdaptiveStepAlgorithm::do_step(Coupling& coupling, int64_t step, TimePoint t) {
-  const Duration H = std::min(next_, t_end_ - t);
-  inner_->set_step(H);
-  const Duration taken = inner_->do_step(coupling, step, t);
-  // ECCO's error estimate: per power bond the energy residual over the step against the
-  // tolerance abs + rel x the energy through the bond; the largest one counts.
+namespace {
+
+// ECCO's error estimate: per power bond the energy residual over the step against the
+// tolerance abs + rel x the energy through the bond; the largest one counts.
+double ecco_error(const std::vector<std::pair<double, double>>& bonds, Duration taken, const AdaptiveSpec& spec) {
   const double h = cosim::to_seconds(taken);
   double error = 0;
-  for (const auto& [force_side, motion_side] : coupling.last_power()) {
+  for (const auto& [force_side, motion_side] : bonds) {
     const double residual = std::abs(force_side - motion_side) * h;
     const double through = std::max(std::abs(force_side), std::abs(motion_side)) * h;
-    if (std::isfinite(residual)) error = std::max(error, residual / (spec_.abs_tolerance + spec_.rel_tolerance * through));
+    if (std::isfinite(residual)) error = std::max(error, residual / (spec.abs_tolerance + spec.rel_tolerance * through));
     else error = std::numeric_limits<double>::infinity();
   }
-  history_.push_back({t, taken, error});
-  // PI controller: factor = safety (1/e_n)^i_gain (e_(n-1)/e_n)^p_gain, within [min_change, max_change].
+  return error;
+}
+
+}  // namespace
+
+Duration AdaptiveStepAlgorithm::fit(Duration H, TimePoint t) const {
+  // What would be left after H: nothing, or at least min_step (the last step is then no shorter
+  // than min_step unless the whole run is). Else H leaves min_step, or takes the rest.
+  const Duration rest = t_end_ - t;
+  if (H >= rest) return rest;
+  if (rest - H >= min_) return H;
+  return rest - min_ >= min_ ? rest - min_ : rest;
+}
+
+Duration AdaptiveStepAlgorithm::do_step(Coupling& coupling, int64_t step, TimePoint t) {
+  Duration H = fit(next_, t);
+  int rejected = 0;
+  Duration taken{};
+  double error = 0;
+  for (;;) {
+    inner_->set_step(H);
+    coupling.hold_step();
+    taken = inner_->do_step(coupling, step, t);
+    error = ecco_error(coupling.last_power(), taken, spec_);
+    // Rejected: above the threshold (or not finite), longer than min_step, and no participant
+    // has ended the run in it. Redone with the I part of the controller only (the step's own
+    // error says how much shorter), at most min_change and at least one quantum shorter.
+    if (!(spec_.reject_above > 0 && !(error <= spec_.reject_above) && taken > min_ && !coupling.ended())) break;
+    // The energy residual of a step falls about as H^2 (first-order extrapolation): the redo's
+    // length from the square root, at least 10 % shorter, at most min_change shorter.
+    double factor = std::isfinite(error) ? spec_.safety * std::sqrt(1.0 / error) : spec_.min_change;
+    factor = std::clamp(factor, spec_.min_change, 0.9);
+    const Duration shorter = static_cast<int64_t>(std::floor(cosim::to_seconds(taken) * factor * 1e9 /
+                                                             static_cast<double>(quantum_.count()))) * quantum_;
+    const Duration redo = fit(std::clamp(std::min(shorter, taken - quantum_), min_, max_), t);
+    // Near time.end the rest may allow no shorter step that leaves min_step: accepted then.
+    if (redo >= taken) break;
+    history_.push_back({t, taken, error, true});
+    ++rejected_;
+    ++rejected;
+    coupling.reject_step();
+    inner_->forget_step();
+    H = redo;
+  }
+  history_.push_back({t, taken, error, false});
+  // PI controller: factor = safety (1/e_n)^i_gain (e_(n-1)/e_n)^p_gain, within [min_change,
+  // max_change]; not above 1 right after a rejection.
   double factor = spec_.max_change;
   if (error > 0 && std::isfinite(error))
     factor = spec_.safety * std::pow(1.0 / error, spec_.i_gain) * std::pow(previous_error_ / error, spec_.p_gain);
   else if (!std::isfinite(error))
     factor = spec_.min_change;
   factor = std::clamp(std::isfinite(factor) ? factor : spec_.max_change, spec_.min_change, spec_.max_change);
+  if (rejected > 0) factor = std::min(factor, 1.0);
   if (error > 0 && std::isfinite(error)) previous_error_ = error;
   const double wanted = cosim::to_seconds(taken) * factor;
   const Duration next = static_cast<int64_t>(std::floor(wanted * 1e9 / static_cast<double>(quantum_.count()))) * quantum_;
   next_ = std::clamp(next, min_, max_);
+  // After the update: a checkpoint after this step saves the state the next step starts from.
+  coupling.commit_step(error, rejected);
   return taken;
+}
+
+std::string AdaptiveStepAlgorithm::save_state() const {
+  std::string out;
+  put_line(out, "adaptive", {static_cast<double>(next_.count()), previous_error_, static_cast<double>(rejected_)});
+  return out + inner_->save_state();
+}
+
+void AdaptiveStepAlgorithm::restore_state(const std::string& state) {
+  const auto a = get_line(state, "adaptive");
+  if (a.size() != 3 || !(a[0] > 0) || a[0] != std::floor(a[0]) || !(a[1] > 0) || !(a[2] >= 0))
+    throw std::runtime_error("algorithm state: 'adaptive' holds no step, error and count");
+  const Duration next(static_cast<int64_t>(a[0]));
+  if (next < min_ || next > max_ || next % quantum_ != Duration::zero())
+    throw std::runtime_error("algorithm state: the next step " + std::to_string(next.count()) +
+                             " ns is not a multiple of the inner steps within the bounds");
+  std::string inner;  // the inner algorithm's lines
+  std::istringstream in(state);
+  for (std::string line; std::getline(in, line);)
+    if (line.rfind("adaptive ", 0) != 0) inner += line + "\n";
+  inner_->restore_state(inner);
+  next_ = next;
+  previous_error_ = a[1];
+  rejected_ = static_cast<int64_t>(a[2]);
 }
 
 std::unique_ptr<CouplingAlgorithm> make_algorithm(const Config& config) {

@@ -35,8 +35,10 @@ class Coupling {
   // Closes the open step after `iterations` iterations (the record's count); `checkpoint`: the
   // participants confirmed a checkpoint in it. Builds the step's record for the observers.
   virtual void close_step(int iterations, bool checkpoint) = 0;
-  // Whether the participants save a checkpoint after step `step` (checkpoints.every).
-  virtual bool checkpoint_due(int64_t step) const = 0;
+  // Whether the participants save a checkpoint after step `step` over [t0, t1]
+  // (checkpoints.every: the step reaches a multiple of it past time.start, and is not the last).
+  // Asked before every attempt of a step; a step found due stays due in its redone attempts.
+  virtual bool checkpoint_due(int64_t step, TimePoint t0, TimePoint t1) = 0;
   // A participant ended the run itself (an FMU's terminate) in the open step: no further
   // exchange in it and no further step.
   virtual bool ended() const = 0;
@@ -52,6 +54,16 @@ class Coupling {
   virtual void set_residuals(std::vector<double> residuals);
   // The last closed step's power bonds (config `power` order): {force_side, motion_side} in W.
   virtual std::vector<std::pair<double, double>> last_power() const;
+
+  // An adaptive step that may reject a step. hold_step: the next close_step keeps the step's
+  // record back, and the predictors' state from before the step, until commit_step hands the
+  // record to the observers (with the controller's error estimate and the number of attempts
+  // rejected before it) or reject_step drops it and puts the predictors back; the next open_step
+  // of the same step then repeats it from its start (iterations numbered on, so that every
+  // participant restores its state at the step's start). The fallbacks raise.
+  virtual void hold_step();
+  virtual void commit_step(double step_error, int rejected);
+  virtual void reject_step();
 };
 
 // What the handshake told the master, for CouplingAlgorithm::initialize.
@@ -79,6 +91,15 @@ class CouplingAlgorithm {
   // The length of the next steps (an adaptive step sets it before each do_step). Fixed-step
   // algorithms take it; the default refuses.
   virtual void set_step(Duration step);
+  // The step do_step just did was rejected (an adaptive step redoes it shorter): the
+  // algorithm's state is put back to before it (IQN-ILS's reused columns, counters).
+  virtual void forget_step() {}
+  // What a resumed run needs to continue as the uninterrupted one would (the state after the
+  // last step: IQN-ILS's reused columns, the adaptive step's next length and last error), as
+  // text with exact (hexadecimal) numbers; "" for none. restore_state takes it back after
+  // initialize; it raises std::runtime_error for text it cannot read.
+  virtual std::string save_state() const { return {}; }
+  virtual void restore_state(const std::string& state);
 };
 
 // The explicit fixed-step scheme: every macro step once, Jacobi (all participants in one
@@ -119,11 +140,16 @@ class ImplicitAlgorithm final : public CouplingAlgorithm {
   void initialize(const AlgorithmSetup& setup) override;
   Duration do_step(Coupling& coupling, int64_t step, TimePoint t) override;
   void set_step(Duration step) override { macro_step_ = step; }
+  void forget_step() override;
+  std::string save_state() const override;
+  void restore_state(const std::string& state) override;
 
   const std::vector<std::size_t>& fed_back() const { return fed_back_; }
+  // Accepted steps and their iterations (a rejected attempt's are in rejected_iterations).
   int64_t steps() const { return steps_; }
   int64_t total_iterations() const { return total_iterations_; }
   int64_t unconverged_steps() const { return unconverged_; }
+  int64_t rejected_iterations() const { return rejected_iterations_; }
 
  private:
   Scheme scheme_ = Scheme::Jacobi;
@@ -134,6 +160,10 @@ class ImplicitAlgorithm final : public CouplingAlgorithm {
   std::vector<std::vector<std::string>> groups_;
   std::vector<std::size_t> fed_back_;  // connections the acceleration sets
   std::vector<double> scale_;          // per fed-back connection: the largest rms value seen
+  std::vector<double> scale_before_;   // ... before the last step (forget_step)
+  int last_iterations_ = 0;
+  bool last_unconverged_ = false;
+  int64_t rejected_iterations_ = 0;
   std::unique_ptr<class Acceleration> acceleration_;
   int max_order_ = 0;
   int64_t steps_ = 0, total_iterations_ = 0, unconverged_ = 0;
@@ -143,7 +173,8 @@ class ImplicitAlgorithm final : public CouplingAlgorithm {
 // implicit): before each step it sets the step length, after it it measures the power bonds'
 // energy residual and chooses the next length with ECCO's PI controller (docs/coupling.md).
 // Every length is a whole multiple of every participant's inner step, within [min_step,
-// max_step] (rounded inwards to such multiples), and the last step ends at time.end.
+// max_step] (rounded inwards to such multiples), and the last step ends at time.end. With
+// reject_above a step whose error estimate exceeds it is rolled back and redone shorter.
 class AdaptiveStepAlgorithm final : public CouplingAlgorithm {
  public:
   explicit AdaptiveStepAlgorithm(std::unique_ptr<CouplingAlgorithm> inner);
@@ -151,22 +182,32 @@ class AdaptiveStepAlgorithm final : public CouplingAlgorithm {
   void setup(const Config& config) override;
   void initialize(const AlgorithmSetup& setup) override;
   Duration do_step(Coupling& coupling, int64_t step, TimePoint t) override;
+  std::string save_state() const override;
+  void restore_state(const std::string& state) override;
 
   struct Record {
     TimePoint t_start;
     Duration step;
     double error;  // the controller's error estimate (<= 1: within tolerance)
+    bool rejected = false;  // rolled back and redone shorter (coupling.adaptive.reject_above)
   };
+  // Every attempt, rejected ones included, in order.
   const std::vector<Record>& history() const { return history_; }
   Duration quantum() const { return quantum_; }
+  Duration min_step() const { return min_; }
+  int64_t rejected() const { return rejected_; }
 
  private:
+  // H shortened, or lengthened to the rest of the run, so that what is left after it is nothing
+  // or at least min_step.
+  Duration fit(Duration H, TimePoint t) const;
   std::unique_ptr<CouplingAlgorithm> inner_;
   AdaptiveSpec spec_;
   TimePoint t_end_{};
   Duration next_{}, quantum_{}, min_{}, max_{};
   double previous_error_ = 1.0;
   std::vector<Record> history_;
+  int64_t rejected_ = 0;
 };
 
 // The algorithm a config asks for (FixedStepAlgorithm, or ImplicitAlgorithm for coupling.type:

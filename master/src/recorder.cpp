@@ -160,6 +160,7 @@ struct H5Recorder::Impl {
   struct Pow { std::unique_ptr<Table> force_side, motion_side, residual, energy_residual; double energy = 0; double last = kNaN; };
   std::vector<Pow> pows;
   std::unique_ptr<Table> coupling_residual;  // coupling.type: implicit only
+  std::unique_ptr<Table> step_error, rejected;  // coupling.adaptive only
   cosim::Stopwatch since_flush;
   bool resume = false;  // continue an existing record (H5Recorder(Continue, ...))
   bool checkpoints = false;  // the record has /checkpoint (RunSetup::run_id != 0)
@@ -171,6 +172,7 @@ struct H5Recorder::Impl {
     outputs.clear(), diagnostics.clear(), compute.clear(), round_trip.clear();
     conns.clear(), pows.clear();
     time.reset(), master_s.reset(), wall_s.reset(), iterations.reset();
+    coupling_residual.reset(), step_error.reset(), rejected.reset();
   }
   // After a failed write: the file is closed as far as HDF5 still can, and taken off its name
   // (nothing else of this run may write it); the destructor puts the earlier file back.
@@ -206,6 +208,7 @@ struct H5Recorder::Impl {
     }
     for (auto& p : pows) p.force_side->flush(), p.motion_side->flush(), p.residual->flush(), p.energy_residual->flush();
     if (coupling_residual) coupling_residual->flush();
+    if (step_error) step_error->flush(), rejected->flush();
     cosim::h5::flush(file, path);
   }
 };
@@ -260,8 +263,7 @@ void H5Recorder::on_start(const RunSetup& s) {
       // The checkpoint the participants and this record agree on so far (steps_done 0: none).
       set_number(I.file, "checkpoint/steps_done", static_cast<double>(s.first_step));
       I.checkpoint_steps = s.first_step;
-      set_number(I.file, "checkpoint/time",
-                 cosim::to_seconds(s.config->t_start + s.first_step * s.config->macro_step));
+      set_number(I.file, "checkpoint/time", cosim::to_seconds(s.first_time));
     }
     I.flush_all();
     // The run has started: now the file replaces one of its name (kept aside until closed).
@@ -316,6 +318,7 @@ void H5Recorder::Impl::continue_existing(const RunSetup& s) {
     I.pows.push_back(std::move(pw));
   }
   if (c.coupling.type == CouplingType::Implicit) I.coupling_residual = open("coupling/residual");
+  if (c.coupling.adaptive.enabled) I.step_error = open("coupling/step_error"), I.rejected = open("coupling/rejected");
   if (I.checkpoints) {
     Table resumed(Table::Existing{}, I.file, "checkpoint/resumed_at",
                   cosim::h5::rows(I.file, "checkpoint/resumed_at"));
@@ -403,6 +406,14 @@ void H5Recorder::Impl::start_new(const RunSetup& s) {
     I.coupling_residual->attribute("columns", join(names));
     I.coupling_residual->append(std::vector<double>(c.coupling.convergence.size(), kNaN));
   }
+  if (c.coupling.adaptive.enabled) {  // docs/output.md#adaptive-macro-step
+    I.step_error = table(I.file, "coupling/step_error", 1);
+    I.step_error->attribute("meaning", "the adaptive step controller's error estimate of the step ending at time[i] (<= 1: within tolerance)");
+    I.rejected = table(I.file, "coupling/rejected", 1);
+    I.rejected->attribute("meaning", "attempts of the step ending at time[i] rejected and redone shorter before it (coupling.adaptive.reject_above)");
+    I.step_error->append(kNaN);
+    I.rejected->append(0.0);
+  }
   if (I.checkpoints) {
     // docs/output.md#checkpoints-and-resume
     write_number(I.file, "checkpoint", "steps_done", 0.0);
@@ -435,6 +446,7 @@ void H5Recorder::step(const StepRecord& r) {
   I.wall_s->append(r.wall_seconds);
   I.iterations->append(r.iterations);
   if (I.coupling_residual) I.coupling_residual->append(r.coupling_residuals);
+  if (I.step_error) I.step_error->append(r.step_error), I.rejected->append(static_cast<double>(r.rejected));
   for (const auto& [name, sigs] : r.outputs)
     for (const auto& [sig, v] : sigs) I.outputs.at(name + "/" + sig)->append(v.value);
   for (const auto& [name, diags] : r.diagnostics)
@@ -475,6 +487,9 @@ void H5Recorder::step(const StepRecord& r) {
     // Every participant has its checkpoint after this step: with the rows up to here on disk
     // first, the record now says a resume may start here.
     I.flush_all();
+    // The coupling algorithm's state after this step (implicit, adaptive), for the resume.
+    remove_if_present(I.file, "checkpoint/algorithm_state");
+    if (!r.algorithm_state.empty()) cosim::h5::write_string(I.file, "checkpoint/algorithm_state", r.algorithm_state);
     set_number(I.file, "checkpoint/steps_done", static_cast<double>(r.step_index + 1));
     I.checkpoint_steps = r.step_index + 1;
     set_number(I.file, "checkpoint/time", cosim::to_seconds(r.t_end));
@@ -585,6 +600,9 @@ void CsvWriter::on_start(const RunSetup& s) {
     cosim::h5::Handle f(H5Fopen(continue_from_.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
     if (!f.ok()) throw std::runtime_error("cannot read the record '" + continue_from_ + "' for the CSV");
     std::map<std::string, std::vector<double>> data;
+    const auto times = cosim::h5::read_doubles(f, "time");  // an adaptive step's are not i macro steps
+    if (times.size() < static_cast<std::size_t>(s.first_step) + 1)
+      throw std::runtime_error("the record '" + continue_from_ + "' is shorter than its checkpoint");
     for (const auto& [name, sig] : columns_)
       data[name + "/" + sig] = cosim::h5::read_doubles(f, "participants/" + name + "/outputs/" + sig);
     for (int64_t i = 0; i <= s.first_step; ++i) {
@@ -597,7 +615,10 @@ void CsvWriter::on_start(const RunSetup& s) {
           throw std::runtime_error("the record '" + continue_from_ + "' is shorter than its checkpoint");
         v.assign(all.begin() + static_cast<std::ptrdiff_t>(i * w), all.begin() + static_cast<std::ptrdiff_t>((i + 1) * w));
       }
-      row(s.config->t_start + i * s.config->macro_step, outputs);
+      row(s.config->coupling.adaptive.enabled
+              ? TimePoint(Duration(std::llround(times[static_cast<std::size_t>(i)] * 1e9)))
+              : s.config->t_start + i * s.config->macro_step,
+          outputs);
     }
   }
   if (std::fflush(file_) != 0) fail();
@@ -654,7 +675,7 @@ void Progress::on_start(const RunSetup& s) {
   since_print_.restart();
   // A resumed run counts on from its resume point; rates are of this process's steps.
   steps_done_ = s.first_step;
-  t_begin_ = t_done_ = s.config->t_start + s.first_step * s.config->macro_step;
+  t_begin_ = t_done_ = s.first_time;
 }
 
 void Progress::on_step(const StepRecord& r) {
@@ -665,6 +686,7 @@ void Progress::on_step(const StepRecord& r) {
   for (const auto& [n, v] : r.compute_seconds) compute_[n] += v;
   for (const auto& [n, v] : r.round_trip_seconds) round_trip_[n] += v;
   iterations_ += r.iterations;
+  rejected_ += r.rejected;
   ++steps_here_;
   if (!live_ || since_print_.seconds() < 1.0) return;
   since_print_.restart();
@@ -673,9 +695,16 @@ void Progress::on_step(const StepRecord& r) {
   const double done = cosim::to_seconds(t_done_ - setup_->config->t_start);
   const double total = cosim::to_seconds(setup_->config->t_end - setup_->config->t_start);
   const double eta = sim > 0 ? wall / sim * (total - done) : 0;
-  std::fprintf(stderr, "\rt = %.4f / %.4f s (%3.0f%%)  step %lld/%lld  real-time factor %.3g  ETA %.0f s   ",
-               cosim::to_seconds(t_done_), cosim::to_seconds(setup_->config->t_end), 100 * done / total,
-               static_cast<long long>(steps_done_), static_cast<long long>(setup_->steps),
+  const bool adaptive = setup_->config->coupling.adaptive.enabled;
+  char steps[96];  // an adaptive run's step count is known only at its end
+  if (adaptive)
+    std::snprintf(steps, sizeof steps, "step %lld (H %.3g s, %lld rejected)", static_cast<long long>(steps_done_),
+                  cosim::to_seconds(r.t_end - r.t_start), static_cast<long long>(rejected_));
+  else
+    std::snprintf(steps, sizeof steps, "step %lld/%lld", static_cast<long long>(steps_done_),
+                  static_cast<long long>(setup_->steps));
+  std::fprintf(stderr, "\rt = %.4f / %.4f s (%3.0f%%)  %s  real-time factor %.3g  ETA %.0f s   ",
+               cosim::to_seconds(t_done_), cosim::to_seconds(setup_->config->t_end), 100 * done / total, steps,
                wall / sim, eta);
   if (setup_->config->coupling.type == CouplingType::Implicit && !r.coupling_residuals.empty())
     std::fprintf(stderr, "iterations %d (mean %.2f)  |r| %.2e   ", r.iterations,
@@ -688,12 +717,15 @@ void Progress::on_finish(bool ok, const std::string& message) {
   if (live_) std::fprintf(stderr, "\n");
   const double wall = run_wall_.seconds();
   const double sim = cosim::to_seconds(t_done_ - t_begin_);
-  char title[256];
-  std::snprintf(title, sizeof title,
-                "%s after %lld of %lld macro steps, t = %.6g s, wall %.3f s, real-time factor %.3g",
-                ok ? "finished" : "STOPPED", static_cast<long long>(steps_done_),
-                static_cast<long long>(setup_->steps), cosim::to_seconds(t_done_), wall,
-                sim > 0 ? wall / sim : 0.0);
+  char title[256], steps[96];
+  if (setup_->config->coupling.adaptive.enabled)
+    std::snprintf(steps, sizeof steps, "%lld adaptive macro steps (%lld rejected and redone)",
+                  static_cast<long long>(steps_done_), static_cast<long long>(rejected_));
+  else
+    std::snprintf(steps, sizeof steps, "%lld of %lld macro steps", static_cast<long long>(steps_done_),
+                  static_cast<long long>(setup_->steps));
+  std::snprintf(title, sizeof title, "%s after %s, t = %.6g s, wall %.3f s, real-time factor %.3g",
+                ok ? "finished" : "STOPPED", steps, cosim::to_seconds(t_done_), wall, sim > 0 ? wall / sim : 0.0);
   // Rows named after the recorded timing datasets (docs/output.md).
   std::vector<cosim::TimingRow> rows;
   for (const auto& [n, v] : compute_) {

@@ -93,6 +93,7 @@ class Progress final : public Observer {
   double wall_steps_ = 0, master_ = 0;
   std::map<std::string, double> compute_, round_trip_;
   int64_t iterations_ = 0, steps_here_ = 0;  // coupling iterations and steps of this process
+  int64_t rejected_ = 0;  // adaptive step: attempts rejected and redone
 };
 
 }  // namespace master

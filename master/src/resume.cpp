@@ -109,6 +109,16 @@ ResumePoint read_resume_point(const ResumeRecord& record, const Config& config) 
                     all.begin() + static_cast<std::ptrdiff_t>((i + 1) * width));
     return out;
   };
+  if (config.coupling.adaptive.enabled) {  // the steps' ends as recorded (whole nanoseconds)
+    for (const auto& t : table("time")) p.times.push_back(TimePoint(Duration(std::llround(t.at(0) * 1e9))));
+    if (p.times.front() != config.t_start)
+      throw ConfigError(prefix(record.path) + ": its /time does not start at time.start; the record is damaged");
+  }
+  if (H5Lexists(f, "checkpoint/algorithm_state", H5P_DEFAULT) > 0)
+    p.algorithm_state = cosim::h5::read_string(f, "checkpoint/algorithm_state");
+  else if (config.coupling.type == CouplingType::Implicit || config.coupling.adaptive.enabled)
+    throw ConfigError(prefix(record.path) + ": it has no /checkpoint/algorithm_state, which an implicit or "
+                      "adaptive run needs to continue; the record is damaged (or written before this was saved)");
   for (const auto& k : config.connections) {
     const std::string g = "connections/" + k.to.str();
     p.received.push_back(table(g + "/received"));

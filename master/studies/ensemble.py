@@ -150,10 +150,18 @@ def bus_url(ensemble, slot):
 # --- Statistics -------------------------------------------------------------------------
 
 def smooth(t, y, seconds):
-    """Centred moving average over `seconds` (edges padded with the end values)."""
+    """Centred moving average over `seconds` (edges padded with the end values). Samples at
+    uneven times (an adaptive macro step) are averaged over time, not over a count of samples:
+    interpolated linearly onto an even grid at their shortest step, averaged, and read back at
+    their own times."""
     if len(t) < 3 or seconds <= 0:
         return y
+    steps = np.diff(t)
     dt = (t[-1] - t[0]) / (len(t) - 1)
+    if steps.min() > 0 and steps.max() - steps.min() > 1e-9 * dt:
+        h = float(steps.min())
+        even = np.linspace(t[0], t[-1], int(round((t[-1] - t[0]) / h)) + 1)
+        return np.interp(t, even, smooth(even, np.interp(even, t, y), seconds))
     n = max(1, int(round(seconds / dt)))
     kernel = np.ones(n) / n
     pad = np.pad(y, (n // 2, n - 1 - n // 2), mode="edge")

@@ -87,17 +87,14 @@ std::optional<ready_t> ParticipantCore::configure(const configure_t& m) {
       throw ProtocolError("configure: resume_steps_done " + std::to_string(m.resume_steps_done) +
                           " is negative");
     if (m.resume_steps_done > 0) {
-      // Checked before the multiplication can overflow: the run has (t_end - t_start) / H steps.
-      if (m.resume_steps_done >= (m.t_end_ns - m.t_start_ns) / m.macro_step_ns)
-        throw ProtocolError("configure: resume after " + std::to_string(m.resume_steps_done) +
-                            " steps, but the run has only " +
-                            std::to_string((m.t_end_ns - m.t_start_ns) / m.macro_step_ns));
+      // Any time inside the run: an adaptive macro step's resume time is no multiple of
+      // macro_step (the master's record says where its steps ended).
+      if (m.resume_t_ns <= m.t_start_ns || m.resume_t_ns >= m.t_end_ns)
+        throw ProtocolError("configure: resume after " + std::to_string(m.resume_steps_done) + " steps at " +
+                            std::to_string(m.resume_t_ns) + " ns, which is not inside the run (" +
+                            std::to_string(m.t_start_ns) + ", " + std::to_string(m.t_end_ns) + ") ns");
       run_.resume_steps_done = m.resume_steps_done;
-      run_.resume_time = run_.t_start + m.resume_steps_done * run_.macro_step;
-      if (to_ns(run_.resume_time) != m.resume_t_ns)
-        throw ProtocolError("configure: resume time " + std::to_string(m.resume_t_ns) +
-                            " ns is not t_start + " + std::to_string(m.resume_steps_done) +
-                            " macro steps");
+      run_.resume_time = time_point_ns(m.resume_t_ns);
       if (m.checkpoint_folder.empty())
         throw ProtocolError("configure: a resume needs the checkpoint folder");
     }

@@ -39,7 +39,7 @@ class Script final : public master::Coupling {
   void close_step(int iterations, bool checkpoint) override {
     calls.push_back("close " + std::to_string(iterations) + (checkpoint ? " checkpoint" : ""));
   }
-  bool checkpoint_due(int64_t step) const override {
+  bool checkpoint_due(int64_t step, master::TimePoint, master::TimePoint) override {
     return checkpoint_every > 0 && (step + 1) % checkpoint_every == 0;
   }
   bool ended() const override { return false; }

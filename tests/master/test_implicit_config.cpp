@@ -94,7 +94,6 @@ TEST(master_ImplicitConfig, BadSettingsAreRefusedNamingTheKeyAndTheFix) {
       {{"coupling.type=implicit", kConv, "coupling.acceleration={type: aitken, reuse: 3}"}, {"coupling.acceleration", "reuse"}},
       {{"coupling.type=implicit", kConv, "coupling.acceleration={type: iqn_ils, reuse: -1}"}, {"coupling.acceleration.reuse", "0 to 100"}},
       {{"coupling.type=implicit", kConv, "coupling.acceleration={type: iqn_ils, filter: 1}"}, {"coupling.acceleration.filter", "0 <= filter < 1"}},
-      {{"coupling.type=implicit", kConv, "checkpoints.every=0.01"}, {"does not take checkpoints yet", "checkpoints.every: 0"}},
       {{"power=[{name: p, force: b.f, velocity: a.x}]", "coupling.adaptive={min_step: 1.0e-4}"}, {"coupling.adaptive", "max_step"}},
       {{"power=[{name: p, force: b.f, velocity: a.x}]", "coupling.adaptive={min_step: 2.0e-3, max_step: 1.0e-2}"},
        {"coupling.adaptive: min_step 0.002 s <= time.macro_step 0.001 s"}},
@@ -103,8 +102,6 @@ TEST(master_ImplicitConfig, BadSettingsAreRefusedNamingTheKeyAndTheFix) {
        {"coupling.adaptive.safety: 1.5", "<= 1"}},
       {{"power=[{name: p, force: b.f, velocity: a.x}]", "coupling.adaptive={min_step: 1.0e-4, max_step: 1.0e-2, gain: 1}"},
        {"coupling.adaptive", "gain"}},
-      {{"power=[{name: p, force: b.f, velocity: a.x}]", "checkpoints.every=0.01",
-        "coupling.adaptive={min_step: 1.0e-4, max_step: 1.0e-2}"}, {"coupling.adaptive", "checkpoints.every: 0"}},
   };
   for (const auto& c : cases) {
     const std::string e = error(c.sets);
@@ -167,6 +164,55 @@ TEST(master_ImplicitConfig, AParticipantThatCannotRepeatAStepIsRefusedByName) {
   }
   infos["b"].can_repeat = true;
   EXPECT_NO_THROW(alg.initialize({&infos, 1}));
+}
+
+TEST(master_ImplicitConfig, ImplicitAndAdaptiveRunsTakeCheckpoints) {
+  EXPECT_EQ(parse({"coupling.type=implicit", kConv, "checkpoints.every=0.01"}).checkpoints.every, cosim::Duration(10000000));
+  EXPECT_EQ(parse({"power=[{name: p, force: b.f, velocity: a.x}]", "checkpoints.every=0.01",
+                   "coupling.adaptive={min_step: 1.0e-4, max_step: 1.0e-2, reject_above: 2}"})
+                .checkpoints.every,
+            cosim::Duration(10000000));
+}
+
+TEST(master_ImplicitConfig, RejectingStepsParsesIsBoundedAndNeedsParticipantsThatRepeat) {
+  const std::string power = "power=[{name: p, force: b.f, velocity: a.x}]";
+  const std::string adaptive = "coupling.adaptive={min_step: 1.0e-4, max_step: 1.0e-2}";
+  EXPECT_EQ(parse({power, adaptive}).coupling.adaptive.reject_above, 0);  // default: never
+  const auto c = parse({power, adaptive, "coupling.adaptive.reject_above=3"});
+  EXPECT_EQ(c.coupling.adaptive.reject_above, 3);
+  for (const char* bad : {"0.5", "-1", "1.0e7"}) {
+    const auto m = error({power, adaptive, std::string("coupling.adaptive.reject_above=") + bad});
+    EXPECT_NE(m.find("coupling.adaptive.reject_above: " + std::string(bad[0] == '1' ? "1e+07" : bad) +
+                     " is not allowed (allowed: 0, never reject"),
+              std::string::npos) << bad << ": " << m;
+  }
+  EXPECT_NE(error({power, adaptive, "coupling.adaptive.reject_above=nan"}).find("coupling.adaptive.reject_above: expected a finite number"),
+            std::string::npos);
+  // Explicit or implicit inside: a participant that cannot repeat a step is refused by name.
+  std::map<std::string, cosim::ParticipantInfo> infos;
+  infos["a"].can_repeat = true;
+  infos["a"].inner_step = cosim::Duration(1000000);
+  infos["b"].can_repeat = false;
+  infos["b"].repeat_note = "an FMU without state";
+  infos["b"].inner_step = cosim::Duration(1000000);
+  auto a = master::make_algorithm(c);
+  a->setup(c);
+  try {
+    a->initialize({&infos, 0});
+    FAIL() << "rejecting steps with a participant that cannot repeat one was accepted";
+  } catch (const cosim::config::ConfigError& e) {
+    const std::string m = e.what();
+    EXPECT_NE(m.find("coupling.adaptive.reject_above"), std::string::npos) << m;
+    EXPECT_NE(m.find("participant 'b' cannot repeat a step (an FMU without state)"), std::string::npos) << m;
+  }
+  infos["b"].can_repeat = true;
+  EXPECT_NO_THROW(a->initialize({&infos, 0}));
+  // Without reject_above the same participant is fine (every step is accepted).
+  infos["b"].can_repeat = false;
+  const auto c0 = parse({power, adaptive});
+  auto b = master::make_algorithm(c0);
+  b->setup(c0);
+  EXPECT_NO_THROW(b->initialize({&infos, 0}));
 }
 
 TEST(master_ImplicitConfig, GaussSeidelFeedsBackOnlyTheConnectionsIntoEarlierParticipants) {

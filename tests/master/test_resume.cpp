@@ -466,3 +466,67 @@ TEST(ResumeInProcess, EveryResumePointThroughTheStartUpIterationsIsBitIdentical)
     fs::remove_all(folder);
   }
 }
+
+// Implicit coupling (IQN-ILS reusing past steps' columns) and an adaptive step that rejects
+// steps take checkpoints too: the algorithm's state after the checkpoint's step (the reused
+// columns, the connection scales, the next step's length, the last error) is kept in the record
+// (/checkpoint/algorithm_state) and a resumed run continues bit-identically, also across a
+// rejected step (the explicit adaptive run rejects steps 0 and 9, the implicit one steps 7 and
+// 8; resumed after 7 steps these rejections happen in the resumed process).
+TEST(ResumeInProcess, ImplicitAndAdaptiveRunsResumeBitIdentically) {
+  struct Variant {
+    const char* name;
+    std::vector<std::string> sets;
+    std::vector<int64_t> resume_after;
+    std::vector<std::size_t> rejected_rows;  // rows of /coupling/rejected that hold 1 (step + 1)
+  };
+  const std::string conv =
+      "coupling.convergence=[{connection: mass1.force, measure: absolute_or_relative, absolute: 1.0e-9, relative: 1.0e-9}]";
+  const std::string iqn = "coupling.acceleration={type: iqn_ils, relaxation: 0.1, reuse: 8}";
+  // Jacobi: steps of 0.315, 0.315, 0.945, ... ms; implicit Gauss-Seidel: 0.5, 1.5, 0.89, ... ms.
+  // Every step from the second (Jacobi) or the first on reaches a multiple of checkpoints.every
+  // = 0.5 ms, so the runs checkpoint after each.
+  const std::string adaptive =
+      "coupling.adaptive={min_step: 2.5e-4, max_step: 2.0e-3, abs_tolerance: 1.0e-3, rel_tolerance: 1.0e-2, "
+      "reject_above: 1.0, max_change: 3, safety: 1.0}";
+  const std::vector<Variant> variants{
+      {"implicit_gauss_seidel_iqn",
+       {"scheme=gauss_seidel", "order=[mass1, mass2]", "coupling.type=implicit", conv, iqn, "time.macro_step=1.0e-3",
+        "time.end=0.01", "checkpoints.every=0.001"},
+       {1, 2, 3, 4, 7},
+       {}},
+      {"adaptive_rejecting_jacobi", {adaptive, "time.end=0.01", "checkpoints.every=0.0005"}, {2, 3, 7, 10}, {1, 10}},
+      {"adaptive_rejecting_implicit_iqn",
+       {"scheme=gauss_seidel", "order=[mass1, mass2]", "coupling.type=implicit", conv, iqn, adaptive, "time.end=0.01",
+        "checkpoints.every=0.0005"},
+       {1, 2, 7, 8},
+       {8, 9}}};
+  for (const auto& v : variants) {
+    std::vector<std::string> sets = v.sets;
+    sets.push_back("output.csv=");
+    const std::string folder = harness::temp_path(std::string("_") + v.name + ".checkpoints");
+    const std::string full = harness::temp_path(std::string("_") + v.name + "_full.h5");
+    fs::remove_all(folder);
+    run_in_process(sets, full, folder, 0, false);
+    ASSERT_EQ(harness::read_string(full, "status"), "finished") << v.name;
+    if (!v.rejected_rows.empty()) {  // the scene this test means: these steps rejected once each
+      const auto rejected = harness::read_dataset(full, "coupling/rejected");
+      for (std::size_t row = 0; row < rejected.size(); ++row) {
+        const bool expected = std::find(v.rejected_rows.begin(), v.rejected_rows.end(), row) != v.rejected_rows.end();
+        EXPECT_EQ(rejected[row], expected ? 1.0 : 0.0) << v.name << ", row " << row;
+      }
+    }
+    for (int64_t n : v.resume_after) {
+      SCOPED_TRACE(std::string(v.name) + ", resumed after " + std::to_string(n) + " steps");
+      const std::string h5 = harness::temp_path(std::string("_") + v.name + "_" + std::to_string(n) + ".h5");
+      run_in_process(sets, h5, folder, n, false);
+      ASSERT_EQ(harness::read_dataset(h5, "checkpoint/steps_done"), std::vector<double>{static_cast<double>(n)});
+      ASSERT_EQ(harness::read_string(h5, "status"), "stopped: stopped on purpose");
+      run_in_process(sets, h5, folder, 0, true);
+      const Comparison c = compare_records(full, h5);
+      EXPECT_TRUE(c.differ.empty() && c.missing.empty()) << c.text();
+      EXPECT_GE(c.compared, 20);
+    }
+    fs::remove_all(folder);
+  }
+}

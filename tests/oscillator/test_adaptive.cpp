@@ -66,12 +66,48 @@ class WallMass final : public cosim::Model {
 
 struct Result {
   harness::Series s;
-  std::vector<master::AdaptiveStepAlgorithm::Record> history;
+  std::vector<master::AdaptiveStepAlgorithm::Record> history;  // rejected attempts included
   Duration quantum{};
   std::string name;
+  std::vector<master::StepRecord> records;  // what the observers got (no outputs kept)
 };
 
-Result run(std::vector<std::string> extra) {
+// Keeps each step record's times, error and counts.
+class Steps final : public master::Observer {
+ public:
+  std::vector<master::StepRecord> records;
+  void on_step(const master::StepRecord& r) override {
+    master::StepRecord k;
+    k.step_index = r.step_index, k.t_start = r.t_start, k.t_end = r.t_end, k.iterations = r.iterations;
+    k.step_error = r.step_error, k.rejected = r.rejected;
+    records.push_back(k);
+  }
+};
+
+// Fixed-step macro steps of given lengths, one after another: the accepted steps of an
+// adaptive run replayed without any rejection.
+// Explicit or implicit as the config says.
+class GivenSteps final : public master::CouplingAlgorithm {
+ public:
+  explicit GivenSteps(std::vector<Duration> steps) : steps_(std::move(steps)) {}
+  std::string name() const override { return "given steps"; }
+  void setup(const master::Config& c) override {
+    if (c.coupling.type == master::CouplingType::Implicit) inner_ = std::make_unique<master::ImplicitAlgorithm>();
+    else inner_ = std::make_unique<master::FixedStepAlgorithm>();
+    inner_->setup(c);
+  }
+  void initialize(const master::AlgorithmSetup& s) override { inner_->initialize(s); }
+  Duration do_step(master::Coupling& coupling, int64_t step, cosim::TimePoint t) override {
+    inner_->set_step(steps_.at(static_cast<std::size_t>(step)));
+    return inner_->do_step(coupling, step, t);
+  }
+
+ private:
+  std::unique_ptr<master::CouplingAlgorithm> inner_;
+  std::vector<Duration> steps_;
+};
+
+master::Config wall_config(std::vector<std::string> extra) {
   std::vector<std::string> o = {
       "time.end=2.0", "time.macro_step=1.0e-3", "output.file=", "output.csv=",
       "participants.mass1.parameters={mass: 1, stiffness: 10, damping: 0.2, position: 0.1, velocity: 0, "
@@ -81,19 +117,29 @@ Result run(std::vector<std::string> extra) {
       "participants.mass2.parameters.inner_step=2.0e-5",
       "coupling.adaptive={min_step: 1.0e-4, max_step: 2.0e-2, abs_tolerance: 1.0e-6, rel_tolerance: 1.0e-3}"};
   o.insert(o.end(), extra.begin(), extra.end());
-  const auto config = harness::oscillator_config(o);
+  return harness::oscillator_config(o);
+}
+
+// The wall scene with `algorithm` (null: the config's).
+Result run_with(const master::Config& config, std::unique_ptr<master::CouplingAlgorithm> algorithm) {
   WallMass m1;
   oscillator::OscillatorAdapter m2(oscillator::Side::Mass2);
   cosim::ParticipantCore c1("mass1", m1), c2("mass2", m2);
   auto transport = cosim::make_in_process_transport(1234, {{"mass1", &c1}, {"mass2", &c2}});
-  master::CoSimulation sim(config, *transport);
+  master::CoSimulation sim(config, *transport, std::move(algorithm));
   harness::Collector col;
+  Steps steps;
   sim.add_observer(&col);
+  sim.add_observer(&steps);
   sim.connect();
   sim.run();
-  const auto& a = dynamic_cast<const master::AdaptiveStepAlgorithm&>(sim.algorithm());
-  return {col.s, a.history(), a.quantum(), a.name()};
+  Result r{col.s, {}, {}, sim.algorithm().name(), steps.records};
+  if (const auto* a = dynamic_cast<const master::AdaptiveStepAlgorithm*>(&sim.algorithm()))
+    r.history = a->history(), r.quantum = a->quantum();
+  return r;
 }
+
+Result run(std::vector<std::string> extra) { return run_with(wall_config(std::move(extra)), nullptr); }
 
 void check(const Result& r) {
   SCOPED_TRACE(r.name);
@@ -105,7 +151,7 @@ void check(const Result& r) {
     EXPECT_GE(h.step, Duration(100000));
     EXPECT_LE(h.step, Duration(20000000));
     EXPECT_EQ(h.step % r.quantum, Duration::zero());
-    total += h.step;
+    if (!h.rejected) total += h.step;
   }
   EXPECT_EQ(total, Duration(2000000000));  // integer nanoseconds: exactly time.end
   // The impact: the first macro time with x1 below the wall.
@@ -116,6 +162,7 @@ void check(const Result& r) {
   // Quiet phase: from 1 ms the step grows to at least 5 ms well before the impact.
   Duration quiet_max{}, before_hit{}, around_min = Duration::max();
   for (const auto& h : r.history) {
+    if (h.rejected) continue;
     const double t = cosim::to_seconds(h.t_start.time_since_epoch());
     if (t < t_hit - 0.1) quiet_max = std::max(quiet_max, h.step);
     if (t < t_hit - 0.05) before_hit = h.step;
@@ -123,7 +170,7 @@ void check(const Result& r) {
   }
   std::printf("%s: impact at t = %.4f s; steps: quiet max %.4g s, just before %.4g s, smallest around the impact %.4g s; %zu steps\n",
               r.name.c_str(), t_hit, cosim::to_seconds(quiet_max), cosim::to_seconds(before_hit),
-              cosim::to_seconds(around_min), r.history.size());
+              cosim::to_seconds(around_min), r.records.size());
   EXPECT_GE(quiet_max, Duration(5000000)) << "the step should grow in the quiet phase";
   EXPECT_LE(around_min * 4, before_hit) << "the step should shrink at the impact";
 }
@@ -139,4 +186,83 @@ TEST(AdaptiveStep, WorksWithImplicitCoupling) {
   check(run({"scheme=gauss_seidel", "order=[mass1, mass2]", "coupling.type=implicit",
              "coupling.convergence=[{connection: mass1.force, measure: absolute_or_relative, absolute: 1.0e-9, relative: 1.0e-9}]",
              "coupling.acceleration={type: iqn_ils, relaxation: 0.1, reuse: 8}"}));
+}
+
+// coupling.adaptive.reject_above: a step whose error estimate is above it is rolled back and redone
+// shorter. Checked: steps are rejected at the impact; every accepted step longer than min_step
+// is within the threshold; each redo is shorter than the attempt it replaces and starts at the
+// same time; the record has the accepted steps only, each with its error and its count of
+// rejected attempts; the steps still add up to time.end exactly in whole quanta; and the
+// rollback is exact: the accepted step lengths replayed by a fixed-step algorithm (no
+// rejection) give the same trajectory bit for bit (participants and predictors restored).
+void check_rejection(const std::vector<std::string>& extra, double reject_above) {
+  auto options = extra;
+  options.push_back("coupling.adaptive.reject_above=" + std::to_string(reject_above));
+  const auto config = wall_config(options);
+  const Result r = run_with(config, nullptr);
+  check(r);
+  SCOPED_TRACE(r.name);
+  const Duration min_step(100000);
+  std::vector<Duration> accepted;
+  int64_t rejected = 0, rejected_at_impact = 0;
+  double worst_accepted = 0;
+  for (std::size_t i = 0; i < r.history.size(); ++i) {
+    const auto& h = r.history[i];
+    if (h.rejected) {
+      ++rejected;
+      EXPECT_TRUE(!(h.error <= reject_above)) << "a step within the threshold was rejected";
+      EXPECT_GT(h.step, min_step) << "a step at min_step cannot be shortened, so it is not rejected";
+      ASSERT_LT(i + 1, r.history.size());
+      EXPECT_EQ(r.history[i + 1].t_start, h.t_start) << "the redo starts where the rejected attempt did";
+      EXPECT_LT(r.history[i + 1].step, h.step) << "the redo is shorter";
+      const double t = cosim::to_seconds(h.t_start.time_since_epoch());
+      if (t > 0.6 && t < 0.8) ++rejected_at_impact;
+      continue;
+    }
+    accepted.push_back(h.step);
+    if (h.step > min_step) {
+      EXPECT_LE(h.error, reject_above) << "accepted above the threshold at t = "
+                                       << cosim::to_seconds(h.t_start.time_since_epoch());
+      worst_accepted = std::max(worst_accepted, h.error);
+    }
+  }
+  std::printf("%s, reject_above %g: %lld attempts rejected (%lld at the impact, 0.6-0.8 s), %zu accepted, "
+              "largest accepted error above min_step %.3g\n",
+              r.name.c_str(), reject_above, static_cast<long long>(rejected), static_cast<long long>(rejected_at_impact),
+              accepted.size(), worst_accepted);
+  EXPECT_GT(rejected_at_impact, 0) << "the impact should reject steps";
+  // The record: the accepted steps only, contiguous, with their rejected attempts counted.
+  ASSERT_EQ(r.records.size(), accepted.size());
+  int64_t counted = 0;
+  for (std::size_t i = 0; i < r.records.size(); ++i) {
+    EXPECT_EQ(r.records[i].step_index, static_cast<int64_t>(i));
+    EXPECT_EQ(r.records[i].t_end - r.records[i].t_start, accepted[i]);
+    if (i > 0) EXPECT_EQ(r.records[i].t_start, r.records[i - 1].t_end);
+    EXPECT_TRUE(std::isfinite(r.records[i].step_error));
+    counted += r.records[i].rejected;
+  }
+  EXPECT_EQ(counted, rejected);
+  EXPECT_EQ(r.records.back().t_end, config.t_end);
+  // Exact rollback: the same steps without rejections, bit for bit.
+  auto fixed = wall_config(extra);
+  const Result g = run_with(fixed, std::make_unique<GivenSteps>(accepted));
+  ASSERT_EQ(g.s.t.size(), r.s.t.size());
+  for (std::size_t i = 0; i < g.s.t.size(); ++i) {
+    ASSERT_EQ(g.s.t[i], r.s.t[i]) << i;
+    ASSERT_EQ(g.s.x1[i], r.s.x1[i]) << "row " << i;
+    ASSERT_EQ(g.s.v1[i], r.s.v1[i]) << "row " << i;
+    ASSERT_EQ(g.s.force[i], r.s.force[i]) << "row " << i;
+  }
+}
+
+TEST(AdaptiveStep, RejectsAndRepeatsAStepAboveTheThresholdExplicit) {
+  check_rejection({"scheme=gauss_seidel", "order=[mass1, mass2]"}, 2.0);
+  check_rejection({"scheme=jacobi"}, 2.0);
+}
+
+TEST(AdaptiveStep, RejectsAndRepeatsWithImplicitCoupling) {
+  check_rejection({"scheme=gauss_seidel", "order=[mass1, mass2]", "coupling.type=implicit",
+                   "coupling.convergence=[{connection: mass1.force, measure: absolute_or_relative, absolute: 1.0e-9, relative: 1.0e-9}]",
+                   "coupling.acceleration={type: iqn_ils, relaxation: 0.1, reuse: 8}"},
+                  2.0);
 }

@@ -340,11 +340,13 @@ TEST(ParticipantCore, ResumesAndCheckpointsItCannotDoAreRefusedByName) {
   {  // resume points outside the run, a time that does not match, no folder
     Saving m;
     ParticipantCore core("p", m);
-    configure_t c = with_checkpoints(folder, 100);  // the run has 100 steps
-    EXPECT_NE(core.configure(c)->error.find("resume after 100 steps, but the run has only 100"), std::string::npos);
+    configure_t c = with_checkpoints(folder, 100);  // the run has 100 steps: the resume time is its end
+    EXPECT_NE(core.configure(c)->error.find("resume after 100 steps at " + std::to_string(c.t_end_ns) +
+                                            " ns, which is not inside the run"),
+              std::string::npos);
     c = with_checkpoints(folder, 4);
-    c.resume_t_ns += 1;
-    EXPECT_NE(core.configure(c)->error.find("is not t_start + 4 macro steps"), std::string::npos);
+    c.resume_t_ns = c.t_start_ns;
+    EXPECT_NE(core.configure(c)->error.find("which is not inside the run"), std::string::npos);
     c = with_checkpoint_folderless();
     EXPECT_NE(core.configure(c)->error.find("a resume needs the checkpoint folder"), std::string::npos);
     c = with_checkpoints(folder, -1);

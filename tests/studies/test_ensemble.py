@@ -175,6 +175,21 @@ class Ensemble(unittest.TestCase):
             with open(os.path.join(out, "report.md")) as f:
                 self.assertIn("not run yet: members [5]", f.read())
 
+    def test_smoothing_averages_over_time_at_uneven_steps(self):
+        # An adaptive macro step's samples: 0.5 ms apart in the first half, 5 ms in the second.
+        # The centred moving average of sin(w t) over T is sin(w t) sin(w T / 2) / (w T / 2).
+        w, T = 2 * np.pi * 3, 0.1
+        t = np.concatenate([np.arange(0, 0.5, 5e-4), np.arange(0.5, 1.0 + 1e-9, 5e-3)])
+        got = ensemble.smooth(t, np.sin(w * t), T)
+        exact = np.sin(w * t) * np.sin(w * T / 2) / (w * T / 2)
+        inner = (t > T) & (t < 1.0 - T)
+        self.assertLess(float(np.abs(got - exact)[inner].max()), 0.02)
+        # Even samples take the count-based path as before.
+        te = np.linspace(0, 1, 2001)
+        ge = ensemble.smooth(te, np.sin(w * te), T)
+        ee = np.sin(w * te) * np.sin(w * T / 2) / (w * T / 2)
+        self.assertLess(float(np.abs(ge - ee)[(te > T) & (te < 1 - T)].max()), 0.02)
+
     def test_bad_ensemble_sections(self):
         cases = [
             ("members: 1", "ensemble.members must be an integer >= 2"),

@@ -29,7 +29,7 @@ struct RunInfo {
   TimePoint t_end{};
   Duration macro_step{};
   // A resumed run (cosim_master --resume): load_checkpoint follows configure and the first step
-  // starts at resume_time = t_start + resume_steps_done macro steps. 0 for a fresh start.
+  // starts at resume_time (t_start + resume_steps_done macro steps, or an adaptive step's recorded end). 0 for a fresh start.
   int64_t resume_steps_done = 0;
   TimePoint resume_time{};
 };
