@@ -38,11 +38,11 @@ class Spy final : public cosim::Transport {
   bool error = false;
   std::string reason;
   int64_t session() const override { return inner_.session(); }
-  std::map<std::string, cosim::ParticipantInfo> connect(const std::vector<configure_t>& c,
+  std::map<std::string, cosim::ParticipantInfo> connect(const std::vector<cosim::configure_t>& c,
                                                         double timeout_s) override {
     return inner_.connect(c, timeout_s);
   }
-  std::vector<cosim::StepAnswer> exchange(const std::vector<step_request_t>& q) override {
+  std::vector<cosim::StepAnswer> exchange(const std::vector<cosim::step_request_t>& q) override {
     return inner_.exchange(q);
   }
   void terminate(bool e, const std::string& r) override {
@@ -87,7 +87,8 @@ TEST(RunFailures, ARecordThatCannotStartStopsTheParticipantsAndClosesTheOtherRec
   cosim::ParticipantCore c1("mass1", m1), c2("mass2", m2);
   auto inner = cosim::make_in_process_transport(1234, {{"mass1", &c1}, {"mass2", &c2}});
   Spy spy(*inner);
-  master::CoSimulation sim(config(), spy);
+  const master::Config c = config();  // CoSimulation keeps a reference
+  master::CoSimulation sim(c, spy);
   Finish before, after;
   CannotStart broken;
   sim.add_observer(&before);
