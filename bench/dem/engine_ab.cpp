@@ -119,8 +119,8 @@ int main(int argc, char** argv) {
                    v[0].rc.state.size(), v[1].rc.state.size());
       return 2;
     }
-    dem::Engine engine_a(v[0].rc.scene, bench_engine_options()),
-        engine_b(v[1].rc.scene, bench_engine_options());
+    dem::Engine engine_a(v[0].rc.scene, bench_engine_options().with_config(v[0].rc.performance)),
+        engine_b(v[1].rc.scene, bench_engine_options().with_config(v[1].rc.performance));
     dem::Engine* engines[2] = {&engine_a, &engine_b};
     int b_faster = 0, blocks = 0;
     for (long done = 0; done < steps; done += block, ++blocks) {

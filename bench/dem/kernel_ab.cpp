@@ -57,7 +57,7 @@ int main(int argc, char** argv) {
   const std::string config = argv[1], checkpoint = argv[2];
   const int passes = std::atoi(argv[3]), threads = std::atoi(argv[4]);
   // With a margin, B reads the close pairs (the candidates within the margin of contact, as the
-  // engine lists them for scene.close_margin) instead of every candidate.
+  // engine lists them for performance.close_margin) instead of every candidate.
   const double close_margin = argc == 6 ? std::atof(argv[5]) : 0.0;
   if (argc == 6 && !(close_margin > 0)) {
     std::fprintf(stderr, "kernel_ab: CLOSE_MARGIN_M must be > 0 (metres)\n");

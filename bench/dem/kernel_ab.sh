@@ -11,7 +11,7 @@
 # writes, with the contact law and dt of bench/paper/paper_scene.yaml), so a machine whose speed
 # drifts between minutes still compares them. It prints both medians, their ratio, how often B
 # was faster, and whether the first pass gave the same forces. --close M: B reads only the close
-# pairs within M metres of contact (scene.close_margin), A every candidate.
+# pairs within M metres of contact (performance.close_margin), A every candidate.
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
 cd "$root"
@@ -93,7 +93,7 @@ cmake --build "$build" -j2 --target dem_bench wheel_loader_meshes >/dev/null
 # The flags of the engine (-ffp-contract=off as the engine), linked like dem_bench.
 link=$(sed -e 's/^.* -o \.\.\/\.\.\/bin\/dem_bench //' "$build/bench/dem/CMakeFiles/dem_bench.dir/link.txt")
 (cd "$build/bench/dem" && c++ -O3 -DNDEBUG -ffp-contract=off -fno-math-errno -fopenmp -std=c++20 -w \
-  -I"$root/dem_service/include" -I"$root/protocol/include" -isystem /usr/include/hdf5/serial \
+  -I"$root/dem_service/include" -I"$root/protocol/support/include" -isystem /usr/include/hdf5/serial \
   -DKERNEL_A="\"$tmp/kernel_a.cpp\"" -DKERNEL_B="\"$tmp/kernel_b.cpp\"" \
   "$root/bench/dem/kernel_ab.cpp" -o "$tmp/kernel_ab" $link)
 echo "A = $rev_a, B = $rev_b"

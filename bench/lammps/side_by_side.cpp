@@ -93,7 +93,7 @@ Box read_box(const std::string& file) {
   return b;
 }
 
-// --close-margin: scene.close_margin of our runs (0: every candidate read, the default).
+// --close-margin: performance.close_margin of our runs (0: every candidate read, the default).
 double g_close_margin = 0;
 
 // interval 0: rebuild only when the skin guard fires.
@@ -121,7 +121,7 @@ dem::Scene make_scene(const Box& b, int threads, int interval, bool friction = t
   s.particle_wall = pw;
   s.dt = kDt;
   s.skin = kSkin;
-  s.close_margin = g_close_margin;
+  g_engine_options.close_margin = g_close_margin;
   s.threads = threads;
   s.broad_phase_interval = interval > 0 ? interval : 1 << 30;
   s.guard = dem::GuardMode::rebuild;

@@ -344,7 +344,7 @@ def main():
     p.add_argument("--thread-wait", default="passive", choices=["passive", "brief", "spin"],
                    help="how our idle threads wait (scene.thread_wait; default: the product's)")
     p.add_argument("--close-margin", type=float, default=0.0,
-                   help="scene.close_margin of our runs (fraction of r; 0: every candidate)")
+                   help="performance.close_margin of our runs (fraction of r; 0: every candidate)")
     p.add_argument("--dem", required=True, help="path of dem_side_by_side")
     args = p.parse_args()
     if args.repeats < 1:
@@ -381,7 +381,7 @@ def main():
                   {"lammps": lmp_version, "check": check, "repeats": args.repeats,
                    "close_margin": args.close_margin, "rows": rows},
                   f"Side by side with LAMMPS {lmp_version}, median of {args.repeats}, ours "
-                  f"with scene.close_margin {args.close_margin:g}")
+                  f"with performance.close_margin {args.close_margin:g}")
 
 
 if __name__ == "__main__":

@@ -239,7 +239,7 @@ int run(int argc, char** argv) {
                dem::describe_thread_cpus(dem::thread_cpus(std::max(1, scene.threads))).c_str());
 
   if (rc.prepare.enabled) prepare(rc);
-  dem::Engine engine(scene, engine_options);
+  dem::Engine engine(scene, engine_options.with_config(rc.performance));
   if (rc.settle.enabled) {
     set_tool_poses(scene, s);
     const cosim::Stopwatch settle_wall;

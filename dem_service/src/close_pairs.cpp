@@ -21,18 +21,17 @@ constexpr double kCloseMaxShare = 0.9;
 
 }  // namespace
 
-bool ClosePairs::hold(const Scene& scene, const State& s) const {
+bool ClosePairs::hold(const Scene& scene, double margin, const State& s) const {
   // New lists, another state, or a state put back (a repeated macro step): not these.
   if (!stamp_.matches(s, ListStamp::lists | ListStamp::step)) return false;
   if (!use_) return true;  // the half list is read until its next build
   return std::sqrt(d1_) + std::sqrt(d2_) + scene.dt * std::sqrt(u2_) <=
-         kCloseSlack * scene.close_distance();
+         kCloseSlack * margin;
 }
 
-void ClosePairs::list(const Scene& scene, State& s, const std::vector<std::size_t>& bounds,
-                      int T) {
+void ClosePairs::list(const Scene& scene, double margin, State& s,
+                      const std::vector<std::size_t>& bounds, int T) {
   const std::size_t n = s.size();
-  const double margin = scene.close_distance();
   const double fast = margin / (2 * kCloseSteps * scene.dt);
   const double fast2 = fast * fast;
   offset_.resize(n + 1);

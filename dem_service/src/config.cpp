@@ -183,10 +183,14 @@ void parse_region(const YAML::Node& r, RegionOptions& o) {
 
 void parse_scene_options(const YAML::Node& s, Scene& sc) {
   if (!s) throw ConfigError("scene: missing (expected a map with dt, gravity, ...)");
-  cfg::check_keys(s, "scene", {"dt", "gravity", "broad_phase_interval", "skin", "close_margin",
-                               "pair_schedule", "guard", "threads", "min_particles_per_thread",
-                               "thread_wait",
-                               "stability", "sleep", "region"});
+  if (s.IsMap())
+    for (const char* key : {"close_margin", "pair_schedule", "min_particles_per_thread"})
+      if (s[key])
+        throw ConfigError(std::string("scene.") + key + ": moved to performance." + key +
+                          " (a top-level performance: section, beside scene:; how the engine "
+                          "computes, not the scene; docs/dem.md#performance)");
+  cfg::check_keys(s, "scene", {"dt", "gravity", "broad_phase_interval", "skin", "guard",
+                               "threads", "thread_wait", "stability", "sleep", "region"});
   sc.dt = cfg::get_positive(s, "scene", "dt");
   if (s["gravity"]) sc.gravity = vec3(s, "scene", "gravity");
   sc.broad_phase_interval =
@@ -195,18 +199,6 @@ void parse_scene_options(const YAML::Node& s, Scene& sc) {
     throw ConfigError("scene.broad_phase_interval: must be >= 1 (1 = broad phase every step)");
   sc.skin = cfg::get_double_or(s, "scene", "skin", sc.skin);
   if (!(sc.skin > 0)) throw ConfigError("scene.skin: must be > 0 (a fraction of r_max, e.g. 0.5)");
-  sc.close_margin = cfg::get_double_or(s, "scene", "close_margin", sc.close_margin);
-  if (!(sc.close_margin >= 0 && sc.close_margin < sc.skin)) {
-    std::ostringstream msg;
-    msg << "scene.close_margin: must be >= 0 and below scene.skin (now " << sc.skin
-        << "), a fraction of r_max like the skin, e.g. 0.08; 0 turns close pairs off";
-    throw ConfigError(msg.str());
-  }
-  sc.pair_schedule =
-      cfg::get_choice(s, "scene", "pair_schedule", {"blocks", "ranges"},
-                      sc.pair_schedule == PairSchedule::blocks ? "blocks" : "ranges") == "blocks"
-          ? PairSchedule::blocks
-          : PairSchedule::ranges;
   const bool strict = sc.guard == GuardMode::strict;
   sc.guard = cfg::get_choice(s, "scene", "guard", {"rebuild", "strict"},
                              strict ? "strict" : "rebuild") == "strict"
@@ -214,14 +206,39 @@ void parse_scene_options(const YAML::Node& s, Scene& sc) {
                  : GuardMode::rebuild;
   sc.threads = static_cast<int>(cfg::get_int_or(s, "scene", "threads", sc.threads));
   if (sc.threads < 1) throw ConfigError("scene.threads: must be >= 1");
-  sc.min_particles_per_thread = static_cast<int>(
-      cfg::get_int_or(s, "scene", "min_particles_per_thread", sc.min_particles_per_thread));
-  if (sc.min_particles_per_thread < 1)
-    throw ConfigError("scene.min_particles_per_thread: must be >= 1 (1 = always use scene.threads)");
   sc.thread_wait = parse_thread_wait(s, sc.thread_wait);
   if (const YAML::Node st = s["stability"]) parse_stability(st, sc.stability);
   if (const YAML::Node sl = s["sleep"]) parse_sleep(sl, sc, sc.sleep);
   if (const YAML::Node r = s["region"]) parse_region(r, sc.region);
+}
+
+// performance: how the engine computes (EngineOptions), never what: every value gives the same
+// results (pair_schedule ranges: for one thread count). Absent: the defaults.
+EngineOptions parse_performance(const YAML::Node& p, const Scene& sc) {
+  EngineOptions o;
+  if (!p) return o;
+  const std::string w = "performance";
+  if (!p.IsMap())
+    throw ConfigError(w + ": expected a map {close_margin, pair_schedule, min_particles_per_thread}");
+  cfg::check_keys(p, w, {"close_margin", "pair_schedule", "min_particles_per_thread"});
+  o.close_margin = cfg::get_double_or(p, w, "close_margin", o.close_margin);
+  if (!(o.close_margin >= 0 && o.close_margin < sc.skin)) {
+    std::ostringstream msg;
+    msg << "performance.close_margin: must be >= 0 and below scene.skin (now " << sc.skin
+        << "), a fraction of r_max like the skin, e.g. 0.08; 0 turns close pairs off";
+    throw ConfigError(msg.str());
+  }
+  o.pair_schedule =
+      cfg::get_choice(p, w, "pair_schedule", {"blocks", "ranges"},
+                      o.pair_schedule == PairSchedule::blocks ? "blocks" : "ranges") == "blocks"
+          ? PairSchedule::blocks
+          : PairSchedule::ranges;
+  o.min_particles_per_thread = static_cast<int>(
+      cfg::get_int_or(p, w, "min_particles_per_thread", o.min_particles_per_thread));
+  if (o.min_particles_per_thread < 1)
+    throw ConfigError(
+        "performance.min_particles_per_thread: must be >= 1 (1 = always use scene.threads)");
+  return o;
 }
 
 std::vector<Species> parse_species(const YAML::Node& mats, const YAML::Node& sps) {
@@ -645,8 +662,8 @@ ThreadWait read_thread_wait(const YAML::Node& root) {
 RunConfig load_config(const YAML::Node& given, const std::string& base_dir) {
   std::vector<cosim::NamedFile> material_files;  // materials.<name>.file (docs/soil.md)
   const YAML::Node root = resolve_material_files(given, base_dir, material_files);
-  cfg::check_keys(root, "", {"scene", "materials", "species", "contact", "walls", "tools",
-                             "particles", "prepare", "settle", "run", "output"});
+  cfg::check_keys(root, "", {"scene", "performance", "materials", "species", "contact", "walls",
+                             "tools", "particles", "prepare", "settle", "run", "output"});
   RunConfig rc;
   {
     std::ostringstream text;
@@ -656,6 +673,7 @@ RunConfig load_config(const YAML::Node& given, const std::string& base_dir) {
   rc.inputs = material_files;
   Scene& sc = rc.scene;
   parse_scene_options(root["scene"], sc);
+  rc.performance = parse_performance(root["performance"], sc);
   sc.species = parse_species(root["materials"], root["species"]);
   parse_contact(root["contact"], sc);
   sc.walls = parse_walls(root["walls"]);

@@ -90,7 +90,7 @@ void Engine::reset_thread_busy() {
 }
 
 void Engine::choose_threads(const State& s) {
-  const long per = std::max(1, scene_.min_particles_per_thread);
+  const long per = std::max(1, options_.min_particles_per_thread);
   const long cap = std::max(1L, static_cast<long>(s.size()) / per);
   threads_ = static_cast<int>(std::min<long>(max_threads_, cap));
 }
@@ -259,8 +259,9 @@ detail::PairRows Engine::pair_rows_of(State& s) {
       options_.pair_chunks == EngineOptions::PairChunks::processor
           ? detail::branch_free_chunks_default()
           : options_.pair_chunks == EngineOptions::PairChunks::branch_free;
-  if (scene_.close_pairs_on()) {
-    if (!close_.hold(scene_, s)) close_.list(scene_, s, bounds_, threads_);
+  if (close_pairs_on(scene_, options_)) {
+    const double margin = close_distance(scene_, options_);
+    if (!close_.hold(scene_, margin, s)) close_.list(scene_, margin, s, bounds_, threads_);
     if (close_.use()) {
       rows.offset = close_.offset();
       rows.partner = close_.partner();
@@ -283,7 +284,7 @@ void Engine::pair_forces_impl(State& s) {
   detail::PairSleep rules;  // each thread adds its queue of remote wakes
   if (Sleep) rules = sleepers_.pair_rules(s, options_.sleeper_row_skip);
   const detail::PairRows rows = pair_rows_of(s);
-  if (scene_.pair_schedule == PairSchedule::blocks)
+  if (options_.pair_schedule == PairSchedule::blocks)
     pair_forces_blocks<Sleep>(s, rows, rules);
   else
     pair_forces_ranges<Sleep>(s, rows, rules);
@@ -629,7 +630,7 @@ std::size_t Engine::workspace_bytes() const {
 }
 
 std::string close_pairs_summary(const Engine& engine, long long steps) {
-  if (!engine.scene().close_pairs_on()) return {};
+  if (!close_pairs_on(engine.scene(), engine.options())) return {};
   char line[200];
   std::snprintf(line, sizeof line,
                 "Close pairs: listed %lld times in %lld steps; the last listing kept %.1f %% of "

@@ -1,5 +1,7 @@
 #include "dem/engine_options.hpp"
 
+#include "dem/scene.hpp"
+
 #include <cstdlib>
 #include <cstring>
 #include <stdexcept>
@@ -29,6 +31,18 @@ EngineOptions EngineOptions::from_environment() {
                                   "picks)");
   }
   return o;
+}
+
+}  // namespace dem
+
+namespace dem {
+
+double close_distance(const Scene& scene, const EngineOptions& options) {
+  return options.close_margin * scene.r_max();
+}
+
+bool close_pairs_on(const Scene& scene, const EngineOptions& options) {
+  return options.close_margin > 0 && (!scene.sleep.enabled || scene.sleep.close_pairs);
 }
 
 }  // namespace dem

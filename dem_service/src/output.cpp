@@ -300,6 +300,7 @@ void RunOutput::write_snapshot(const State& s, double time, const std::vector<To
       grow(w.box_max);
     }
   write_wall_geometry();
+  write_point_index(s.size());
   snapshot_times_.push_back(time);
   snapshot_sizes_.push_back(s.size());
 }
@@ -424,6 +425,17 @@ void RunOutput::write_wall_geometry() {
   wall_triangles_ = triangles.size();
 }
 
+void RunOutput::write_point_index(std::size_t n) {
+  if (n <= point_index_size_) return;
+  const char* name = "xdmf_point_index";
+  if (H5Lexists(file_, name, H5P_DEFAULT) > 0 && H5Ldelete(file_, name, H5P_DEFAULT) < 0)
+    throw std::runtime_error(std::string("HDF5: cannot replace '") + name + "' in '" + path_ + "'");
+  std::vector<std::int32_t> index(n);
+  for (std::size_t i = 0; i < n; ++i) index[i] = static_cast<std::int32_t>(i);
+  h5::write(file_, name, H5T_NATIVE_INT32, index.data(), n, 0);
+  point_index_size_ = n;
+}
+
 void RunOutput::write_xdmf() const {
   // Under a temporary name, renamed over the last one when written whole.
   cosim::StagedFile staged(xdmf_);
@@ -445,8 +457,20 @@ void RunOutput::write_xdmf() const {
     out << "<Grid Name=\"step" << k << "\" GridType=\"Collection\" CollectionType=\"Spatial\">\n"
         << " <Time Value=\"" << shortest(snapshot_times_[k]) << "\"/>\n"
         << " <Grid Name=\"particles\" GridType=\"Uniform\">\n"
-        << "  <Topology TopologyType=\"Polyvertex\" NumberOfElements=\"" << n << "\"/>\n"
-        << "  <Geometry GeometryType=\"XYZ\">";
+        << "  <Topology TopologyType=\"Polyvertex\" NumberOfElements=\"" << n
+        << "\" NodesPerElement=\"1\"";
+    if (n == 0) {
+      out << "/>\n";
+    } else {
+      // One cell (a vertex) per particle, so that every view shows them: its connectivity the
+      // first n entries of xdmf_point_index (0, 1, 2, ...).
+      out << "><DataItem ItemType=\"HyperSlab\" Dimensions=\"" << n
+          << "\" Type=\"HyperSlab\"><DataItem Dimensions=\"3 1\" Format=\"XML\">0 1 " << n
+          << "</DataItem>";
+      item(point_index_size_, 0, "Int", 4, "xdmf_point_index");
+      out << "</DataItem></Topology>\n";
+    }
+    out << "  <Geometry GeometryType=\"XYZ\">";
     item(n, 3, "Float", 8, base + "/position");
     out << "</Geometry>\n  <Attribute Name=\"velocity\" AttributeType=\"Vector\" Center=\"Node\">";
     item(n, 3, "Float", 8, base + "/velocity");

@@ -114,7 +114,7 @@ void ServiceModel::configure(const YAML::Node& parameters, const cosim::RunInfo&
   pristine_ = false;
   run_ = run;
   const Scene& scene = rc_->scene;
-  engine_ = std::make_unique<Engine>(scene, engine_options_);
+  engine_ = std::make_unique<Engine>(scene, engine_options_.with_config(rc_->performance));
   out_.reset();
   finished_ = false;
   const OutputOptions& o = rc_->output;

@@ -8,7 +8,7 @@
 #include <cosim/auth.hpp>
 #include <cosim/bus.hpp>
 #include <cosim/link.hpp>
-#include <cosim/polynomial.hpp>
+#include <cosim/polynomial_wire.hpp>
 
 #include <cmath>
 #include <cstdint>

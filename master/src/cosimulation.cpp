@@ -409,9 +409,11 @@ void CoSimulation::close_step(int iterations, bool checkpoint) {
 }
 
 void CoSimulation::run() {
-  for (auto* o : observers_) o->on_start(setup_);
   const int64_t step = setup_.first_step;
   try {
+    // In the try: a record that cannot start (its file, its first rows) stops the participants
+    // and closes the records as incomplete, as any failure of the run does.
+    for (auto* o : observers_) o->on_start(setup_);
     algorithm_->run(*this, step, setup_.first_time, config_.t_end);
   } catch (const std::exception& e) {
     open_.reset();

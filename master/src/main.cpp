@@ -435,11 +435,12 @@ void Application::open_records(master::CoSimulation& sim) {
   progress_ = std::make_unique<master::Progress>(live);
   if (recorder_) sim.add_observer(recorder_.get());
   if (csv_writer_) sim.add_observer(csv_writer_.get());
-  sim.add_observer(progress_.get());
-  // After the HDF5 recorder: closes the bus log and adds /bus/recording and /replay.
+  // After the HDF5 recorder: closes the bus log and adds /bus/recording and /replay. Before the
+  // progress line, which says "finished": a note that cannot be written stops that.
   notes_ = std::make_unique<master::replay::RunNotes>(recorder_ ? config_.output.file : "", bus_recorder_.get(),
                                                       recording_ ? &*recording_ : nullptr, replay_);
   sim.add_observer(notes_.get());
+  sim.add_observer(progress_.get());
 }
 
 // From the bus to the end of the steps; the failures of the run itself are caught in run().

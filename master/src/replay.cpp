@@ -1,11 +1,14 @@
 #include "replay.hpp"
 
 #include <cosim/bus.hpp>
+#include <cosim/files.hpp>
 #include <cosim/h5.hpp>
-#include <cosim/polynomial.hpp>
+#include <cosim/polynomial_wire.hpp>
 #include <cosim/sealed_bus.hpp>
 
 #include <cmath>
+#include <cstdint>
+#include <filesystem>
 #include <cstdio>
 #include <cstring>
 #include <iostream>
@@ -655,15 +658,24 @@ std::string summary(const Recording& rec, const Report& rep) {
 
 namespace {
 
+// The group `group` of the notes, open (created with its parents when missing); raises naming it.
+hid_t open_note_group(hid_t file, const std::string& group) {
+  if (const hid_t g = H5Gopen2(file, group.c_str(), H5P_DEFAULT); g >= 0) return g;
+  cosim::h5::Handle lcpl(H5Pcreate(H5P_LINK_CREATE), H5Pclose);
+  if (lcpl.ok()) H5Pset_create_intermediate_group(lcpl, 1);
+  const hid_t g = H5Gcreate2(file, group.c_str(), lcpl, H5P_DEFAULT, H5P_DEFAULT);
+  if (g < 0) throw std::runtime_error("cannot create the group '" + group + "'");
+  return g;
+}
+
 void write_text(hid_t file, const std::string& group, const std::string& name, const std::string& value) {
-  if (H5Lexists(file, group.c_str(), H5P_DEFAULT) <= 0) {
-    const hid_t g = H5Gcreate2(file, group.c_str(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
-    if (g >= 0) H5Gclose(g);
-  }
-  const hid_t g = H5Gopen2(file, group.c_str(), H5P_DEFAULT);
-  if (g < 0) return;
+  const cosim::h5::Handle g(open_note_group(file, group), H5Gclose);
   cosim::h5::write_string(g, name, value);
-  H5Gclose(g);
+}
+
+void write_note_number(hid_t file, const std::string& group, const std::string& name, double value) {
+  const cosim::h5::Handle g(open_note_group(file, group), H5Gclose);
+  cosim::h5::write(g, name, std::vector<double>{value});
 }
 
 }  // namespace
@@ -679,15 +691,46 @@ void RunNotes::on_finish(bool ok, const std::string& message) {
     std::cerr << "\n";
   }
   if (replay_ && recording_) std::cerr << "cosim_master: " << summary(*recording_, replay_->report()) << "\n";
-  if (h5_.empty()) return;
+  if (h5_.empty() || (!recorder_ && !(replay_ && recording_))) return;
+  std::error_code missing;
+  if (!std::filesystem::exists(h5_, missing)) return;  // not written (the run stopped before it)
+  // Checked as every write of a record (docs/output.md#when-a-record-cannot-be-written): a
+  // failure raises naming the file and the cause, and the run does not say "finished".
+  // When the run failed already, that failure is the one reported; this one is printed.
+  auto failure = [&](const std::string& message) {
+    if (!ok) {
+      std::cerr << "cosim_master: " << message << "\n";
+      return;
+    }
+    throw std::runtime_error(message);
+  };
   H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
   const hid_t f = H5Fopen(h5_.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
-  if (f < 0) return;  // not written (no step recorded)
+  if (f < 0)
+    return failure(cosim::write_failure(
+        h5_, "cannot open it to add the run's notes (/bus/recording, /replay)"));
+  try {
+    write_notes(f);
+    cosim::h5::flush(f, h5_);
+  } catch (const std::exception& e) {
+    H5Fclose(f);
+    const std::string what = e.what();
+    // cosim::h5::flush names the file already.
+    return failure(what.rfind("cannot write '", 0) == 0 ? what : cosim::write_failure(h5_, what));
+  }
+  try {
+    cosim::h5::close(f, h5_);
+  } catch (const std::exception& e) {
+    return failure(e.what());
+  }
+}
+
+void RunNotes::write_notes(std::int64_t f) const {
   if (recorder_) {
     write_text(f, "bus/recording", "file", recorder_->path());
     write_text(f, "bus/recording", "session", cosim::id_hex(recorder_->session()));
-    write_number(f, "bus/recording", "events", static_cast<double>(recorder_->events()));
-    write_number(f, "bus/recording", "dropped", static_cast<double>(recorder_->dropped()));
+    write_note_number(f, "bus/recording", "events", static_cast<double>(recorder_->events()));
+    write_note_number(f, "bus/recording", "dropped", static_cast<double>(recorder_->dropped()));
   }
   if (replay_ && recording_) {
     const Report& rep = replay_->report();
@@ -695,20 +738,19 @@ void RunNotes::on_finish(bool ok, const std::string& message) {
     write_text(f, "replay", "session", cosim::id_hex(recording_->session));
     write_text(f, "replay", "played", join(recording_->played, ","));
     write_text(f, "replay", "live", join(recording_->live, ","));
-    write_number(f, "replay", "keyed", recording_->keyed ? 1 : 0);
-    write_number(f, "replay", "complete_log", recording_->complete ? 1 : 0);
-    write_number(f, "replay", "diverged", rep.request.found() ? 1 : 0);
-    write_number(f, "replay", "diverged_at_step", static_cast<double>(rep.request.step));
-    write_number(f, "replay", "diverged_at_iteration", rep.request.found() ? rep.request.iteration : -1);
-    write_number(f, "replay", "diverged_at_time", rep.request.found() ? rep.request.t : std::nan(""));
+    write_note_number(f, "replay", "keyed", recording_->keyed ? 1 : 0);
+    write_note_number(f, "replay", "complete_log", recording_->complete ? 1 : 0);
+    write_note_number(f, "replay", "diverged", rep.request.found() ? 1 : 0);
+    write_note_number(f, "replay", "diverged_at_step", static_cast<double>(rep.request.step));
+    write_note_number(f, "replay", "diverged_at_iteration", rep.request.found() ? rep.request.iteration : -1);
+    write_note_number(f, "replay", "diverged_at_time", rep.request.found() ? rep.request.t : std::nan(""));
     write_text(f, "replay", "diverged_detail", rep.request.detail);
-    write_number(f, "replay", "outputs_differ_at_step", static_cast<double>(rep.output.step));
-    write_number(f, "replay", "requests_compared", static_cast<double>(rep.requests_compared));
-    write_number(f, "replay", "requests_missing", static_cast<double>(rep.requests_missing));
-    write_number(f, "replay", "outputs_compared", static_cast<double>(rep.outputs_compared));
+    write_note_number(f, "replay", "outputs_differ_at_step", static_cast<double>(rep.output.step));
+    write_note_number(f, "replay", "requests_compared", static_cast<double>(rep.requests_compared));
+    write_note_number(f, "replay", "requests_missing", static_cast<double>(rep.requests_missing));
+    write_note_number(f, "replay", "outputs_compared", static_cast<double>(rep.outputs_compared));
     write_text(f, "replay", "summary", summary(*recording_, rep));
   }
-  H5Fclose(f);
 }
 
 }  // namespace master::replay

@@ -13,6 +13,7 @@
 #include <cosim/step_reply_t.hpp>
 #include <cosim/step_request_t.hpp>
 
+#include <cstdint>
 #include <map>
 #include <memory>
 #include <optional>
@@ -121,9 +122,12 @@ class RunNotes final : public Observer {
   RunNotes(std::string h5_path, BusRecorder* recorder, const Recording* recording,
            const ReplayTransport* replay)
       : h5_(std::move(h5_path)), recorder_(recorder), recording_(recording), replay_(replay) {}
+  // Raises std::runtime_error naming the HDF5 file and the cause when the notes cannot be
+  // written (the record is then not "finished": cosim_master exits 1).
   void on_finish(bool ok, const std::string& message) override;
 
  private:
+  void write_notes(std::int64_t file) const;  // an open hid_t
   std::string h5_;
   BusRecorder* recorder_;
   const Recording* recording_;

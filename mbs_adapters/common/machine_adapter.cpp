@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <iostream>
+#include <new>
 #include <sstream>
 #include <stdexcept>
 
@@ -111,6 +112,9 @@ int serve_machine(int argc, char** argv, const std::string& program, const std::
     args = parse_participant_args(argc, argv, false);
     adapter = make(args.config);
     adapter->check(args.config);  // refuse a bad file before joining any session
+  } catch (const std::bad_alloc&) {
+    std::cerr << out_of_memory_message(program) << "\n";
+    return 1;
   } catch (const std::exception& e) {
     std::cerr << program << ": " << (args.config_path.empty() ? "" : args.config_path + ": ")
               << e.what() << "\n"
@@ -118,7 +122,9 @@ int serve_machine(int argc, char** argv, const std::string& program, const std::
                  "[--bus URL]\n";
     return 2;
   }
-  return run_participant(*adapter, default_name, static_cast<int>(args.rest.size()), args.rest.data());
+  return participant_main(program, [&] {
+    return run_participant(*adapter, default_name, static_cast<int>(args.rest.size()), args.rest.data());
+  });
 }
 
 }  // namespace mbs

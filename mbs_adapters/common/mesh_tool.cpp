@@ -3,6 +3,7 @@
 #include <cosim/files.hpp>
 
 #include <iostream>
+#include <new>
 #include <stdexcept>
 
 namespace mbs {
@@ -30,6 +31,10 @@ int mesh_tool_main(int argc, char** argv, const std::string& program, const std:
     if (args.output.empty()) throw std::invalid_argument("--output is required");
     cosim::check_output_files({{"--output", args.output}}, {{"--config", args.config}});
     run(args);
+  } catch (const std::bad_alloc&) {
+    std::cerr << program << ": out of memory (std::bad_alloc): give it more memory or a coarser "
+                            "mesh\n";
+    return 1;
   } catch (const std::exception& e) {
     std::cerr << program << ": " << e.what() << "\n";
     usage();

@@ -19,7 +19,9 @@ int main(int argc, char** argv) {
               << "usage: oscillator_adapter --side mass1|mass2 [--name NAME] [--bus URL]\n";
     return 2;
   }
-  oscillator::OscillatorAdapter model(side == "mass1" ? oscillator::Side::Mass1
-                                                    : oscillator::Side::Mass2);
-  return cosim::run_participant(model, side, static_cast<int>(rest.size()), rest.data());
+  return cosim::participant_main("oscillator_adapter", [&] {
+    oscillator::OscillatorAdapter model(side == "mass1" ? oscillator::Side::Mass1
+                                                      : oscillator::Side::Mass2);
+    return cosim::run_participant(model, side, static_cast<int>(rest.size()), rest.data());
+  });
 }

@@ -18,6 +18,9 @@ int main(int argc, char** argv) {
   } catch (const cosim::config::ConfigError& e) {
     std::cerr << "prescribed_adapter: config error: " << e.what() << "\n";
     return 2;
+  } catch (const std::bad_alloc&) {
+    std::cerr << cosim::out_of_memory_message("prescribed_adapter") << "\n";
+    return 1;
   } catch (const std::exception& e) {
     std::cerr << "prescribed_adapter: error: " << e.what() << "\n";
     return 1;

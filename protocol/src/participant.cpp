@@ -1,9 +1,11 @@
-#include "cosim/participant.hpp"
+#include "cosim/participant_core.hpp"
 
 #include <cmath>
 #include <cstring>
 #include <exception>
 #include <filesystem>
+#include <iostream>
+#include <new>
 
 #include "cosim/bus.hpp"
 #include "cosim/stopwatch.hpp"
@@ -313,6 +315,10 @@ step_reply_t ParticipantCore::run_step(const step_request_t& q) {
     busy_step_ = -1;
     if (model_.can_repeat()) model_.restore_snapshot();
     return refuse(q, step_reply_t::REJECTED, e.what());
+  } catch (const std::bad_alloc&) {
+    busy_step_ = -1;
+    return refuse(q, step_reply_t::FAILED,
+                  "out of memory (std::bad_alloc) in the step of participant '" + name_ + "'");
   } catch (const std::exception& e) {
     busy_step_ = -1;
     return refuse(q, step_reply_t::FAILED, e.what());
@@ -384,6 +390,23 @@ ParticipantArgs parse_participant_args(int argc, char** argv, bool require_confi
   if (!a.config_path.empty())
     a.config_dir = std::filesystem::path(a.config_path).parent_path().string();
   return a;
+}
+
+std::string out_of_memory_message(const std::string& program) {
+  return program + ": out of memory (std::bad_alloc): the process stops; give it more memory (a "
+                   "host or limit with more free memory, or a smaller model, mesh or input)";
+}
+
+int participant_main(const std::string& program, const std::function<int()>& body) {
+  try {
+    return body();
+  } catch (const std::bad_alloc&) {
+    std::cerr << out_of_memory_message(program) << "\n";
+    return 1;
+  } catch (const std::exception& e) {
+    std::cerr << program << ": error: " << e.what() << "\n";
+    return 1;
+  }
 }
 
 }  // namespace cosim

@@ -1,4 +1,4 @@
-#include "cosim/polynomial.hpp"
+#include "cosim/polynomial_wire.hpp"
 
 #include <Eigen/Dense>
 #include <cmath>

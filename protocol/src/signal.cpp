@@ -1,4 +1,4 @@
-#include "cosim/signal.hpp"
+#include "cosim/signal_wire.hpp"
 
 #include <cmath>
 #include <set>

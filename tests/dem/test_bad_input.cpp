@@ -348,16 +348,34 @@ TEST(dem_BadInput, ExistingOutputIsReplacedOnlyWhenTheRunWrites) {
 
 }  // namespace
 
-// scene.close_margin is a fraction of r_max like the skin, and below it.
+// performance.close_margin is a fraction of r_max like the skin, and below it.
 TEST(dem_BadInput, CloseMarginOutsideZeroToSkinIsRefused) {
-  expect_has(error_of({"scene.close_margin=-0.1"}),
-             "scene.close_margin: must be >= 0 and below scene.skin");
-  expect_has(error_of({"scene.close_margin=0.5", "scene.skin=0.5"}),
-             "scene.close_margin: must be >= 0 and below scene.skin (now 0.5");
-  expect_has(error_of({"scene.close_margin=0.5", "scene.skin=0.5"}), "0 turns close pairs off");
+  expect_has(error_of({"performance.close_margin=-0.1"}),
+             "performance.close_margin: must be >= 0 and below scene.skin");
+  expect_has(error_of({"performance.close_margin=0.5", "scene.skin=0.5"}),
+             "performance.close_margin: must be >= 0 and below scene.skin (now 0.5");
+  expect_has(error_of({"performance.close_margin=0.5", "scene.skin=0.5"}),
+             "0 turns close pairs off");
 }
 
 TEST(dem_BadInput, UnknownPairScheduleIsRefused) {
-  expect_has(error_of({"scene.pair_schedule=fast"}),
-             "scene.pair_schedule: 'fast' is not allowed (allowed: blocks, ranges)");
+  expect_has(error_of({"performance.pair_schedule=fast"}),
+             "performance.pair_schedule: 'fast' is not allowed (allowed: blocks, ranges)");
+  expect_has(error_of({"performance.min_particles_per_thread=0"}),
+             "performance.min_particles_per_thread: must be >= 1");
+  expect_has(error_of({"performance.threads=2"}), "performance.threads");
+}
+
+// The performance switches left the scene: the old keys are refused naming the new ones.
+TEST(dem_BadInput, PerformanceKeysInTheSceneAreRefusedNamingTheirNewPlace) {
+  expect_has(error_of({"scene.close_margin=0.1"}),
+             "scene.close_margin: moved to performance.close_margin");
+  expect_has(error_of({"scene.pair_schedule=ranges"}),
+             "scene.pair_schedule: moved to performance.pair_schedule");
+  expect_has(error_of({"scene.min_particles_per_thread=1"}),
+             "scene.min_particles_per_thread: moved to performance.min_particles_per_thread");
+  // Set in their new place they are taken.
+  EXPECT_EQ(error_of({"performance.close_margin=0.1", "performance.pair_schedule=ranges",
+                      "performance.min_particles_per_thread=1"}),
+            "");
 }

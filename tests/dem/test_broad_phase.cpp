@@ -22,6 +22,13 @@ using dem::State;
 
 constexpr double kRmin = 0.5e-3, kRmax = 1.5e-3;
 
+// The scenes below use every thread they ask for, however few their particles.
+const dem::EngineOptions kEveryThread = [] {
+  dem::EngineOptions o;
+  o.min_particles_per_thread = 1;
+  return o;
+}();
+
 // Random polydisperse particles in a box with random velocities, a plate tool (a folded
 // sheet, so edges are shared) sweeping through them.
 std::pair<dem::Scene, State> random_scene(int n_interval, double skin, unsigned seed,
@@ -30,7 +37,6 @@ std::pair<dem::Scene, State> random_scene(int n_interval, double skin, unsigned 
   scene.broad_phase_interval = n_interval;
   scene.skin = skin;
   scene.threads = 2;
-  scene.min_particles_per_thread = 1;
   scene.particle_particle = scene.particle_wall = law_n_per_m(50, 0.5, true, 0.3);
   const double L = 0.02;
   scene.walls = {{"x0", {0, 0, 0}, {1, 0, 0}}, {"x1", {L, 0, 0}, {-1, 0, 0}},
@@ -104,7 +110,7 @@ TEST(dem_BroadPhase, MatchesBruteForceForSeveralIntervalsAndSkins) {
   for (int n : {1, 5, 20})
     for (double skin : {0.1, 0.4, 1.0}) {
       auto [scene, st] = random_scene(n, skin, 11 + n, 0.3);
-      dem::Engine engine(scene);
+      dem::Engine engine(scene, kEveryThread);
       std::size_t pair_contacts = 0, mesh_contacts = 0;
       for (int k = 0; k < 600; ++k) {
         st.tool_pose[0] = scene.tools[0].motion.evaluate(st.step * scene.dt);
@@ -133,7 +139,7 @@ TEST(dem_BroadPhase, MatchesBruteForceForSeveralIntervalsAndSkins) {
 
 TEST(dem_BroadPhase, GuardRebuildsEarlyWhenIntervalIsTooLong) {
   auto [scene, st] = random_scene(1000, 0.1, 3, 1.0);
-  dem::Engine engine(scene);
+  dem::Engine engine(scene, kEveryThread);
   for (int k = 0; k < 400; ++k) {
     st.tool_pose[0] = scene.tools[0].motion.evaluate(st.step * scene.dt);
     engine.prepare(st);
@@ -263,7 +269,7 @@ TEST(dem_BroadPhase, FarMoverCheckKeepsEveryContactInTheLists) {
     long long cleared = 0, early = 0, pair_contacts = 0, mesh_contacts = 0, wall_contacts = 0;
     for (unsigned seed : {5u, 6u, 7u}) {
       auto [scene, st] = far_mover_scene(c, seed);
-      dem::Engine engine(scene);
+      dem::Engine engine(scene, kEveryThread);
       for (int k = 0; k < 400; ++k) {
         engine.prepare(st);
         const auto want = brute_pairs(st);
@@ -311,7 +317,7 @@ TEST(dem_BroadPhase, FarMoverCheckKeepsEveryContactInTheLists) {
 // stay bit for bit the same.
 TEST(dem_BroadPhase, FarMoverCheckDecidesTheSameAfterARestart) {
   auto [scene, st] = far_mover_scene(FarCase::bed, 8);
-  dem::Engine engine(scene);
+  dem::Engine engine(scene, kEveryThread);
   auto drive = [&](dem::Engine& e, State& s, int steps) {
     for (int k = 0; k < steps; ++k) {
       s.tool_pose[0] = scene.tools[0].motion.evaluate(s.step * scene.dt);
@@ -321,7 +327,7 @@ TEST(dem_BroadPhase, FarMoverCheckDecidesTheSameAfterARestart) {
   drive(engine, st, 150);
   State copy = st;
   const std::int64_t cleared_before = engine.guard_cleared();
-  dem::Engine fresh(scene);
+  dem::Engine fresh(scene, kEveryThread);
   drive(engine, st, 400);
   drive(fresh, copy, 400);
   EXPECT_GT(fresh.guard_cleared(), 100);  // the check ran on the restored grid
@@ -335,7 +341,7 @@ TEST(dem_BroadPhase, FarMoverCheckDecidesTheSameAfterARestart) {
 TEST(dem_BroadPhase, StrictGuardThrowsNamingIntervalAndSkin) {
   auto [scene, st] = random_scene(1000, 0.1, 3, 1.0);
   scene.guard = dem::GuardMode::strict;
-  dem::Engine engine(scene);
+  dem::Engine engine(scene, kEveryThread);
   try {
     for (int k = 0; k < 400; ++k) engine.step(st);
     FAIL() << "strict guard never fired";
@@ -434,7 +440,7 @@ TEST(dem_BroadPhase, RunIsBitIdenticalWithScalarAndVectorRowTest) {
   if (!dem::detail::row_hits_vector_available())
     GTEST_SKIP() << "this processor has no AVX-512F/VL: only the scalar test can run here";
   auto run = [](bool vector, int threads, bool through_checkpoint) {
-    dem::EngineOptions options;
+    dem::EngineOptions options = kEveryThread;
     options.vector_row_test = vector;
     auto [scene, st] = random_scene(5, 0.4, 23, 0.3);
     scene.threads = threads;

@@ -17,7 +17,6 @@ std::pair<dem::Scene, dem::State> scene_with_tool(int threads) {
   dem::Scene scene = one_species_scene(0.004, 0.006);
   scene.gravity = {0, 0, -9.81};
   scene.threads = threads;
-  scene.min_particles_per_thread = 1;  // 250 particles: force the requested thread count
   scene.particle_particle = scene.particle_wall = law_n_per_m(5e4, 0.3, true, 0.5, 0.5, 0.5);
   scene.walls = {{"floor", {0, 0, 0}, {0, 0, 1}}, {"x0", {0, 0, 0}, {1, 0, 0}},
                  {"x1", {0.1, 0, 0}, {-1, 0, 0}}, {"y0", {0, 0, 0}, {0, 1, 0}},
@@ -56,7 +55,9 @@ bool same(const std::vector<T>& a, const std::vector<T>& b) {
 TEST(dem_Checkpoint, RestoreAndContinueIsBitIdentical) {
   for (int threads : {1, 2}) {
     auto [scene, a] = scene_with_tool(threads);
-    dem::Engine ea(scene);
+    dem::EngineOptions options;
+    options.min_particles_per_thread = 1;  // 250 particles: force the requested thread count
+    dem::Engine ea(scene, options);
     advance(scene, ea, a, 3003);  // mid-interval: steps_since_rebuild != 0
     const std::string file =
         (std::filesystem::temp_directory_path() / ("dem_ckpt_" + std::to_string(threads) + ".h5"))
@@ -64,7 +65,7 @@ TEST(dem_Checkpoint, RestoreAndContinueIsBitIdentical) {
     dem::save_checkpoint(a, file);
     dem::State b = dem::load_checkpoint(file);
     std::filesystem::remove(file);
-    dem::Engine eb(scene);  // a fresh engine: nothing may hide in its workspace
+    dem::Engine eb(scene, options);  // a fresh engine: nothing may hide in its workspace
     advance(scene, ea, a, 2000);
     advance(scene, eb, b, 2000);
     EXPECT_TRUE(same(a.x, b.x)) << threads << " threads";

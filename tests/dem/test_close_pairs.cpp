@@ -1,4 +1,4 @@
-// Close pairs (scene.close_margin): the pair forces read only the candidates within a margin
+// Close pairs (performance.close_margin): the pair forces read only the candidates within a margin
 // of contact (and every candidate of a fast particle), re-listed when the slow particles may
 // have closed the margin. They change no result: every array of State after a run is the same,
 // bit for bit, as with every candidate read, on either kernel, 1 or 2 threads, with margins
@@ -19,15 +19,25 @@ using demtest::Vec3;
 // A polydisperse lattice with gaps inside the skin, creeping at up to 4 mm/s (some below the
 // fast speed of the margin, some above), and 60 grains thrown through it at 0.5 m/s: collisions
 // spread from them, friction holds springs, contacts end and new ones begin.
-dem::Scene lattice_scene(int threads, double margin) {
+dem::Scene lattice_scene(int threads) {
   dem::Scene scene = demtest::one_species_scene(0.8e-3, 1.2e-3);
   scene.threads = threads;
-  scene.min_particles_per_thread = 100;
   scene.broad_phase_interval = 1 << 30;  // when needed
   scene.particle_particle = scene.particle_wall = demtest::law_n_per_m(500, 0.3, true, 0.5);
   scene.dt = 2e-5;
-  scene.close_margin = margin;  // fast above margin * 1.2e-3 / (800 dt): 3.75 mm/s at 0.05
   return scene;
+}
+
+// Its engine: close pairs within `margin` (fast above margin * 1.2e-3 / (800 dt): 3.75 mm/s
+// at 0.05), every thread asked for used (100 particles per thread are enough).
+dem::EngineOptions lattice_options(double margin,
+                                   dem::EngineOptions::PairKernel kernel =
+                                       dem::EngineOptions::PairKernel::vector) {
+  dem::EngineOptions o;
+  o.pair_kernel = kernel;
+  o.min_particles_per_thread = 100;
+  o.close_margin = margin;
+  return o;
 }
 
 dem::State lattice_state() {
@@ -47,9 +57,9 @@ dem::State lattice_state() {
 
 // The comparison the tests below rest on names what differs, and only that.
 TEST(dem_ClosePairs, DifferingArraysNamesTheArrays) {
-  const dem::Scene scene = lattice_scene(1, 0.0);
+  const dem::Scene scene = lattice_scene(1);
   dem::State a = lattice_state();
-  dem::Engine engine(scene);
+  dem::Engine engine(scene, lattice_options(0.0));
   for (int k = 0; k < 50; ++k) engine.step(a);
   dem::State b = a;
   EXPECT_EQ(dem::differing_arrays(a, b), "");
@@ -63,13 +73,11 @@ TEST(dem_ClosePairs, DifferingArraysNamesTheArrays) {
 
 TEST(dem_ClosePairs, SameBitsAsEveryCandidate) {
   for (const dem::EngineOptions::PairKernel kernel : demtest::pair_kernels()) {
-    dem::EngineOptions options;
-    options.pair_kernel = kernel;
     for (const int threads : {1, 2}) {
       dem::State reference = lattice_state();
       {
-        const dem::Scene scene = lattice_scene(threads, 0.0);
-        dem::Engine engine(scene, options);
+        const dem::Scene scene = lattice_scene(threads);
+        dem::Engine engine(scene, lattice_options(0.0, kernel));
         std::int64_t contact_steps = 0;  // touching pairs, summed over the steps
         for (int k = 0; k < 1200; ++k) {
           engine.step(reference);
@@ -79,9 +87,9 @@ TEST(dem_ClosePairs, SameBitsAsEveryCandidate) {
         EXPECT_EQ(engine.close_builds(), 0);
       }
       for (const double margin : {0.05, 0.2}) {
-        const dem::Scene scene = lattice_scene(threads, margin);
+        const dem::Scene scene = lattice_scene(threads);
         dem::State st = lattice_state();
-        dem::Engine engine(scene, options);
+        dem::Engine engine(scene, lattice_options(margin, kernel));
         std::int64_t used_steps = 0;
         for (int k = 0; k < 1200; ++k) {
           engine.step(st);
@@ -106,20 +114,18 @@ TEST(dem_ClosePairs, SameBitsAsEveryCandidate) {
 // listing, or if the vector kernel's row loop writes a copy without its home.
 TEST(dem_ClosePairs, SameBitsAsEveryCandidateWithSleepers) {
   for (const dem::EngineOptions::PairKernel kernel : demtest::pair_kernels()) {
-    dem::EngineOptions options;
-    options.pair_kernel = kernel;
     for (const int threads : {1, 2}) {
       dem::State result[2];
       std::int64_t sleeper_steps[2] = {0, 0};
       for (const double margin : {0.0, 0.05}) {
-        dem::Scene scene = lattice_scene(threads, margin);
+        dem::Scene scene = lattice_scene(threads);
         scene.sleep.enabled = true;
         scene.sleep.speed = 3e-3;  // most creeping grains fall asleep; hits wake them
         scene.sleep.steps = 20;
         scene.sleep.tool_distance = 0;
         scene.sleep.close_pairs = true;  // off by default with sleeping
         dem::State st = lattice_state();
-        dem::Engine engine(scene, options);
+        dem::Engine engine(scene, lattice_options(margin, kernel));
         for (int k = 0; k < 1200; ++k) {
           engine.step(st);
           sleeper_steps[margin > 0] += engine.sleeping();
@@ -143,15 +149,15 @@ TEST(dem_ClosePairs, SameBitsAsEveryCandidateWithSleepers) {
 // With sleeping on, close pairs are listed only when scene.sleep.close_pairs asks for them.
 TEST(dem_ClosePairs, OffWithSleepingUnlessAsked) {
   for (const bool asked : {false, true}) {
-    dem::Scene scene = lattice_scene(1, 0.05);
+    dem::Scene scene = lattice_scene(1);
     scene.sleep.enabled = true;
     scene.sleep.speed = 3e-3;
     scene.sleep.steps = 20;
     scene.sleep.tool_distance = 0;
     scene.sleep.close_pairs = asked;
-    EXPECT_EQ(scene.close_pairs_on(), asked);
+    EXPECT_EQ(dem::close_pairs_on(scene, lattice_options(0.05)), asked);
     dem::State st = lattice_state();
-    dem::Engine engine(scene);
+    dem::Engine engine(scene, lattice_options(0.05));
     for (int k = 0; k < 50; ++k) engine.step(st);
     if (asked)
       EXPECT_GT(engine.close_builds(), 0);
@@ -165,9 +171,9 @@ TEST(dem_ClosePairs, OffWithSleepingUnlessAsked) {
 TEST(dem_ClosePairs, StatePutBackIsListedAgain) {
   dem::State result[2];
   for (const double margin : {0.0, 0.05}) {
-    const dem::Scene scene = lattice_scene(1, margin);
+    const dem::Scene scene = lattice_scene(1);
     dem::State st = lattice_state();
-    dem::Engine engine(scene);
+    dem::Engine engine(scene, lattice_options(margin));
     for (int k = 0; k < 600; ++k) engine.step(st);
     const dem::State snapshot = st;
     for (int k = 0; k < 40; ++k) engine.step(st);
@@ -186,19 +192,19 @@ TEST(dem_ClosePairs, SlowApproachFromBeyondTheMarginIsCaught) {
   scene.particle_particle = scene.particle_wall = demtest::law_n_per_m(100, 0.5, true, 0.5);
   scene.broad_phase_interval = 1 << 30;
   scene.skin = 0.5;           // 0.5 mm
-  scene.close_margin = 0.05;  // 50 um: fast above 50e-6 / (800 dt) = 6.25e-3 m/s
+  // Close pairs within 0.05 r = 50 um: fast above 50e-6 / (800 dt) = 6.25e-3 m/s.
+  dem::EngineOptions options;
   scene.dt = 1e-5;
   dem::State result[2];
   std::int64_t first_contact[2] = {-1, -1};
   for (const int with_close : {0, 1}) {
-    if (!with_close) scene.close_margin = 0;
-    else scene.close_margin = 0.05;
+    options.close_margin = with_close ? 0.05 : 0.0;
     dem::State st;
     // Slow (below the fast speed): 4e-3 m/s each, from 0.3 mm apart, inside the skin.
     demtest::add(st, {0, 0, 0}, {4e-3, 0, 0}, r);
     demtest::add(st, {2 * r + 3e-4, 0, 0}, {-4e-3, 0, 0}, r);
     for (int k = 0; k < 6; ++k) demtest::add(st, {k * 2.3 * r, 5 * r, 0}, {}, r);  // candidates, not close
-    dem::Engine engine(scene);
+    dem::Engine engine(scene, options);
     for (int k = 0; k < 5000 && first_contact[with_close] < 0; ++k) {
       engine.step(st);
       if (engine.contact_stats().particle_contacts > 0) first_contact[with_close] = k;

@@ -78,10 +78,11 @@ std::string describe(const dem::RunConfig& rc) {
   const dem::Scene& s = rc.scene;
   o << "scene " << s.dt << ' ';
   v(s.gravity);
-  o << s.broad_phase_interval << ' ' << s.skin << ' ' << s.close_margin << ' '
-    << static_cast<int>(s.pair_schedule) << ' ' << static_cast<int>(s.guard) << ' '
-    << s.threads << ' ' << s.min_particles_per_thread << ' ' << static_cast<int>(s.thread_wait)
-    << '\n';
+  o << s.broad_phase_interval << ' ' << s.skin << ' ' << static_cast<int>(s.guard) << ' '
+    << s.threads << ' ' << static_cast<int>(s.thread_wait) << '\n';
+  const dem::EngineOptions& e = rc.performance;
+  o << "performance " << e.close_margin << ' ' << static_cast<int>(e.pair_schedule) << ' '
+    << e.min_particles_per_thread << '\n';
   o << "stability " << s.stability.min_steps_per_contact << ' '
     << static_cast<int>(s.stability.on_violation) << ' ' << s.stability.max_speed << ' '
     << s.stability.overlap_tolerance << '\n';

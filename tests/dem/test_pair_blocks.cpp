@@ -1,4 +1,4 @@
-// Pair blocks (scene.pair_schedule: blocks): the threads take blocks of rows of the half list
+// Pair blocks (performance.pair_schedule: blocks): the threads take blocks of rows of the half list
 // whose partners lie in the block or the next one; an odd block runs when the even blocks
 // beside it are done. Each thread walks the blocks in its own order and runs those it claims
 // first. Every sum is then made in an order that does not depend on the number of
@@ -22,10 +22,17 @@ using demtest::Vec3;
 // A polydisperse lattice of 6000 grains (42 layers of 12 x 12) with gaps inside the skin,
 // creeping at up to 4 mm/s, and one grain in 25 thrown through it at 0.5 m/s, on a floor:
 // collisions spread, friction holds springs, contacts end and begin, grains reach the floor.
+// Its engine: 100 particles per thread are enough to use every thread asked for.
+dem::EngineOptions blocks_options(double close_margin = 0.0) {
+  dem::EngineOptions o;
+  o.min_particles_per_thread = 100;
+  o.close_margin = close_margin;
+  return o;
+}
+
 dem::Scene blocks_scene(int threads) {
   dem::Scene scene = demtest::one_species_scene(0.8e-3, 1.2e-3);
   scene.threads = threads;
-  scene.min_particles_per_thread = 100;
   scene.broad_phase_interval = 1 << 30;  // when needed
   scene.particle_particle = scene.particle_wall = demtest::law_n_per_m(500, 0.3, true, 0.5);
   scene.dt = 2e-5;
@@ -70,11 +77,12 @@ struct BlockRun {
 };
 
 BlockRun run(dem::Scene scene, int steps,
-             dem::EngineOptions::PairKernel kernel = dem::EngineOptions::PairKernel::vector) {
+             dem::EngineOptions::PairKernel kernel = dem::EngineOptions::PairKernel::vector,
+             double close_margin = 0.0) {
   BlockRun r;
   r.state = blocks_state();
   r.state.tool_pose.resize(scene.tools.size());
-  dem::EngineOptions options;
+  dem::EngineOptions options = blocks_options(close_margin);
   options.pair_kernel = kernel;
   dem::Engine engine(scene, options);
   for (int k = 0; k < steps; ++k) {
@@ -126,7 +134,7 @@ TEST(dem_PairBlocks, EveryWalkVisitsEachBlockOnceAndEvensFirst) {
 TEST(dem_PairBlocks, EveryPartnerInItsBlockOrTheNext) {
   const dem::Scene scene = blocks_scene(2);
   dem::State st = blocks_state();
-  dem::Engine engine(scene);
+  dem::Engine engine(scene, blocks_options());
   for (int k = 0; k < 50; ++k) engine.step(st);
   const std::vector<std::size_t>& b = engine.pair_block_starts();
   ASSERT_GE(b.size(), 7u);  // at least 6 blocks for 6000 grains
@@ -151,8 +159,7 @@ TEST(dem_PairBlocks, SameBitsOnOneTwoAndThreeThreads) {
       BlockRun one;
       for (const int threads : {1, 2, 3}) {
         dem::Scene scene = blocks_scene(threads);
-        scene.close_margin = margin;
-        BlockRun r = run(scene, 400, kernel);
+        BlockRun r = run(scene, 400, kernel, margin);
         EXPECT_GE(r.blocks, 6u);
         EXPECT_GT(r.contact_steps, 40000);  // about 160 touching pairs per step
         EXPECT_GT(r.tool_contact_steps, 1000);  // floor and plate contacts
@@ -202,9 +209,10 @@ TEST(dem_PairBlocks, RangesGiveTheSameForcesToRounding) {
   dem::State st[2];
   for (const int schedule : {0, 1}) {
     dem::Scene scene = blocks_scene(2);
-    scene.pair_schedule = schedule ? dem::PairSchedule::ranges : dem::PairSchedule::blocks;
+    dem::EngineOptions options = blocks_options();
+    options.pair_schedule = schedule ? dem::PairSchedule::ranges : dem::PairSchedule::blocks;
     st[schedule] = blocks_state();
-    dem::Engine engine(scene);
+    dem::Engine engine(scene, options);
     for (int k = 0; k < 20; ++k) engine.step(st[schedule]);  // collisions under way
   }
   ASSERT_EQ(st[0].size(), st[1].size());
@@ -226,7 +234,7 @@ TEST(dem_PairBlocks, RangesGiveTheSameForcesToRounding) {
 TEST(dem_PairBlocks, ThreadBusyTimeIsCountedPerThread) {
   const dem::Scene scene = blocks_scene(2);
   dem::State st = blocks_state();
-  dem::Engine engine(scene);
+  dem::Engine engine(scene, blocks_options());
   for (int k = 0; k < 300; ++k) engine.step(st);
   ASSERT_EQ(engine.threads(), 2);
   for (const std::size_t sec :

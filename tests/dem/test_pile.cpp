@@ -87,8 +87,9 @@ TEST(dem_Pile, MeshFloorCarriesTheWeightAndDoesNotCreep) { check_pile(true); }
 TEST(dem_Pile, SameThreadCountIsBitIdentical) {
   for (int threads : {1, 2}) {
     Pile a = make_pile(true, threads), b = make_pile(true, threads);
-    a.scene.min_particles_per_thread = b.scene.min_particles_per_thread = 1;  // really 2 threads
-    dem::Engine ea(a.scene), eb(b.scene);
+    dem::EngineOptions options;
+    options.min_particles_per_thread = 1;  // really 2 threads
+    dem::Engine ea(a.scene, options), eb(b.scene, options);
     for (int k = 0; k < 3000; ++k) {
       ea.step(a.st);
       eb.step(b.st);

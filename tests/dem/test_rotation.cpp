@@ -260,17 +260,6 @@ TEST(dem_Rotation, TurningBoxFeelsOnlyTheLoadsWeightAndMomentumWithRotation) {
   EXPECT_GT(std::abs(e_tra), 0.02) << "the translating model's artefact";
 }
 
-// Lets a small scene use every thread it is given: Scene::min_particles_per_thread, or
-// EngineOptions' where the `performance:` section holds it (whichever exists).
-template <class S, class O>
-auto one_particle_per_thread(S& s, O&, int) -> decltype(void(s.min_particles_per_thread = 1)) {
-  s.min_particles_per_thread = 1;
-}
-template <class S, class O>
-auto one_particle_per_thread(S&, O& o, long) -> decltype(void(o.min_particles_per_thread = 1)) {
-  o.min_particles_per_thread = 1;
-}
-
 // ---- Checkpoints: a rotating bed in motion (spins, tangential and rolling springs at pairs and
 // walls) saved and restored continues bit for bit, across broad phases.
 TEST(dem_Rotation, CheckpointRestartsBitForBit) {
@@ -299,7 +288,7 @@ TEST(dem_Rotation, CheckpointRestartsBitForBit) {
   dem::Scene two = scene;
   two.threads = 2;
   dem::EngineOptions options;
-  one_particle_per_thread(two, options, 0);
+  options.min_particles_per_thread = 1;  // a small scene on every thread it is given
   State on_two = dem::load_checkpoint(path);
   dem::Engine b(scene), c(two, options);
   for (int k = 0; k < 120; ++k) {  // 24 broad phases

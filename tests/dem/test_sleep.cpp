@@ -256,12 +256,18 @@ struct Pile {
   dem::Scene scene;
   State st;
 };
+// The piles use every thread they ask for, however few their particles.
+const dem::EngineOptions kPileOptions = [] {
+  dem::EngineOptions o;
+  o.min_particles_per_thread = 1;
+  return o;
+}();
+
 Pile make_pile(int threads, bool sleep) {
   Pile p;
   p.scene = one_species_scene(0.8 * kR, kR);
   p.scene.gravity = {0, 0, -kG};
   p.scene.threads = threads;
-  p.scene.min_particles_per_thread = 1;
   p.scene.particle_particle = p.scene.particle_wall = law_n_per_m(kK, 0.3, true, 0.5, 1.0, 0.5);
   p.scene.walls.push_back({"floor", {0, 0, 0}, {0, 0, 1}});
   p.scene.dt = M_PI / std::sqrt(kK / sphere_mass(0.8 * kR)) / 25;
@@ -282,7 +288,7 @@ Pile make_pile(int threads, bool sleep) {
 
 TEST(dem_Sleep, BedAtRestFallsAsleep) {
   Pile p = make_pile(1, true);
-  dem::Engine e(p.scene);
+  dem::Engine e(p.scene, kPileOptions);
   std::int64_t at_half = -1;
   while (p.st.step * p.scene.dt < 2.0) {
     e.step(p.st);
@@ -302,7 +308,7 @@ TEST(dem_Sleep, SleepThatNeverTriggersIsBitIdenticalToDisabled) {
   for (int threads : {1, 2}) {
     Pile a = make_pile(threads, false), b = make_pile(threads, true);
     b.scene.sleep.speed = 1e-300;
-    dem::Engine ea(a.scene), eb(b.scene);
+    dem::Engine ea(a.scene, kPileOptions), eb(b.scene, kPileOptions);
     for (int k = 0; k < 3000; ++k) {
       ea.step(a.st);
       eb.step(b.st);
@@ -325,7 +331,7 @@ TEST(dem_Sleep, SameThreadCountIsBitIdenticalWithSleepers) {
       (std::filesystem::temp_directory_path() / "dem_sleep_checkpoint.h5").string();
   for (int threads : {1, 2}) {
     Pile a = make_pile(threads, true), b = make_pile(threads, true);
-    dem::Engine ea(a.scene), eb(b.scene);
+    dem::Engine ea(a.scene, kPileOptions), eb(b.scene, kPileOptions);
     std::int64_t max_asleep = 0;
     auto run = [&](int steps) {
       for (int k = 0; k < steps; ++k) {
@@ -340,7 +346,7 @@ TEST(dem_Sleep, SameThreadCountIsBitIdenticalWithSleepers) {
     dem::save_checkpoint(a.st, path);
     State c = dem::load_checkpoint(path);
     Pile cp = make_pile(threads, true);
-    dem::Engine ec(cp.scene);
+    dem::Engine ec(cp.scene, kPileOptions);
     for (int k = 0; k < 3000; ++k) {
       ea.step(a.st);
       eb.step(b.st);
@@ -363,9 +369,9 @@ TEST(dem_Sleep, SameThreadCountIsBitIdenticalWithSleepers) {
 TEST(dem_Sleep, SkippingTheRowsOfSleepersChangesNoBit) {
   for (int threads : {1, 2}) {
     Pile a = make_pile(threads, true), b = make_pile(threads, true);
-    dem::EngineOptions every_row;
+    dem::EngineOptions every_row = kPileOptions;
     every_row.sleeper_row_skip = false;
-    dem::Engine ea(a.scene), eb(b.scene, every_row);
+    dem::Engine ea(a.scene, kPileOptions), eb(b.scene, every_row);
     std::int64_t mixed = 0;  // steps with sleepers and awake particles together
     auto run = [&](int steps) {
       for (int k = 0; k < steps; ++k) {
@@ -400,7 +406,7 @@ TEST(dem_Sleep, SleepersCountInTheGuardsDisplacements) {
   for (int threads : {1, 2}) {
     Pile p = make_pile(threads, true);
     p.scene.broad_phase_interval = 1000000;
-    dem::Engine e(p.scene);
+    dem::Engine e(p.scene, kPileOptions);
     std::int64_t checked = 0, equal = 0, led_by_sleeper = 0, woke = 0;
     std::int64_t rebuilds = -1;
     bool woken_since = false;
@@ -472,9 +478,9 @@ TEST(dem_Sleep, SkippingBlocksOfSleepersFarFromToolsChangesNoBit) {
         p->st.tool_pose.resize(1);
         p->st.tool_pose[0].position = {1, 0, 1};
       }
-      dem::EngineOptions every_sleeper;
+      dem::EngineOptions every_sleeper = kPileOptions;
       every_sleeper.sleeper_blocks = false;
-      dem::Engine ea(a.scene), eb(b.scene, every_sleeper);
+      dem::Engine ea(a.scene, kPileOptions), eb(b.scene, every_sleeper);
       auto step_both = [&] {
         ea.step(a.st);
         eb.step(b.st);
@@ -515,7 +521,7 @@ TEST(dem_Sleep, SkippingBlocksOfSleepersFarFromToolsChangesNoBit) {
 
 TEST(dem_Region, RemovalKeepsListsAndHistoryOfTheRest) {
   Pile p = make_pile(1, false);
-  dem::Engine e(p.scene);
+  dem::Engine e(p.scene, kPileOptions);
   while (p.st.step * p.scene.dt < 0.5) e.step(p.st);
   e.prepare(p.st);
   // Tangential springs by particle-id pair before the removal.
@@ -583,7 +589,7 @@ TEST(dem_Region, ParticlesLeavingTheBoxAreRemovedAndCounted) {
   add(p.st, {0.0, 0.0, 0.15}, {0, 0, 3}, kR);
   add(p.st, {0.05, 0.0, 0.1}, {2, 0, 0}, 0.8 * kR);
   const double m_out = sphere_mass(kR) + sphere_mass(0.8 * kR);
-  dem::Engine e(p.scene);
+  dem::Engine e(p.scene, kPileOptions);
   while (p.st.step * p.scene.dt < 0.1) e.step(p.st);
   EXPECT_EQ(p.st.size(), 150u);
   EXPECT_EQ(p.st.removed_count, 2);

@@ -23,7 +23,8 @@ using dem::ThreadWait;
 using Action = dem::ThreadWaitPlan::Action;
 
 const char* kConfig = R"(
-scene: {dt: 1.0e-5, threads: 2, min_particles_per_thread: 1}
+scene: {dt: 1.0e-5, threads: 2}
+performance: {min_particles_per_thread: 1}
 materials: {sand: {density: 2600}}
 species: [{name: grain, material: sand, radius: 0.005}]
 contact:

@@ -2,7 +2,7 @@
 // and over LCM with the prescribed participant: the same wrench history as dem_run when the
 // macro step equals the DEM step, converging to it as the macro step shrinks.
 #include <cosim/bus.hpp>
-#include <cosim/participant.hpp>
+#include <cosim/participant_core.hpp>
 #include <cosim/polynomial.hpp>
 #include <cosim/yaml_config.hpp>
 #include <gtest/gtest.h>

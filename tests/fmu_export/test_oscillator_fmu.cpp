@@ -3,7 +3,7 @@
 // native model (oscillator::Half and the native participants under the master's schemes:
 // results, convergence orders, critical macro steps), FMU states that repeat a step bit for
 // bit, and each refusal with its message.
-#include <cosim/participant.hpp>
+#include <cosim/participant_core.hpp>
 #include <cosim/yaml_config.hpp>
 
 #include <cmath>

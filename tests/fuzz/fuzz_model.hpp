@@ -7,7 +7,7 @@
 #include <cosim/step_request_t.hpp>
 
 #include "cosim/bus.hpp"
-#include "cosim/participant.hpp"
+#include "cosim/participant_core.hpp"
 #include "cosim/polynomial.hpp"
 #include "cosim/signal.hpp"
 #include "cosim/yaml_config.hpp"

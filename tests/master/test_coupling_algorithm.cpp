@@ -5,7 +5,7 @@
 // runs, not a side door).
 #include <gtest/gtest.h>
 
-#include <cosim/participant.hpp>
+#include <cosim/participant_core.hpp>
 
 #include "config.hpp"
 #include "cosimulation.hpp"

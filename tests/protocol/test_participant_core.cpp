@@ -1,6 +1,6 @@
 // Participant-side protocol: configure, step identity, cached replies, validation.
 #include <cosim/bus.hpp>
-#include <cosim/participant.hpp>
+#include <cosim/participant_core.hpp>
 #include <cosim/yaml_config.hpp>
 #include <gtest/gtest.h>
 #include <unistd.h>

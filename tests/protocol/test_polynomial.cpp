@@ -1,6 +1,6 @@
 // Predictor polynomials: exact for polynomials up to their degree, least squares, and
 // orientation on the rotation group.
-#include <cosim/polynomial.hpp>
+#include <cosim/polynomial_wire.hpp>
 #include <gtest/gtest.h>
 
 #include <cmath>

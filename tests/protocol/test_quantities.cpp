@@ -2,7 +2,7 @@
 // invariant under the shift, round trips through Value, tangent coordinates and the wire types,
 // and values of the wrong size refused.
 #include <cosim/quantities.hpp>
-#include <cosim/signal.hpp>
+#include <cosim/signal_wire.hpp>
 #include <gtest/gtest.h>
 
 #include <random>

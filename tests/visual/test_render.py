@@ -78,6 +78,8 @@ class Render(unittest.TestCase):
                 p, tool, walls = blocks
                 self.assertTrue(p["name"].startswith("particles"), p["name"])
                 self.assertEqual(p["points"], 400)
+                # One cell (a vertex) per particle: the Surface view draws them.
+                self.assertEqual(p["cells"], 400)
                 self.assertEqual(p["arrays"], ["velocity", "radius", "id"])
                 np.testing.assert_allclose(p["bounds"][0::2], f[f"particles/{k}/position"][:].min(axis=0), atol=1e-12)
                 self.assertTrue(tool["name"].startswith("tool_blade"), tool["name"])

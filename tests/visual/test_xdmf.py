@@ -68,7 +68,8 @@ def read_obj(path):
 
 def read_xdmf(path):
     """[(time, {grid name: {'topology': (type, n, item), 'geometry': item, 'attributes': {...}}})]
-    with item = (hdf5 path, dims) and the HDF5 file name."""
+    with item = (HDF5 file name, hdf5 path, dims), and for a hyperslab its (start, stride, count,
+    dims) after them."""
     root = ET.parse(path).getroot()
     top = root.find("Domain").findall("Grid")
     assert len(top) == 1, "one temporal collection"
@@ -83,6 +84,11 @@ def read_xdmf(path):
                 d = e.find("DataItem")
                 if d is None:
                     return None
+                if d.get("ItemType") == "HyperSlab":  # (start, stride, count) of a dataset
+                    sel, data = d.findall("DataItem")
+                    file, where = data.text.strip().split(":", 1)
+                    return (file, where, tuple(int(x) for x in data.get("Dimensions").split()),
+                            tuple(int(x) for x in sel.text.split()) + (int(d.get("Dimensions")),))
                 file, where = d.text.strip().split(":", 1)
                 return file, where, tuple(int(x) for x in d.get("Dimensions").split())
             topo = g.find("Topology")
@@ -121,6 +127,18 @@ class Xdmf(unittest.TestCase):
                         self.assertIn(it[1], f, it[1])
                         self.assertEqual(f[it[1]].shape, it[2], it[1])
             self.assertEqual(steps[0][1]["tool_blade"]["topology"][0], "Triangle")
+
+            # The particles are cells, one vertex each (without a connectivity ParaView reads
+            # points but no cell, and its Surface view shows nothing): 0, 1, ..., n - 1 of
+            # xdmf_point_index at every snapshot.
+            for t, grids in steps:
+                kind, n, conn = grids["particles"]["topology"]
+                self.assertEqual(kind, "Polyvertex")
+                self.assertIsNotNone(conn, "the particles' Polyvertex topology has no connectivity")
+                self.assertEqual(len(conn), 4, "a hyperslab of xdmf_point_index")
+                self.assertEqual(conn[1], "/xdmf_point_index")
+                self.assertEqual(conn[3], (0, 1, n, n))
+                np.testing.assert_array_equal(f["xdmf_point_index"][:n], np.arange(n))
 
             # The mesh: the OBJ's triangles as coordinates, vertices relative to the reference point.
             local = f["tools/blade/vertices"][:]

@@ -1,6 +1,6 @@
 // wheel_loader_adapter's Model: config layering and validation, ports, input limits, and a
 // step repeated from a snapshot bit for bit.
-#include <cosim/participant.hpp>
+#include <cosim/participant_core.hpp>
 #include <cosim/yaml_config.hpp>
 #include <gtest/gtest.h>
 

@@ -1,5 +1,5 @@
-// Close pairs (Scene::close_margin): the candidates of the half list within
-// Scene::close_distance() of contact, and every candidate of a particle faster than `fast` when
+// Close pairs (EngineOptions::close_margin): the candidates of the half list within `margin`
+// (close_distance(), close_margin * r_max) of contact, and every candidate of a particle faster than `fast` when
 // they were listed. A pair left out was farther apart than the margin, so it cannot act (or hold
 // history) before the slow particles' two largest displacements since then and their step
 // window add up to the margin (checked before each step's pair forces, tallied by the
@@ -19,10 +19,11 @@ class ClosePairs {
  public:
   // Whether the listing still holds for s: made from its lists at this step, and the slow
   // particles cannot have closed the margin since.
-  bool hold(const Scene& scene, const State& s) const;
+  bool hold(const Scene& scene, double margin, const State& s) const;
   // Lists them from s's half list, with the threads' row ranges `bounds` (T + 1 entries).
   // Clears the springs of the pairs left out (farther apart than the margin).
-  void list(const Scene& scene, State& s, const std::vector<std::size_t>& bounds, int T);
+  void list(const Scene& scene, double margin, State& s, const std::vector<std::size_t>& bounds,
+            int T);
 
   // false: they kept nearly every candidate, the half list is read instead.
   bool use() const { return use_; }

@@ -11,6 +11,7 @@
 
 #include "cosim/files.hpp"
 #include "dem/bed.hpp"
+#include "dem/engine_options.hpp"
 #include "dem/packing.hpp"
 #include "dem/scene.hpp"
 #include "dem/state.hpp"
@@ -46,6 +47,9 @@ void perturb_positions(State& s, const Perturbation& p);
 
 struct RunConfig {
   Scene scene;
+  // The performance: section (EngineOptions' close_margin, pair_schedule,
+  // min_particles_per_thread); the apps join it to their other options with with_config.
+  EngineOptions performance;
   State state;  // initial particles and tool poses
   std::vector<FillRegion> fill;
   std::vector<InsertRegion> insert;  // particles.insert: random sequential insertion

@@ -68,12 +68,12 @@ class Engine {
   // Steps at which the guard's bound fired but its far-mover check found the lists still
   // complete, so no broad phase ran (scene.guard: rebuild; docs/dem.md "The guard").
   std::int64_t guard_cleared() const { return guard_.cleared(); }
-  // Close pairs (Scene::close_margin): how often they were listed, and the share of the half
+  // Close pairs (EngineOptions::close_margin): how often they were listed, and the share of the half
   // list's candidates the last listing kept (0 if never listed).
   std::int64_t close_builds() const { return close_.builds(); }
   double close_share() const { return close_.share(); }
   bool close_used() const { return close_.use(); }  // false: the last listing kept too many
-  // Pair blocks (Scene::pair_schedule blocks): the first row of each block and the end, as made
+  // Pair blocks (EngineOptions::pair_schedule blocks): the first row of each block and the end, as made
   // for the lists of the last step (empty with ranges).
   const std::vector<std::size_t>& pair_block_starts() const { return blocks_.start(); }
   // The broad phase's own stages (grid, sort, permute, ...): where section broad_phase goes.
@@ -146,7 +146,7 @@ class Engine {
 };
 
 // "Close pairs: listed N times in S steps, ..." for the end-of-run notes (empty when
-// scene.close_margin is 0).
+// performance.close_margin is 0).
 std::string close_pairs_summary(const Engine& engine, long long steps);
 // "Sleeping: P % of particle-steps asleep, N asleep at the end; woke W, fell asleep F (w and f
 // per step)" for the end-of-run notes (empty when scene.sleep is off).

@@ -1,11 +1,34 @@
 // How the engine computes, where the choice changes speed but never a result (every option
-// below gives the same bits; tests compare whole runs both ways). Not part of the physical
+// below gives the same bits; tests compare whole runs both ways; pair_schedule ranges only for
+// one thread count). Not part of the physical
 // Scene: the apps (dem_run, dem_service, the benches) fill it once and hand it to each Engine.
 #pragma once
 
 namespace dem {
 
+struct Scene;
+
+// How the threads share the pair forces (EngineOptions::pair_schedule).
+enum class PairSchedule { blocks, ranges };
+
 struct EngineOptions {
+  // The config's performance: section (docs/dem.md#performance), read with the scene
+  // (dem::load_config, RunConfig::performance) and copied in by the apps (with_config).
+  // Close pairs: the pair forces take only the candidates within close_margin * r_max of
+  // contact (or of a fast particle), re-listed when the slow particles may have closed the
+  // margin; the results are the same bits as with every candidate. 0: every candidate, every
+  // step. With sleeping on, used only if scene.sleep.close_pairs (close_pairs_on()).
+  double close_margin = 0.0;
+  // blocks: the rows in blocks whose partners lie in the block or the next, each run by the
+  // thread that claims it first on its walk (an odd block once the even ones beside it are
+  // done; detail::pair_block_walk); the sums do not depend
+  // on the thread count. ranges: one contiguous range of equal work per thread, partners in a
+  // later range applied after the loop (the sums depend on the thread count).
+  PairSchedule pair_schedule = PairSchedule::blocks;
+  // Fewer particles per thread than this and the step uses fewer threads: for small scenes
+  // the barriers cost more than the work (and a lot more on a loaded machine).
+  int min_particles_per_thread = 2000;
+
   // The pair forces: the AVX-512 kernel where the processor has it (vector), or the scalar
   // loop everywhere. Kept: the scalar loop is the reference the vector kernel's bit-equality
   // tests compare against, and bench/dem/kernel_ab.sh times one against the other.
@@ -36,6 +59,19 @@ struct EngineOptions {
   // DEM_PAIR_CHUNKS (branch-free | branching); unset: the defaults. Throws std::invalid_argument
   // naming the variable and its values for anything else.
   static EngineOptions from_environment();
+  // These options with the config's performance: section's (close_margin, pair_schedule,
+  // min_particles_per_thread) in place of theirs.
+  EngineOptions with_config(const EngineOptions& performance) const {
+    EngineOptions o = *this;
+    o.close_margin = performance.close_margin;
+    o.pair_schedule = performance.pair_schedule;
+    o.min_particles_per_thread = performance.min_particles_per_thread;
+    return o;
+  }
 };
+
+// The distance close pairs are listed within (close_margin * r_max), and whether they are used.
+double close_distance(const Scene& scene, const EngineOptions& options);
+bool close_pairs_on(const Scene& scene, const EngineOptions& options);
 
 }  // namespace dem

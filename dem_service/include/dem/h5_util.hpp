@@ -1,4 +1,4 @@
-// The shared HDF5 helpers (protocol/include/cosim/h5.hpp) plus the DEM's Vec3 arrays, for
+// The shared HDF5 helpers (protocol/support/include/cosim/h5.hpp) plus the DEM's Vec3 arrays, for
 // checkpoints and run output.
 #pragma once
 

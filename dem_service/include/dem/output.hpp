@@ -68,6 +68,10 @@ class RunOutput {
   long long file_ = -1;
   std::vector<double> snapshot_times_;
   std::vector<std::size_t> snapshot_sizes_;
+  // xdmf_point_index: 0, 1, 2, ... as long as the largest snapshot, the particles' cells (one
+  // vertex each) for the XDMF: every snapshot's Polyvertex topology takes its first n entries.
+  std::size_t point_index_size_ = 0;
+  void write_point_index(std::size_t n);
   // Box around every particle centre and tool vertex of the snapshots so far (plane walls are
   // drawn over it).
   bool have_extent_ = false;

@@ -1,4 +1,4 @@
-// Pair blocks (Scene::pair_schedule blocks): consecutive row ranges of the half list, every
+// Pair blocks (EngineOptions::pair_schedule blocks): consecutive row ranges of the half list, every
 // partner of block k's rows in block k or k + 1, made from the lists at each broad phase. An
 // even block sets up its own and the next block's forces and runs its rows; an odd block runs
 // once the two even blocks beside it are done. Each thread walks all blocks in its own order

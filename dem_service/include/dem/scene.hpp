@@ -54,8 +54,6 @@ struct Tool {
 };
 
 enum class GuardMode { rebuild, strict };
-// How the threads share the pair forces (Scene::pair_schedule).
-enum class PairSchedule { blocks, ranges };
 enum class DtViolation { refuse, warn };
 
 struct StabilityOptions {
@@ -89,7 +87,7 @@ struct SleepOptions {
   int steps = 500;            // consecutive steps at rest before sleeping
   double tool_distance = 0.5; // m, gap to the tool's neighbourhood shape (below)
   SleepNeighbourhood neighbourhood = SleepNeighbourhood::sphere;
-  // Close pairs (Scene::close_margin) while sleeping: the same bits either way, but in the
+  // Close pairs (EngineOptions::close_margin, performance.close_margin) while sleeping: the same bits either way, but in the
   // paper's scene they cost more than they save (docs/performance.md), so off unless asked.
   bool close_pairs = false;
 };
@@ -107,21 +105,9 @@ struct Scene {
   int broad_phase_interval = 5;
   double skin = 0.5;  // skin factor tau: candidate margin is skin * r_max
   GuardMode guard = GuardMode::rebuild;
-  // Close pairs: the pair forces take only the candidates within close_margin * r_max of
-  // contact (or of a fast particle), re-listed when the slow particles may have closed the
-  // margin; the results are the same bits as with every candidate. 0: every candidate, every
-  // step. With sleeping on, used only if sleep.close_pairs (close_pairs_on()).
-  double close_margin = 0.0;
-  // blocks: the rows in blocks whose partners lie in the block or the next, each run by the
-  // thread that claims it first on its walk (an odd block once the even ones beside it are
-  // done; detail::pair_block_walk); the sums do not depend
-  // on the thread count. ranges: one contiguous range of equal work per thread, partners in a
-  // later range applied after the loop (the sums depend on the thread count).
-  PairSchedule pair_schedule = PairSchedule::blocks;
+  // How the engine computes (close pairs, the pair schedule, threads per particle count) is
+  // not the scene's: EngineOptions (dem/engine_options.hpp), the config's performance: section.
   int threads = 1;
-  // Fewer particles per thread than this and the step uses fewer threads: for small scenes
-  // the barriers cost more than the work (and a lot more on a loaded machine).
-  int min_particles_per_thread = 2000;
   // How idle OpenMP threads wait (dem/thread_wait.hpp). Fixed when the program starts:
   // dem_run, dem_service and dem_side_by_side apply it with apply_thread_wait.
   ThreadWait thread_wait = ThreadWait::passive;
@@ -148,8 +134,6 @@ struct Scene {
   // Largest radius any species can produce; the skin and the grid are sized from it.
   double r_max() const;
   double skin_distance() const { return skin * r_max(); }
-  double close_distance() const { return close_margin * r_max(); }
-  bool close_pairs_on() const { return close_margin > 0 && (!sleep.enabled || sleep.close_pairs); }
 };
 
 }  // namespace dem

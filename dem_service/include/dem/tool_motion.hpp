@@ -1,5 +1,5 @@
 // Prescribed tool motion: keyframes of position and orientation, interpolated in time by the
-// shared cosim::Trajectory (protocol/include/cosim/trajectory.hpp), seen as a dem::ToolPose.
+// shared cosim::Trajectory (protocol/support/include/cosim/trajectory.hpp), seen as a dem::ToolPose.
 #pragma once
 
 #include "cosim/trajectory.hpp"

@@ -195,6 +195,145 @@ std::string unpack(const std::string& ssp_path) {
   return dir.string();
 }
 
+struct Connector {
+  std::string kind, unit;
+  pugi::xml_node node;
+};
+struct Comp {
+  YAML::Node params;
+  std::map<std::string, Connector> connectors;
+  std::map<std::string, std::size_t> input_index;  // connector -> index in params["inputs"]
+};
+
+// <ssd:Units>: each unit's base-unit exponents, factor and offset.
+std::map<std::string, Unit> read_units(const Xml& ssd, const pugi::xml_node& root) {
+  std::map<std::string, Unit> units;
+  for (const pugi::xml_node u : children(child(root, "Units"), "Unit")) {
+    Unit unit;
+    const pugi::xml_node b = child(u, "BaseUnit");
+    static const char* names[] = {"kg", "m", "s", "A", "K", "mol", "cd", "rad"};
+    for (int i = 0; i < 8; ++i) unit.exponents[i] = static_cast<int>(number(ssd, b, names[i], 0));
+    unit.factor = number(ssd, b, "factor", 1);
+    unit.offset = number(ssd, b, "offset", 0);
+    if (unit.factor == 0) ssd.fail(b, "unit '" + std::string(u.attribute("name").value()) + "' has factor 0");
+    units[u.attribute("name").value()] = unit;
+  }
+  return units;
+}
+
+// One <ssd:Component> (an FMU) as the fmu_adapter parameters of a participant: the FMU, its
+// start values and its input and output connectors. `comps` holds the ones read before it.
+Comp read_component(const Xml& ssd, const pugi::xml_node& e, const fs::path& base,
+                    const std::map<std::string, Unit>& units, const std::map<std::string, Comp>& comps) {
+  if (local(e) != "Component")
+    ssd.fail(e, "<" + std::string(e.name()) + ">: only FMU components are supported (no nested systems or signal dictionaries)");
+  const std::string name = e.attribute("name").value();
+  if (!valid_name(name))
+    ssd.fail(e, "component name '" + name + "' is not a valid participant name (1..32 of A-Za-z0-9_)");
+  if (comps.count(name)) ssd.fail(e, "component name '" + name + "' is used twice");
+  const std::string type = e.attribute("type").value();
+  if (!type.empty() && type != "application/x-fmu-sharedlibrary")
+    ssd.fail(e, "component '" + name + "' has type \"" + type + "\": only FMUs (application/x-fmu-sharedlibrary) are supported");
+  const std::string source = e.attribute("source").value();
+  if (source.empty()) ssd.fail(e, "component '" + name + "' has no source (the FMU in the package)");
+  const fs::path fmu = (base / source).lexically_normal();
+  if (!fs::is_regular_file(fmu))
+    ssd.fail(e, "component '" + name + "': its FMU " + source + " is missing (looked for " + fmu.string() + ")");
+  Comp c;
+  c.params = YAML::Node(YAML::NodeType::Map);
+  c.params["fmu"] = fmu.string();
+  YAML::Node start(YAML::NodeType::Map);
+  for (const pugi::xml_node b : children(child(e, "ParameterBindings"), "ParameterBinding")) read_binding(ssd, b, base, start);
+  if (start.size() > 0) c.params["start"] = start;
+  YAML::Node inputs(YAML::NodeType::Sequence), outputs(YAML::NodeType::Sequence);
+  for (const pugi::xml_node k : children(child(e, "Connectors"), "Connector")) {
+    Connector con;
+    con.node = k;
+    const std::string cname = k.attribute("name").value();
+    con.kind = k.attribute("kind").value();
+    if (!valid_name(cname))
+      ssd.fail(k, "connector '" + cname + "' of component '" + name + "': not a valid signal name (1..32 of A-Za-z0-9_)");
+    for (const pugi::xml_node t : k.children())
+      if (t.type() == pugi::node_element && local(t) == "Real") con.unit = t.attribute("unit").value();
+    if (!con.unit.empty() && !units.count(con.unit))
+      ssd.fail(k, "connector '" + name + "." + cname + "' has unit '" + con.unit + "', which <ssd:Units> does not define");
+    if (con.kind == "input" || con.kind == "output") {
+      YAML::Node port(YAML::NodeType::Map);
+      port["name"] = cname;
+      port["scalar"] = cname;
+      if (con.kind == "input") {
+        c.input_index[cname] = inputs.size();
+        inputs.push_back(port);
+      } else {
+        outputs.push_back(port);
+      }
+    } else if (con.kind != "parameter" && con.kind != "calculatedParameter" && con.kind != "structuralParameter") {
+      ssd.fail(k, "connector '" + name + "." + cname + "' has kind \"" + con.kind + "\": supported are input and output");
+    }
+    c.connectors[cname] = con;
+  }
+  c.params["inputs"] = inputs;
+  c.params["outputs"] = outputs;
+  return c;
+}
+
+// One <ssd:Connection> as a connection of the master's config, with the unit conversion put on
+// the input port it feeds (factor, offset); `fed` holds the inputs fed so far.
+YAML::Node read_connection(const Xml& ssd, const pugi::xml_node& k, std::map<std::string, Comp>& comps,
+                           const std::map<std::string, Unit>& units, const std::string& predictor,
+                           std::set<std::string>& fed) {
+  const std::string se = k.attribute("startElement").value(), sc = k.attribute("startConnector").value();
+  const std::string ee = k.attribute("endElement").value(), ec = k.attribute("endConnector").value();
+  if (se.empty() || ee.empty())
+    ssd.fail(k, "a connection to the system's own connectors (no startElement or endElement) is not supported");
+  auto find = [&](const std::string& el, const std::string& con, const char* end) -> const Connector& {
+    const auto c = comps.find(el);
+    if (c == comps.end())
+      ssd.fail(k, std::string("dangling connection: its ") + end + "Element '" + el + "' is not a component of the system");
+    const auto n = c->second.connectors.find(con);
+    if (n == c->second.connectors.end())
+      ssd.fail(k, std::string("dangling connection: component '") + el + "' has no connector '" + con + "'");
+    return n->second;
+  };
+  const Connector& from = find(se, sc, "start");
+  const Connector& to = find(ee, ec, "end");
+  if (from.kind != "output") ssd.fail(k, "connection " + se + "." + sc + " -> " + ee + "." + ec + ": its start is not an output connector");
+  if (to.kind != "input") ssd.fail(k, "connection " + se + "." + sc + " -> " + ee + "." + ec + ": its end is not an input connector");
+  if (!fed.insert(ee + "." + ec).second) ssd.fail(k, "input " + ee + "." + ec + " is the end of two connections");
+  // Unit conversion (SSP 1.0, 5.3.x): an explicit <ssc:LinearTransformation>, else the
+  // implicit one between the connectors' units: SI = factor * value + offset on each side.
+  double factor = 1, offset = 0;
+  if (const pugi::xml_node lt = child(k, "LinearTransformation")) {
+    factor = number(ssd, lt, "factor", 1);
+    offset = number(ssd, lt, "offset", 0);
+  } else if (const pugi::xml_node uc = child(k, "UnitConversion")) {
+    const std::string u = uc.attribute("unit").value();
+    if (!units.count(u)) ssd.fail(uc, "<ssc:UnitConversion unit=\"" + u + "\">: <ssd:Units> does not define it");
+    if (from.unit.empty() || to.unit.empty()) ssd.fail(uc, "a unit conversion needs units on both connectors");
+  } else if (child(k, "MapTransformation") || child(k, "BooleanMappingTransformation") || child(k, "IntegerMappingTransformation")) {
+    ssd.fail(k, "connection " + se + "." + sc + " -> " + ee + "." + ec + ": only linear transformations and unit conversions are supported");
+  }
+  if (!from.unit.empty() && !to.unit.empty() && from.unit != to.unit && !child(k, "LinearTransformation")) {
+    const Unit& a = units.at(from.unit);
+    const Unit& b = units.at(to.unit);
+    if (a.exponents != b.exponents)
+      ssd.fail(k, "connection " + se + "." + sc + " [" + from.unit + "] -> " + ee + "." + ec + " [" + to.unit +
+                      "]: the units measure different quantities (their base-unit exponents differ)");
+    factor = a.factor / b.factor;
+    offset = (a.offset - b.offset) / b.factor;
+  }
+  YAML::Node conn(YAML::NodeType::Map);
+  conn["from"] = se + "." + sc;
+  conn["to"] = ee + "." + ec;
+  if (!predictor.empty()) conn["predictor"] = predictor;
+  if (factor != 1 || offset != 0) {
+    YAML::Node port = comps[ee].params["inputs"][comps[ee].input_index[ec]];
+    port["factor"] = factor;
+    port["offset"] = offset;
+  }
+  return conn;
+}
+
 }  // namespace
 
 bool is_system_file(const std::string& path) { return ends_with(path, ".ssp") || ends_with(path, ".ssd"); }
@@ -218,140 +357,22 @@ YAML::Node system_config(const std::string& path, const std::string& predictor) 
   const pugi::xml_node system = child(root, "System");
   if (!system) ssd.fail(root, "no <ssd:System>");
 
-  std::map<std::string, Unit> units;
-  for (const pugi::xml_node u : children(child(root, "Units"), "Unit")) {
-    Unit unit;
-    const pugi::xml_node b = child(u, "BaseUnit");
-    static const char* names[] = {"kg", "m", "s", "A", "K", "mol", "cd", "rad"};
-    for (int i = 0; i < 8; ++i) unit.exponents[i] = static_cast<int>(number(ssd, b, names[i], 0));
-    unit.factor = number(ssd, b, "factor", 1);
-    unit.offset = number(ssd, b, "offset", 0);
-    if (unit.factor == 0) ssd.fail(b, "unit '" + std::string(u.attribute("name").value()) + "' has factor 0");
-    units[u.attribute("name").value()] = unit;
-  }
-
-  struct Connector {
-    std::string kind, unit;
-    pugi::xml_node node;
-  };
-  struct Comp {
-    YAML::Node params;
-    std::map<std::string, Connector> connectors;
-    std::map<std::string, std::size_t> input_index;  // connector -> index in params["inputs"]
-  };
+  const std::map<std::string, Unit> units = read_units(ssd, root);
   std::map<std::string, Comp> comps;
   std::vector<std::string> order;
   YAML::Node config(YAML::NodeType::Map);
   for (const pugi::xml_node e : child(system, "Elements").children()) {
     if (e.type() != pugi::node_element) continue;
-    if (local(e) != "Component")
-      ssd.fail(e, "<" + std::string(e.name()) + ">: only FMU components are supported (no nested systems or signal dictionaries)");
-    const std::string name = e.attribute("name").value();
-    if (!valid_name(name))
-      ssd.fail(e, "component name '" + name + "' is not a valid participant name (1..32 of A-Za-z0-9_)");
-    if (comps.count(name)) ssd.fail(e, "component name '" + name + "' is used twice");
-    const std::string type = e.attribute("type").value();
-    if (!type.empty() && type != "application/x-fmu-sharedlibrary")
-      ssd.fail(e, "component '" + name + "' has type \"" + type + "\": only FMUs (application/x-fmu-sharedlibrary) are supported");
-    const std::string source = e.attribute("source").value();
-    if (source.empty()) ssd.fail(e, "component '" + name + "' has no source (the FMU in the package)");
-    const fs::path fmu = (base / source).lexically_normal();
-    if (!fs::is_regular_file(fmu))
-      ssd.fail(e, "component '" + name + "': its FMU " + source + " is missing (looked for " + fmu.string() + ")");
-    Comp c;
-    c.params = YAML::Node(YAML::NodeType::Map);
-    c.params["fmu"] = fmu.string();
-    YAML::Node start(YAML::NodeType::Map);
-    for (const pugi::xml_node b : children(child(e, "ParameterBindings"), "ParameterBinding")) read_binding(ssd, b, base, start);
-    if (start.size() > 0) c.params["start"] = start;
-    YAML::Node inputs(YAML::NodeType::Sequence), outputs(YAML::NodeType::Sequence);
-    for (const pugi::xml_node k : children(child(e, "Connectors"), "Connector")) {
-      Connector con;
-      con.node = k;
-      const std::string cname = k.attribute("name").value();
-      con.kind = k.attribute("kind").value();
-      if (!valid_name(cname))
-        ssd.fail(k, "connector '" + cname + "' of component '" + name + "': not a valid signal name (1..32 of A-Za-z0-9_)");
-      for (const pugi::xml_node t : k.children())
-        if (t.type() == pugi::node_element && local(t) == "Real") con.unit = t.attribute("unit").value();
-      if (!con.unit.empty() && !units.count(con.unit))
-        ssd.fail(k, "connector '" + name + "." + cname + "' has unit '" + con.unit + "', which <ssd:Units> does not define");
-      if (con.kind == "input" || con.kind == "output") {
-        YAML::Node port(YAML::NodeType::Map);
-        port["name"] = cname;
-        port["scalar"] = cname;
-        if (con.kind == "input") {
-          c.input_index[cname] = inputs.size();
-          inputs.push_back(port);
-        } else {
-          outputs.push_back(port);
-        }
-      } else if (con.kind != "parameter" && con.kind != "calculatedParameter" && con.kind != "structuralParameter") {
-        ssd.fail(k, "connector '" + name + "." + cname + "' has kind \"" + con.kind + "\": supported are input and output");
-      }
-      c.connectors[cname] = con;
-    }
-    c.params["inputs"] = inputs;
-    c.params["outputs"] = outputs;
-    comps[name] = c;
-    order.push_back(name);
+    Comp c = read_component(ssd, e, base, units, comps);  // checks the name is new
+    comps[e.attribute("name").value()] = std::move(c);
+    order.push_back(e.attribute("name").value());
   }
   if (comps.empty()) ssd.fail(system, "the system has no components");
 
   YAML::Node connections(YAML::NodeType::Sequence);
   std::set<std::string> fed;
-  for (const pugi::xml_node k : children(child(system, "Connections"), "Connection")) {
-    const std::string se = k.attribute("startElement").value(), sc = k.attribute("startConnector").value();
-    const std::string ee = k.attribute("endElement").value(), ec = k.attribute("endConnector").value();
-    if (se.empty() || ee.empty())
-      ssd.fail(k, "a connection to the system's own connectors (no startElement or endElement) is not supported");
-    auto find = [&](const std::string& el, const std::string& con, const char* end) -> const Connector& {
-      const auto c = comps.find(el);
-      if (c == comps.end())
-        ssd.fail(k, std::string("dangling connection: its ") + end + "Element '" + el + "' is not a component of the system");
-      const auto n = c->second.connectors.find(con);
-      if (n == c->second.connectors.end())
-        ssd.fail(k, std::string("dangling connection: component '") + el + "' has no connector '" + con + "'");
-      return n->second;
-    };
-    const Connector& from = find(se, sc, "start");
-    const Connector& to = find(ee, ec, "end");
-    if (from.kind != "output") ssd.fail(k, "connection " + se + "." + sc + " -> " + ee + "." + ec + ": its start is not an output connector");
-    if (to.kind != "input") ssd.fail(k, "connection " + se + "." + sc + " -> " + ee + "." + ec + ": its end is not an input connector");
-    if (!fed.insert(ee + "." + ec).second) ssd.fail(k, "input " + ee + "." + ec + " is the end of two connections");
-    // Unit conversion (SSP 1.0, 5.3.x): an explicit <ssc:LinearTransformation>, else the
-    // implicit one between the connectors' units: SI = factor * value + offset on each side.
-    double factor = 1, offset = 0;
-    if (const pugi::xml_node lt = child(k, "LinearTransformation")) {
-      factor = number(ssd, lt, "factor", 1);
-      offset = number(ssd, lt, "offset", 0);
-    } else if (const pugi::xml_node uc = child(k, "UnitConversion")) {
-      const std::string u = uc.attribute("unit").value();
-      if (!units.count(u)) ssd.fail(uc, "<ssc:UnitConversion unit=\"" + u + "\">: <ssd:Units> does not define it");
-      if (from.unit.empty() || to.unit.empty()) ssd.fail(uc, "a unit conversion needs units on both connectors");
-    } else if (child(k, "MapTransformation") || child(k, "BooleanMappingTransformation") || child(k, "IntegerMappingTransformation")) {
-      ssd.fail(k, "connection " + se + "." + sc + " -> " + ee + "." + ec + ": only linear transformations and unit conversions are supported");
-    }
-    if (!from.unit.empty() && !to.unit.empty() && from.unit != to.unit && !child(k, "LinearTransformation")) {
-      const Unit& a = units.at(from.unit);
-      const Unit& b = units.at(to.unit);
-      if (a.exponents != b.exponents)
-        ssd.fail(k, "connection " + se + "." + sc + " [" + from.unit + "] -> " + ee + "." + ec + " [" + to.unit +
-                        "]: the units measure different quantities (their base-unit exponents differ)");
-      factor = a.factor / b.factor;
-      offset = (a.offset - b.offset) / b.factor;
-    }
-    YAML::Node conn(YAML::NodeType::Map);
-    conn["from"] = se + "." + sc;
-    conn["to"] = ee + "." + ec;
-    if (!predictor.empty()) conn["predictor"] = predictor;
-    connections.push_back(conn);
-    if (factor != 1 || offset != 0) {
-      YAML::Node port = comps[ee].params["inputs"][comps[ee].input_index[ec]];
-      port["factor"] = factor;
-      port["offset"] = offset;
-    }
-  }
+  for (const pugi::xml_node k : children(child(system, "Connections"), "Connection"))
+    connections.push_back(read_connection(ssd, k, comps, units, predictor, fed));
 
   YAML::Node time(YAML::NodeType::Map);
   if (const pugi::xml_node de = child(root, "DefaultExperiment")) {

@@ -74,5 +74,11 @@ int main(int argc, char** argv) {
   } catch (const fmu::FmuError& e) {
     std::cerr << "fmu_adapter: " << e.what() << "\n";
     return 2;
+  } catch (const std::bad_alloc&) {
+    std::cerr << cosim::out_of_memory_message("fmu_adapter") << "\n";
+    return 1;
+  } catch (const std::exception& e) {
+    std::cerr << "fmu_adapter: error: " << e.what() << "\n";
+    return 1;
   }
 }

@@ -15,8 +15,8 @@
 #include <vector>
 
 #include "cosim/auth.hpp"
-#include "cosim/participant.hpp"
-#include "cosim/signal.hpp"
+#include "cosim/participant_core.hpp"
+#include "cosim/signal_wire.hpp"
 #include "cosim/time.hpp"
 
 namespace cosim {

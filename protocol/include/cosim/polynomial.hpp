@@ -5,8 +5,6 @@
 // body-fixed rotation vector relative to q_ref; the other components are polynomials as they are.
 #pragma once
 
-#include <cosim/polynomial_set_t.hpp>
-
 #include <map>
 #include <string>
 #include <utility>
@@ -56,9 +54,5 @@ InputPolynomial fit_polynomial(SignalKind kind, const std::vector<double>& s,
 InputPolynomial fit_polynomial_to_means(SignalKind kind,
                                         const std::vector<std::pair<double, double>>& intervals,
                                         const std::vector<Value>& means, int order);
-
-polynomial_set_t to_message(const Polynomials& polynomials);
-// Validates sizes, orders (1..4 coefficients), finiteness and unit reference quaternions.
-Polynomials from_message(const polynomial_set_t& message, const std::string& what);
 
 }  // namespace cosim
