@@ -1,10 +1,11 @@
 #!/usr/bin/python3
 """The cost of one rollback of the DEM soil, as a share of its macro step (docs/coupling.md).
 
-    /usr/bin/python3 bench/coupling/rollback_cost.py [--horizon S] [--macro-step H]
+    /usr/bin/python3 bench/coupling/rollback_cost.py [--horizon S] [--macro-step H] [--scene main|paper]
 
-Runs the wheel loader (configs/wheel_loader.yaml, the 10,000-sphere pile: results/pile_small.h5,
-prepared by scripts/run.sh) twice over the same horizon at the same macro step: explicit Jacobi
+Runs the wheel loader (--scene main: configs/wheel_loader.yaml, the 10,000-sphere pile
+results/pile_small.h5, prepared by scripts/run.sh; --scene paper: configs/wheel_loader_paper.yaml,
+the 150,000-sphere pile results/pile_paper.h5, prepared by bench/paper/prepare_pile.sh) twice over the same horizon at the same macro step: explicit Jacobi
 (the anchor) and implicit Jacobi with exactly two iterations per step (min_iterations =
 max_iterations = 2, a limit every iteration meets), so that every step is rolled back once. A
 rollback is the dem_service's `snapshot` section: the state saved at the step's start and restored
@@ -29,9 +30,14 @@ import numpy as np
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 
-def run(name, sets, out, binary):
+SCENES = {"main": ("configs/wheel_loader.yaml", "results/pile_small.h5", "10,000", "bash scripts/run.sh"),
+          "paper": ("configs/wheel_loader_paper.yaml", "results/pile_paper.h5", "150,000",
+                    "nice -n 19 bash bench/paper/prepare_pile.sh")}
+
+
+def run(name, sets, out, binary, config):
     h5 = os.path.join(out, name + ".h5")
-    cmd = ["nice", binary, os.path.join(ROOT, "configs/wheel_loader.yaml"), "--output", h5,
+    cmd = ["nice", binary, os.path.join(ROOT, config), "--output", h5,
            "--set", "output.csv=", "--set", "output.progress=off",
            "--set", "participants.soil.parameters={output.file: ''}"] + sum((["--set", s] for s in sets), [])
     p = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True)
@@ -53,20 +59,25 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--horizon", type=float, default=0.05, help="simulated seconds (default 0.05)")
     ap.add_argument("--macro-step", type=float, default=1.0e-3, help="s (default: the main job's 1e-3)")
+    ap.add_argument("--scene", choices=sorted(SCENES), default="main",
+                    help="main: the 10k main job; paper: the 150k paper-sized pile (default main)")
     a = ap.parse_args()
-    if not os.path.exists(os.path.join(ROOT, "results/pile_small.h5")):
-        sys.exit("rollback_cost: results/pile_small.h5 is missing: prepare the pile first (bash scripts/run.sh)")
+    if not (a.horizon > 0 and a.macro_step > 0 and a.macro_step <= a.horizon):
+        sys.exit(f"rollback_cost: need 0 < --macro-step <= --horizon (got {a.macro_step:g} and {a.horizon:g})")
+    config, pile, grains, prepare = SCENES[a.scene]
+    if not os.path.exists(os.path.join(ROOT, pile)):
+        sys.exit(f"rollback_cost: {pile} is missing: prepare the pile first ({prepare})")
     binary = os.path.join(ROOT, "build/bin/cosim_master")
     common = [f"time.end={a.horizon}", f"time.macro_step={a.macro_step}", "startup_iterations=0"]
     with tempfile.TemporaryDirectory() as out:
-        ex = run("explicit", common, out, binary)
+        ex = run("explicit", common, out, binary, config)
         im = run("implicit2", common + [
             "coupling.type=implicit", "coupling.min_iterations=2", "coupling.max_iterations=2",
-            "coupling.convergence=[{connection: loader.bucket_wrench, measure: absolute, limit: 1.0e30}]"], out, binary)
+            "coupling.convergence=[{connection: loader.bucket_wrench, measure: absolute, limit: 1.0e30}]"], out, binary, config)
     rollbacks = im["iterations"] - im["steps"]
     per_rollback = im["snapshot"] / max(rollbacks, 1)
     step_compute = ex["soil_compute"] / ex["steps"]
-    print(f"wheel loader, 10,000 spheres, macro step {a.macro_step:g} s, {ex['steps']} steps over {a.horizon:g} s")
+    print(f"wheel loader, {grains} spheres ({a.scene}), macro step {a.macro_step:g} s, {ex['steps']} steps over {a.horizon:g} s")
     print(f"  explicit (anchor): soil compute {step_compute * 1e3:.2f} ms per macro step; snapshots {ex['snapshot']:.4f} s")
     print(f"  implicit, 2 iterations: {rollbacks:.0f} rollbacks, snapshot section {im['snapshot']:.4f} s "
           f"({per_rollback * 1e3:.3f} ms per rollback, save and restore)")
