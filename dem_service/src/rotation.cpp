@@ -8,6 +8,7 @@
 #include <stdexcept>
 
 #include "cosim/yaml_config.hpp"
+#include "dem/stability.hpp"
 
 namespace dem {
 namespace cfg = cosim::config;
@@ -92,17 +93,7 @@ void validate_rotation(const Scene& sc) {
 double rotating_contact_period(const Scene& sc, std::string* which) {
   double best = INFINITY;
   if (!sc.rotation.rotating()) return best;
-  struct Probe {
-    std::string name;
-    double r, m;
-  };
-  std::vector<Probe> probes;
-  for (const Species& sp : sc.species) {
-    std::vector<double> radii{sp.radius.min, sp.radius.max};
-    for (double v : sp.radius.values) radii.push_back(v);
-    for (double r : radii)
-      if (r > 0) probes.push_back({sp.name, r, sp.mass(r)});
-  }
+  const std::vector<SizeProbe> probes = size_probes(sc);
   auto consider = [&](double t, const std::string& what) {
     if (t < best) {
       best = t;
@@ -118,9 +109,9 @@ double rotating_contact_period(const Scene& sc, std::string* which) {
     const RollingCoefficients k = rolling_coefficients(sc.rotation.rolling, c.k, rr, ir);
     if (k.kr > 0) consider(M_PI / std::sqrt(k.kr / ir), what + " (rolling spring)");
   };
-  for (const Probe& a : probes) {
+  for (const SizeProbe& a : probes) {
     const double ia = moment_of_inertia(a.m, a.r);
-    for (const Probe& b : probes) {
+    for (const SizeProbe& b : probes) {
       const double ib = moment_of_inertia(b.m, b.r);
       const double len = a.r * b.r / (a.r + b.r);
       const double mt = 1 / (1 / a.m + a.r * a.r / ia + 1 / b.m + b.r * b.r / ib);

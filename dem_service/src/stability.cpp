@@ -10,18 +10,19 @@
 #include "dem/rotation.hpp"
 
 namespace dem {
-double stiffest_contact_period(const Scene& scene, std::string* which) {
-  struct Probe {
-    std::string name;
-    double r, m;
-  };
-  std::vector<Probe> probes;
+std::vector<SizeProbe> size_probes(const Scene& scene) {
+  std::vector<SizeProbe> probes;
   for (const Species& sp : scene.species) {
     std::vector<double> radii{sp.radius.min, sp.radius.max};
     for (double v : sp.radius.values) radii.push_back(v);
     for (double r : radii)
       if (r > 0) probes.push_back({sp.name, r, sp.mass(r)});
   }
+  return probes;
+}
+
+double stiffest_contact_period(const Scene& scene, std::string* which) {
+  const std::vector<SizeProbe> probes = size_probes(scene);
   double best = INFINITY;
   auto consider = [&](double t, const std::string& what) {
     if (t < best) {
@@ -29,8 +30,8 @@ double stiffest_contact_period(const Scene& scene, std::string* which) {
       if (which) *which = what;
     }
   };
-  for (const Probe& a : probes) {
-    for (const Probe& b : probes) {
+  for (const SizeProbe& a : probes) {
+    for (const SizeProbe& b : probes) {
       const double len = a.r * b.r / (a.r + b.r), meff = a.m * b.m / (a.m + b.m);
       std::ostringstream w;
       w << "sphere-sphere " << a.name << " r=" << a.r << " / " << b.name << " r=" << b.r;

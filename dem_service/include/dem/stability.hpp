@@ -4,11 +4,19 @@
 
 #include <ostream>
 #include <string>
+#include <vector>
 
 #include "dem/scene.hpp"
 #include "dem/state.hpp"
 
 namespace dem {
+
+// One grain size that bounds a contact's period: a species' smallest, largest and listed radii.
+struct SizeProbe {
+  std::string name;  // the species
+  double r, m;       // radius and mass
+};
+std::vector<SizeProbe> size_probes(const Scene& scene);
 
 // Shortest contact period over the scene's species extremes (smallest and largest radius of
 // each species, against each other and against walls/tools). `which` describes that contact.
