@@ -118,6 +118,8 @@ class CoSimulation final : private Coupling {
   // Continue a stopped run after resume.steps_done steps: the participants restore their
   // checkpoints in connect() and the predictors start from the recorded history. Before connect().
   void set_resume(ResumePoint resume);
+  // The time after `steps` steps of this run (a resumed run's recorded times, else fixed steps).
+  TimePoint time_after(int64_t steps) const;
   // Handshake and wiring check; raises ConfigError, ParticipantConfigError or LinkError.
   void connect();
   // All macro steps; raises LinkError on failure after telling the observers.
@@ -150,8 +152,6 @@ class CoSimulation final : private Coupling {
   void exchange(const std::vector<std::string>& group, int iteration, bool checkpoint) override;
   void close_step(int iterations, bool checkpoint) override;
   bool checkpoint_due(int64_t step, TimePoint t0, TimePoint t1) override;
-  // The time after `steps` steps of this run (a resumed run's recorded times, else fixed steps).
-  TimePoint time_after(int64_t steps) const;
   // Emits a closed step's record to the observers, with the algorithm's state at a checkpoint.
   void emit(StepRecord& rec);
   bool ended() const override { return ended_.has_value(); }

@@ -385,10 +385,9 @@ void Application::start_participants() {
 
 void Application::announce_run(const master::CoSimulation& sim) const {
   if (!o_.resume.empty())
-    std::cerr << "cosim_master: resuming " << o_.resume << " after " << resume_record_.steps_done << " of "
-              << (config_.t_end - config_.t_start) / config_.macro_step << " steps (t = "
-              << cosim::to_seconds(config_.t_start + resume_record_.steps_done * config_.macro_step)
-              << " s; it had recorded " << resume_record_.steps_recorded << ", status '"
+    std::cerr << "cosim_master: resuming " << o_.resume << " after " << resume_record_.steps_done
+              << " steps (t = " << cosim::to_seconds(sim.time_after(resume_record_.steps_done)) << " of "
+              << cosim::to_seconds(config_.t_end) << " s; it had recorded " << resume_record_.steps_recorded << ", status '"
               << resume_record_.status << "'); participants restore their checkpoints from "
               << checkpoint_folder_ << "\n";
   std::cerr << "cosim_master: session " << std::hex << transport_->session() << std::dec << " on " << url_
