@@ -404,7 +404,7 @@ struct ParticleSources {
   std::vector<InsertRegion> insert;
 };
 
-std::vector<InsertRegion> parse_insert(const YAML::Node& ins, const Scene& sc);
+std::vector<FillRegion> parse_regions(const YAML::Node& list, const std::string& key, const Scene& sc);
 
 ParticleSources parse_particles(const YAML::Node& parts, const Scene& sc) {
   if (!parts) throw ConfigError("particles: missing (give fill, list or checkpoint)");
@@ -436,22 +436,8 @@ ParticleSources parse_particles(const YAML::Node& parts, const Scene& sc) {
     src.checkpoint = cfg::get_string(parts, "particles", "checkpoint");
     src.keep_time = cfg::get_bool_or(parts, "particles", "keep_time", src.keep_time);
   }
-  if (const YAML::Node f = parts["fill"]) {
-    for (std::size_t i = 0; i < f.size(); ++i) {
-      const std::string p = "particles.fill[" + std::to_string(i) + "]";
-      cfg::check_keys(f[i], p, {"species", "min", "max", "count", "seed"});
-      FillRegion r;
-      r.species = species_index(sc, cfg::get_string(f[i], p, "species"), p + ".species");
-      r.min = vec3(f[i], p, "min");
-      r.max = vec3(f[i], p, "max");
-      r.count = cfg::get_int(f[i], p, "count");
-      if (r.count < 0) throw ConfigError(p + ".count: must be >= 0");
-      r.seed = static_cast<unsigned long long>(
-          cfg::get_int_or(f[i], p, "seed", static_cast<long long>(r.seed)));
-      src.fill.push_back(r);
-    }
-  }
-  if (const YAML::Node ins = parts["insert"]) src.insert = parse_insert(ins, sc);
+  if (const YAML::Node f = parts["fill"]) src.fill = parse_regions(f, "particles.fill", sc);
+  if (const YAML::Node ins = parts["insert"]) src.insert = parse_regions(ins, "particles.insert", sc);
   if (const YAML::Node l = parts["list"]) {
     for (std::size_t i = 0; i < l.size(); ++i) {
       const std::string p = "particles.list[" + std::to_string(i) + "]";
@@ -471,23 +457,24 @@ ParticleSources parse_particles(const YAML::Node& parts, const Scene& sc) {
   return src;
 }
 
-// particles.insert: random sequential insertion, a list like particles.fill.
-std::vector<InsertRegion> parse_insert(const YAML::Node& ins, const Scene& sc) {
-  std::vector<InsertRegion> out;
-  if (!ins.IsSequence())
-    throw ConfigError("particles.insert: expected a list of {species, min, max, count, seed}");
-  for (std::size_t i = 0; i < ins.size(); ++i) {
-    const std::string p = "particles.insert[" + std::to_string(i) + "]";
-    cfg::check_keys(ins[i], p, {"species", "min", "max", "count", "seed"});
-    InsertRegion r;
-    r.species = species_index(sc, cfg::get_string(ins[i], p, "species"), p + ".species");
-    r.min = vec3(ins[i], p, "min");
-    r.max = vec3(ins[i], p, "max");
-    r.count = cfg::get_int(ins[i], p, "count");
+// particles.fill (a jittered lattice) and particles.insert (random sequential insertion): a list
+// of {species, min, max, count, seed}.
+std::vector<FillRegion> parse_regions(const YAML::Node& list, const std::string& key, const Scene& sc) {
+  std::vector<FillRegion> out;
+  if (!list.IsSequence())
+    throw ConfigError(key + ": expected a list of {species, min, max, count, seed}");
+  for (std::size_t i = 0; i < list.size(); ++i) {
+    const std::string p = key + "[" + std::to_string(i) + "]";
+    cfg::check_keys(list[i], p, {"species", "min", "max", "count", "seed"});
+    FillRegion r;
+    r.species = species_index(sc, cfg::get_string(list[i], p, "species"), p + ".species");
+    r.min = vec3(list[i], p, "min");
+    r.max = vec3(list[i], p, "max");
+    r.count = cfg::get_int(list[i], p, "count");
     if (r.count < 0) throw ConfigError(p + ".count: must be >= 0");
-    const long long seed = cfg::get_int_or(ins[i], p, "seed", static_cast<long long>(r.seed));
+    const long long seed = cfg::get_int_or(list[i], p, "seed", static_cast<long long>(r.seed));
     if (seed < 0) throw ConfigError(p + ".seed: must be an integer >= 0");
-    r.seed = static_cast<std::uint64_t>(seed);
+    r.seed = static_cast<unsigned long long>(seed);
     out.push_back(r);
   }
   return out;

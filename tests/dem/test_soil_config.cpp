@@ -268,6 +268,8 @@ prepare: {deposition_friction: 0.2, margin: 2.0, ke_per_particle: 1.0e-7, max_ti
   EXPECT_NE(refused("particles.insert.0.species", "gravel").find("particles.insert[0].species"), std::string::npos);
   EXPECT_NE(refused("particles.insert.0.count", "5000").find("raise max.z"), std::string::npos);
   EXPECT_NE(refused("particles.insert.0.max", "[0.1, 0.1, 0.005]").find("particles.insert[0]"), std::string::npos);
+  EXPECT_NE(refused("particles.insert.0.seed", "-1").find("particles.insert[0].seed"), std::string::npos);
+  EXPECT_NE(refused("particles.insert", "{species: grain}").find("particles.insert: expected a list"), std::string::npos);
 }
 
 TEST(dem_SoilConfig, DemServiceRefusesToPrepareABed) {

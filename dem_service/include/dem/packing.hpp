@@ -10,6 +10,7 @@
 #include <optional>
 #include <string>
 
+#include "dem/bed.hpp"
 #include "dem/engine.hpp"
 #include "dem/scene.hpp"
 #include "dem/state.hpp"
@@ -61,12 +62,8 @@ std::string describe(const PackingStats& p);
 
 // --- Random sequential insertion.
 
-struct InsertRegion {
-  int species = 0;
-  Vec3 min, max;
-  long long count = 0;
-  std::uint64_t seed = 1;
-};
+// A box, a grain count and a seed: the same as a lattice fill's region (bed.hpp).
+using InsertRegion = FillRegion;
 // The largest solid fraction an insertion region may be asked to hold (random sequential
 // insertion of spheres jams near 0.38; above about 0.3 it needs many attempts per grain).
 inline constexpr double kMaxInsertionFraction = 0.3;
