@@ -20,6 +20,11 @@ and the design. The method:
      deposition friction of step 2) and `dem_lab repose` over design.friction (Coulomb mu) x
      seeds; a quadratic response surface per test; mu minimises the sum of the squared misses
      in tolerances over the design range (one target: the root).
+     The rotating model (grains.model: rotating, grains.rolling_resistance: EPSD damping and
+     stiffness factor) has a second knob, the rolling friction mu_r: without
+     grains.rolling_resistance.friction, both angles are targets and mu and mu_r come from full
+     quadratic surfaces over design.friction x design.rolling_friction x seeds (the minimum of
+     the same sum over the design box); with it, mu alone as above.
   4. Confirmation: the tests at the found parameters with fresh seeds give the reached values,
      mean +- 95 % t-interval; the size check repeats them at twice the grains (the result must
      not move beyond its scatter).
@@ -75,11 +80,13 @@ PACKING_RANGE = (0.50, 0.645)  # deposition friction 0.5 .. 0 (docs/soil.md, ran
 TOP_KEYS = ["name", "output", "description", "targets", "grains", "design", "source"]
 GRAIN_KEYS = ["density", "radius", "restitution", "tangential_stiffness_ratio",
               "tangential_damping_ratio", "normal_stiffness", "allowed_overlap", "friction",
-              "deposition_friction"]
-DESIGN_KEYS = ["friction", "deposition_friction", "seeds", "triaxial_grains", "repose_grains",
+              "deposition_friction", "model", "rolling_resistance"]
+MODELS = ["translating", "rotating"]  # particles.model of the engine (docs/soil_models.md)
+ROLLING_KEYS = ["friction", "damping", "stiffness_factor"]
+DESIGN_KEYS = ["friction", "rolling_friction", "deposition_friction", "seeds", "triaxial_grains", "repose_grains",
                "deposition_grains", "confining_pressure", "axial_strain", "freeze_friction",
                "confirmation_seeds", "refinements"]
-DESIGN_DEFAULTS = {"friction": [0.12, 0.18, 0.24, 0.30, 0.36],
+DESIGN_DEFAULTS = {"friction": [0.12, 0.18, 0.24, 0.30, 0.36], "rolling_friction": [0.2, 0.5, 0.8],
                    "deposition_friction": [0.0, 0.1, 0.2, 0.3], "seeds": 3, "confirmation_seeds": 3, "refinements": 2,
                    "triaxial_grains": 300, "repose_grains": 500, "deposition_grains": 1100,
                    "confining_pressure": 10.0e3, "axial_strain": 0.06, "freeze_friction": 0.25}
@@ -219,6 +226,38 @@ def read_targets(path):
                       "leave grains.friction out (or drop the angle targets)")
     if not angles:
         grains["mu"] = number(g, "grains", "friction", lo=0.0, hi=2.0, default=0.5)
+    # The particle model: translating (the paper's, default) or rotating with an EPSD rolling
+    # resistance whose mu_r is a third knob (fitted with mu when both angles are targets).
+    model = g.get("model", "translating")
+    if model not in MODELS:
+        raise Refused(f"grains.model: '{model}' is not allowed (allowed: {', '.join(MODELS)})")
+    grains["model"] = model
+    rr = g.get("rolling_resistance")
+    d_in = doc.get("design", {}) or {}
+    if model == "translating":
+        if rr is not None:
+            raise Refused("grains.rolling_resistance: needs grains.model: rotating (spheres that do "
+                          "not rotate cannot roll); set the model or remove rolling_resistance")
+        if isinstance(d_in, dict) and "rolling_friction" in d_in:
+            raise Refused("design.rolling_friction: only the rotating model has a rolling "
+                          "resistance; set grains.model: rotating or remove it")
+    else:
+        rr = {} if rr is None else rr
+        check_keys(rr, "grains.rolling_resistance", ROLLING_KEYS)
+        p = "grains.rolling_resistance"
+        grains["rolling_damping"] = number(rr, p, "damping", lo=0.0, hi=1.0, default=0.3)
+        grains["rolling_stiffness"] = number(rr, p, "stiffness_factor", positive=True, hi=100.0,
+                                             default=2.25)
+        both = "peak_friction_angle" in targets and "angle_of_repose" in targets
+        if "friction" in rr:
+            grains["mur"] = number(rr, p, "friction", positive=True, hi=1.0)
+            if isinstance(d_in, dict) and "rolling_friction" in d_in:
+                raise Refused("design.rolling_friction: grains.rolling_resistance.friction fixes "
+                              "mu_r; remove one of them")
+        elif not both:
+            raise Refused(f"{p}.friction: missing; mu_r is calibrated with mu only from both "
+                          f"angle targets (peak_friction_angle and angle_of_repose): give both, "
+                          f"or give mu_r")
     if "bulk_density" in targets and "deposition_friction" in g:
         raise Refused("grains.deposition_friction: the calibration finds it when bulk_density is "
                       "a target; leave it out (or drop the target)")
@@ -229,6 +268,7 @@ def read_targets(path):
     check_keys(d, "design", DESIGN_KEYS)
     design = {
         "friction": number_list(d, "design", "friction", 0.01, 1.0),
+        "rolling_friction": number_list(d, "design", "rolling_friction", 0.01, 1.0),
         "deposition_friction": number_list(d, "design", "deposition_friction", 0.0, 1.0),
         "seeds": int(number(d, "design", "seeds", lo=2, hi=20, default=DESIGN_DEFAULTS["seeds"])),
         "confirmation_seeds": int(number(d, "design", "confirmation_seeds", lo=2, hi=20,
@@ -273,12 +313,30 @@ def law(cfg, mu):
             "tangential_damping_ratio": g["tdr"], "friction": round(mu, 4)}
 
 
-def material_doc(cfg, mu, dep):
+def rolling(cfg, mur):
+    """particles.rolling_resistance of the rotating model at mu_r (None: translating)."""
     g = cfg["grains"]
-    return {"name": cfg["name"], "density": g["density"],
-            "radius": {"distribution": "uniform", "min": g["radius"][0], "max": g["radius"][1]},
-            "contact": {"particle_particle": law(cfg, mu)},
-            "prepare": {"deposition_friction": round(dep, 4)}}
+    if g["model"] != "rotating":
+        return None
+    return {"model": "epsd", "friction": round(mur, 4), "damping": g["rolling_damping"],
+            "stiffness_factor": g["rolling_stiffness"]}
+
+
+def material_doc(cfg, mu, dep, mur=None):
+    g = cfg["grains"]
+    doc = {"name": cfg["name"], "density": g["density"],
+           "radius": {"distribution": "uniform", "min": g["radius"][0], "max": g["radius"][1]},
+           "contact": {"particle_particle": law(cfg, mu)},
+           "prepare": {"deposition_friction": round(dep, 4)}}
+    if g["model"] == "rotating":
+        doc["particles"] = {"model": "rotating", "rolling_resistance": rolling(cfg, mur)}
+    return doc
+
+
+def tag(cfg, mur):
+    """The run name's mu_r part: empty for the translating model (its cached runs keep their
+    names)."""
+    return f"_mr{mur:.4f}" if cfg["grains"]["model"] == "rotating" else ""
 
 
 class Runner:
@@ -293,17 +351,22 @@ class Runner:
                                f"{r.stderr[-1500:]}")
         return r.stdout
 
-    def lab_sets(self, mu, dep):
+    def lab_sets(self, mu, dep, mur=None):
         g = self.cfg["grains"]
         sets = [f"grains.density={g['density']}",
                 f"grains.radius={{min: {g['radius'][0]}, max: {g['radius'][1]}}}"]
         for k, v in law(self.cfg, mu).items():
             sets.append(f"grains.contact.{k}={v}")
+        rr = rolling(self.cfg, mur)
+        if rr is not None:
+            sets.append("grains.model=rotating")
+            sets.append("grains.rolling_resistance={" + ", ".join(
+                f"{k}: {v}" for k, v in rr.items()) + "}")
         return sets
 
-    def triaxial(self, mu, dep, seed, grains):
+    def triaxial(self, mu, dep, seed, grains, mur=None):
         d = self.cfg["design"]
-        name = f"triaxial_n{grains}_mu{mu:.4f}_dep{dep:.4f}_s{seed}"
+        name = f"triaxial_n{grains}_mu{mu:.4f}{tag(self.cfg, mur)}_dep{dep:.4f}_s{seed}"
         out = os.path.join(self.out, name)
         summary = os.path.join(out, "triaxial_summary.csv")
         if not os.path.exists(summary):
@@ -313,7 +376,7 @@ class Runner:
                    "--set", f"triaxial.max_axial_strain={d['axial_strain']}",
                    "--set", f"sample.count={grains}", "--set", f"sample.seed={seed}",
                    "--set", f"sample.preparation_friction={dep}"]
-            for s in self.lab_sets(mu, dep):
+            for s in self.lab_sets(mu, dep, mur):
                 cmd += ["--set", s]
             self._exec(cmd, name)
         import csv
@@ -322,15 +385,15 @@ class Runner:
         return {"peak_friction_angle": float(row["phi_peak_deg"]),
                 "triaxial_packing_inner": float(row["packing_inner"])}
 
-    def repose(self, mu, seed, grains):
-        name = f"repose_n{grains}_mu{mu:.4f}_s{seed}"
+    def repose(self, mu, seed, grains, mur=None):
+        name = f"repose_n{grains}_mu{mu:.4f}{tag(self.cfg, mur)}_s{seed}"
         out = os.path.join(self.out, name)
         summary = os.path.join(out, "repose_summary.csv")
         if not os.path.exists(summary):
             cmd = [os.path.join(self.bin, "dem_lab"), "repose", "configs/lab/repose.yaml",
                    "--out", out, "--no-plot", "--set", f"repose.count={grains}",
                    "--set", f"repose.seed={seed}"]
-            for s in self.lab_sets(mu, 0.0):
+            for s in self.lab_sets(mu, 0.0, mur):
                 cmd += ["--set", s]
             self._exec(cmd, name)
         import csv
@@ -338,15 +401,15 @@ class Runner:
             row = next(csv.DictReader(f))
         return {"angle_of_repose": float(row["angle_deg"])}
 
-    def deposition(self, mu, dep, seed, grains):
-        name = f"deposition_n{grains}_mu{mu:.4f}_dep{dep:.4f}_s{seed}"
+    def deposition(self, mu, dep, seed, grains, mur=None):
+        name = f"deposition_n{grains}_mu{mu:.4f}{tag(self.cfg, mur)}_dep{dep:.4f}_s{seed}"
         out = os.path.join(self.out, name)
         result = os.path.join(out, "result.yaml")
         if not os.path.exists(result):
             os.makedirs(out, exist_ok=True)
             mat = os.path.abspath(os.path.join(out, "material.yaml"))
             with open(mat, "w") as f:
-                yaml.safe_dump(material_doc(self.cfg, mu, dep), f, sort_keys=False)
+                yaml.safe_dump(material_doc(self.cfg, mu, dep, mur), f, sort_keys=False)
             # The bin grows with the grains at the same bed height (about 9 diameters).
             g = self.cfg["grains"]
             dmean = g["radius"][0] + g["radius"][1]
@@ -419,6 +482,44 @@ class Surface:
         return min(vals), max(vals)
 
 
+class Surface2:
+    """Full quadratic least squares in two knobs (x = mu, y = mu_r) over every run:
+    z = c0 + c1 x + c2 y + c3 x^2 + c4 x y + c5 y^2 (6 coefficients: a 3 x 3 design at least)."""
+
+    def __init__(self, xys, zs):
+        xy = np.asarray(xys, float)
+        self.x, self.yv, self.z = xy[:, 0], xy[:, 1], np.asarray(zs, float)
+        A = self._rows(self.x, self.yv)
+        self.c, *_ = np.linalg.lstsq(A, self.z, rcond=None)
+        res = self.z - A @ self.c
+        self.dof = len(self.z) - 6
+        self.s2 = float(res @ res) / max(self.dof, 1)
+        self.cov = self.s2 * np.linalg.inv(A.T @ A)
+        self.lo = (float(self.x.min()), float(self.yv.min()))
+        self.hi = (float(self.x.max()), float(self.yv.max()))
+
+    @staticmethod
+    def _rows(x, y):
+        x, y = np.asarray(x, float), np.asarray(y, float)
+        return np.vstack([np.ones_like(x), x, y, x * x, x * y, y * y]).T
+
+    def __call__(self, x, y):
+        return self._rows(x, y) @ self.c if np.ndim(x) else float(self._rows([x], [y])[0] @ self.c)
+
+    def gradient(self, x, y):
+        c = self.c
+        return np.array([c[1] + 2 * c[3] * x + c[4] * y, c[2] + c[4] * x + 2 * c[5] * y])
+
+    def se(self, x, y):  # standard error of the fitted mean at (x, y)
+        v = self._rows([x], [y])[0]
+        return math.sqrt(max(float(v @ self.cov @ v), 0.0))
+
+    def grid(self, n=201):
+        gx, gy = np.meshgrid(np.linspace(self.lo[0], self.hi[0], n),
+                             np.linspace(self.lo[1], self.hi[1], n))
+        return gx.ravel(), gy.ravel()
+
+
 def solve(surfaces, targets, what):
     """The x in the design range minimising sum(((f(x) - t) / tol)^2); refuses a target that the
     surface cannot reach in the range."""
@@ -442,6 +543,54 @@ def solve(surfaces, targets, what):
         if abs(sl) > 1e-12:
             half = max(half, t95(s.dof) * s.se(x) / abs(sl))
     return x, half
+
+
+def solve2(surfaces, targets):
+    """(mu, mu_r) in the design box minimising sum(((f - t) / tol)^2) over the angle targets;
+    refuses a target the box cannot reach. The intervals: the fitted means' standard errors at
+    the result carried through the surfaces' gradients (weighted least squares, J the gradients,
+    W = 1/tol^2: cov = (J'WJ)^-1 J'W S W J (J'WJ)^-1, S the means' variances), t-quantile of the
+    smallest residual degrees of freedom."""
+    s0 = next(iter(surfaces.values()))
+    gx, gy = s0.grid()
+    vals = {k: s(gx, gy) for k, s in surfaces.items()}
+    for k, v in vals.items():
+        t = targets[k]
+        lo, hi = float(v.min()), float(v.max())
+        if not (lo - t["tolerance"] <= t["value"] <= hi + t["tolerance"]):
+            raise Refused(f"targets.{k}.value: {t['value']:g} is outside what the design reaches "
+                          f"({lo:.4g}-{hi:.4g} over design.friction {s0.lo[0]:g}-{s0.hi[0]:g} x "
+                          f"design.rolling_friction {s0.lo[1]:g}-{s0.hi[1]:g}): widen the design "
+                          f"or change the target")
+    cost = sum(((vals[k] - targets[k]["value"]) / targets[k]["tolerance"]) ** 2 for k in surfaces)
+    i = int(np.argmin(cost))
+    x, y = float(gx[i]), float(gy[i])
+    return x, y, intervals2(surfaces, targets, x, y)
+
+
+def intervals2(surfaces, targets, x, y):
+    keys = list(surfaces)
+    J = np.array([surfaces[k].gradient(x, y) for k in keys])
+    W = np.diag([1.0 / targets[k]["tolerance"] ** 2 for k in keys])
+    S = np.diag([surfaces[k].se(x, y) ** 2 for k in keys])
+    try:
+        M = np.linalg.inv(J.T @ W @ J)
+    except np.linalg.LinAlgError:
+        return (float("inf"), float("inf"))
+    cov = M @ J.T @ W @ S @ W @ J @ M
+    t = t95(min(s.dof for s in surfaces.values()))
+    return tuple(float(t * math.sqrt(max(cov[j, j], 0.0))) for j in range(2))
+
+
+def newton2(surfaces, targets, reached, x, y):
+    """The weighted least-squares Newton step from the confirmation's misses, in the box."""
+    keys = list(surfaces)
+    J = np.array([surfaces[k].gradient(x, y) for k in keys])
+    W = np.diag([1.0 / targets[k]["tolerance"] ** 2 for k in keys])
+    r = np.array([reached[k]["mean"] - targets[k]["value"] for k in keys])
+    step = np.linalg.solve(J.T @ W @ J, J.T @ W @ r)
+    s0 = surfaces[keys[0]]
+    return (min(max(x - step[0], s0.lo[0]), s0.hi[0]), min(max(y - step[1], s0.lo[1]), s0.hi[1]))
 
 
 def stats(vals):
@@ -488,6 +637,13 @@ def main():
         f"{k} {t['value']:g} +- {t['tolerance']:g}" for k, t in targets.items()))
     log(f"  k_N {kN:.4g} Pa" + (f" (overlap {g['overlap']:g} of a radius at {g['depth']:g} m "
                                  f"depth)" if "overlap" in g else " (given)"))
+    rotating = g["model"] == "rotating"
+    fit_mur = rotating and "mur" not in g  # mu_r is a knob: a 2D design (mu x mu_r)
+    mur = g.get("mur")
+    if rotating:
+        log(f"  rotating grains, EPSD rolling resistance (damping {g['rolling_damping']:g}, "
+            f"stiffness factor {g['rolling_stiffness']:g}): mu_r " +
+            (f"over {d['rolling_friction']}" if fit_mur else f"{mur:g} (given)"))
     record = {"method": "quadratic response surfaces over a designed set of small lab runs "
                         "(seeds as replicates), solved in the design range; reached values from "
                         "a confirmation ensemble with fresh seeds (scripts/calibrate.py)"}
@@ -495,7 +651,10 @@ def main():
         # Step 2: bulk density -> deposition friction.
         surf, surfaces = None, {}
         if "bulk_density" in targets:
-            calls = [(run.deposition, (d["freeze_friction"], x, s, d["deposition_grains"]))
+            # The bed is frozen with design.freeze_friction (and, rotating, the middle mu_r
+            # level or the given mu_r): the density is the deposition friction's.
+            mur_dep = (d["rolling_friction"][len(d["rolling_friction"]) // 2] if fit_mur else mur)
+            calls = [(run.deposition, (d["freeze_friction"], x, s, d["deposition_grains"], mur_dep))
                      for x in d["deposition_friction"] for s in seeds]
             res = run.many(calls)
             xs = [c[1][1] for c in calls]
@@ -512,10 +671,35 @@ def main():
             dep = g["dep"]
         # Step 3: angles -> mu.
         ang = [k for k in ("peak_friction_angle", "angle_of_repose") if k in targets]
-        if ang:
+        if ang and fit_mur:
+            # mu and mu_r from both angles: a full quadratic surface per test over the
+            # design.friction x design.rolling_friction grid.
+            points = [(x, y) for x in d["friction"] for y in d["rolling_friction"]]
+            surfaces = {}
+            for k, fn in (("peak_friction_angle", run.triaxial),
+                          ("angle_of_repose", run.repose)):
+                if k == "peak_friction_angle":
+                    calls = [(fn, (x, dep, s, d["triaxial_grains"], y)) for x, y in points
+                             for s in seeds]
+                    xy = [(c[1][0], c[1][4]) for c in calls]
+                else:
+                    calls = [(fn, (x, s, d["repose_grains"], y)) for x, y in points for s in seeds]
+                    xy = [(c[1][0], c[1][3]) for c in calls]
+                res = run.many(calls)
+                surfaces[k] = Surface2(xy, [r[k] for r in res])
+                for x, y in points:
+                    v = [r[k] for q, r in zip(xy, res) if q == (x, y)]
+                    log(f"  mu {x:.3f}, mu_r {y:.3f}: {k.replace('_', ' ')} "
+                        f"{statistics.mean(v):.2f} deg (sd {statistics.stdev(v):.2f})")
+            mu, mur, (mu_half, mur_half) = solve2(surfaces, targets)
+            log(f"  -> mu {mu:.4f} +- {mu_half:.4f}, mu_r {mur:.4f} +- {mur_half:.4f} (surfaces: "
+                + ", ".join(f"{k} {s(mu, mur):.2f}" for k, s in surfaces.items()) + ")")
+            record["friction_interval"] = round(mu_half, 4)
+            record["rolling_friction_interval"] = round(mur_half, 4)
+        elif ang:
             surfaces = {}
             if "peak_friction_angle" in targets:
-                calls = [(run.triaxial, (x, dep, s, d["triaxial_grains"]))
+                calls = [(run.triaxial, (x, dep, s, d["triaxial_grains"], mur))
                          for x in d["friction"] for s in seeds]
                 res = run.many(calls)
                 surfaces["peak_friction_angle"] = Surface(
@@ -525,7 +709,7 @@ def main():
                     log(f"  mu {x:.3f}: peak friction angle {statistics.mean(v):.2f} deg "
                         f"(sd {statistics.stdev(v):.2f})")
             if "angle_of_repose" in targets:
-                calls = [(run.repose, (x, s, d["repose_grains"]))
+                calls = [(run.repose, (x, s, d["repose_grains"], mur))
                          for x in d["friction"] for s in seeds]
                 res = run.many(calls)
                 surfaces["angle_of_repose"] = Surface(
@@ -541,18 +725,20 @@ def main():
         else:
             mu = g["mu"]
         mu, dep = round(mu, 4), round(dep, 4)
+        mur = round(mur, 4) if mur is not None else None
 
         # Step 4: confirmation with fresh seeds, and at twice the grains.
         def confirm(factor, seed_list):
             calls = []
             if "bulk_density" in targets:
-                calls += [(run.deposition, (mu, dep, s, d["deposition_grains"] * factor))
+                calls += [(run.deposition, (mu, dep, s, d["deposition_grains"] * factor, mur))
                           for s in seed_list]
             if "peak_friction_angle" in targets:
-                calls += [(run.triaxial, (mu, dep, s, d["triaxial_grains"] * factor))
+                calls += [(run.triaxial, (mu, dep, s, d["triaxial_grains"] * factor, mur))
                           for s in seed_list]
             if "angle_of_repose" in targets:
-                calls += [(run.repose, (mu, s, d["repose_grains"] * factor)) for s in seed_list]
+                calls += [(run.repose, (mu, s, d["repose_grains"] * factor, mur))
+                          for s in seed_list]
             res = run.many(calls)
             vals = {}
             for r in res:
@@ -570,11 +756,13 @@ def main():
                     if abs(reached[k]["mean"] - t["value"]) > t["tolerance"]}
             if not miss:
                 break
-            new_dep, new_mu = dep, mu
+            new_dep, new_mu, new_mur = dep, mu, mur
             if "bulk_density" in miss:
                 new_dep = dep - miss["bulk_density"] / surf.slope(dep)
                 new_dep = min(max(new_dep, surf.lo), surf.hi)
-            if any(k in miss for k in surfaces):
+            if fit_mur and any(k in miss for k in surfaces):
+                new_mu, new_mur = newton2(surfaces, targets, reached, mu, mur)
+            elif any(k in miss for k in surfaces):
                 num = sum(surfaces[k].slope(mu) * (reached[k]["mean"] - targets[k]["value"])
                           / targets[k]["tolerance"] ** 2 for k in surfaces)
                 den = sum(surfaces[k].slope(mu) ** 2 / targets[k]["tolerance"] ** 2
@@ -582,13 +770,18 @@ def main():
                 s0 = next(iter(surfaces.values()))
                 new_mu = min(max(mu - num / den, s0.lo), s0.hi)
             new_dep, new_mu = round(new_dep, 4), round(new_mu, 4)
-            if (new_dep, new_mu) == (dep, mu):
+            new_mur = round(new_mur, 4) if new_mur is not None else None
+            if (new_dep, new_mu, new_mur) == (dep, mu, mur):
                 break
             log(f"  refinement: missed {', '.join(f'{k} by {v:+.3g}' for k, v in miss.items())}: "
-                f"deposition friction {dep} -> {new_dep}, mu {mu} -> {new_mu}")
-            steps.append({"missed": {k: round(v, 3) for k, v in miss.items()},
-                          "deposition_friction": new_dep, "friction": new_mu})
-            dep, mu = new_dep, new_mu
+                f"deposition friction {dep} -> {new_dep}, mu {mu} -> {new_mu}" +
+                (f", mu_r {mur} -> {new_mur}" if fit_mur else ""))
+            step = {"missed": {k: round(v, 3) for k, v in miss.items()},
+                    "deposition_friction": new_dep, "friction": new_mu}
+            if fit_mur:
+                step["rolling_friction"] = new_mur
+            steps.append(step)
+            dep, mu, mur = new_dep, new_mu, new_mur
             reached = confirm(1, fresh)
         record["refinements"] = steps
         size = None if args.no_size_check else confirm(2, fresh)
@@ -600,7 +793,8 @@ def main():
         return 3
 
     missed = []
-    log(f"calibrate {cfg['name']}: mu {mu}, k_T/k_N {g['kt']}, k_N {kN:.4g} Pa, deposition "
+    log(f"calibrate {cfg['name']}: mu {mu}" + (f", mu_r {mur}" if rotating else "") +
+        f", k_T/k_N {g['kt']}, k_N {kN:.4g} Pa, deposition "
         f"friction {dep}; reached ({d['confirmation_seeds']} fresh samples each, mean +- 95 % interval):")
     rec_reached = {}
     for k, t in targets.items():
@@ -631,7 +825,7 @@ def main():
             rec_reached[k] = {"mean": round(reached[k]["mean"], 4),
                               "ci95": round(reached[k]["ci95"], 4)}
 
-    doc = material_doc(cfg, mu, dep)
+    doc = material_doc(cfg, mu, dep, mur)
     record.update({
         "date": datetime.date.today().isoformat(),
         "targets": {k: dict(t) for k, t in targets.items()},
@@ -644,6 +838,10 @@ def main():
         "design": {"friction": d["friction"], "deposition_friction": d["deposition_friction"]},
         "status": "all targets met" if not missed else "missed: " + ", ".join(missed),
     })
+    if rotating:
+        record["particle_model"] = "rotating"
+        if fit_mur:
+            record["design"]["rolling_friction"] = d["rolling_friction"]
     doc["calibration"] = record
     path = os.path.join(REPO, cfg["output"]) if not os.path.isabs(cfg["output"]) else cfg["output"]
     with open(path, "w") as f:

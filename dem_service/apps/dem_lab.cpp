@@ -8,6 +8,7 @@
 #include <fstream>
 #include <iomanip>
 #include <iostream>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -42,12 +43,26 @@ std::ofstream open_out(const fs::path& p) {
 
 void progress(const std::string& line) { std::cerr << line << "\n"; }
 
+// "translating" or "rotating, rolling resistance mu_r 0.1 (damping 0.3)".
+std::string model_text(const lab::Grains& g) {
+  const dem::RotationOptions& r = g.rotation;
+  if (!r.rotating()) return "translating grains";
+  std::ostringstream t;
+  t << "rotating grains, ";
+  if (r.rolling.kind == dem::RollingResistance::Kind::none)
+    t << "no rolling resistance";
+  else
+    t << "rolling resistance mu_r " << r.rolling.friction << " (EPSD, damping "
+      << r.rolling.damping << ")";
+  return t.str();
+}
+
 int run_triaxial(const YAML::Node& root, const fs::path& out) {
   const lab::TriaxialOptions o = lab::parse_triaxial(root);
   std::cerr << "triaxial: " << o.count << " grains, r " << o.grains.radius_min << " .. "
             << o.grains.radius_max << " m, mu " << o.grains.law.friction << ", k_T/k_N "
-            << o.grains.law.tangential_stiffness_ratio << ", " << o.confining.size()
-            << " confining pressures\n";
+            << o.grains.law.tangential_stiffness_ratio << ", " << model_text(o.grains) << ", "
+            << o.confining.size() << " confining pressures\n";
   const lab::Sample sample = lab::prepare_sample(o, o.confining.front(), progress);
   const double prep_packing = lab::packing_fraction(sample.state, sample.lo, sample.hi);
   std::cerr << "prepared: packing fraction " << prep_packing << " at " << o.confining.front()
@@ -109,7 +124,8 @@ int run_triaxial(const YAML::Node& root, const fs::path& out) {
 
 int run_repose(const YAML::Node& root, const fs::path& out) {
   const lab::ReposeOptions o = lab::parse_repose(root);
-  std::cerr << "repose: " << o.count << " grains, mu " << o.grains.law.friction << "\n";
+  std::cerr << "repose: " << o.count << " grains, mu " << o.grains.law.friction << ", "
+            << model_text(o.grains) << "\n";
   const lab::ReposeResult r = lab::run_repose(o, progress);
   std::ofstream c = open_out(out / "repose_surface.csv");
   c << "sector,radius_m,height_m,used\n";

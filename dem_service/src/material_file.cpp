@@ -49,6 +49,11 @@ YAML::Node read_material_file(const std::string& path, const std::string& key) {
     if (cfg::get_double(pr, p + ".prepare", "deposition_friction") < 0)
       throw ConfigError(p + ".prepare.deposition_friction: must be >= 0");
   }
+  if (const YAML::Node pa = m["particles"]) {
+    if (!pa.IsMap())
+      throw ConfigError(p + ".particles: expected a map {model, rolling_resistance}");
+    cfg::check_keys(pa, p + ".particles", {"model", "rolling_resistance"});
+  }
   if (const YAML::Node cal = m["calibration"]; cal && !cal.IsMap())
     throw ConfigError(p + ".calibration: expected a map (the calibration's record)");
   return m;
@@ -116,6 +121,17 @@ YAML::Node resolve_material_files(const YAML::Node& root, const std::string& bas
       YAML::Node prep = out["prepare"];
       if (prep && prep.IsMap() && !prep["deposition_friction"])
         prep["deposition_friction"] = YAML::Clone(pm["deposition_friction"]);
+    }
+    // The particle model the law was calibrated for; the config's own keys win (checked with
+    // the config's particles section as usual).
+    if (const YAML::Node pa = m["particles"]) {
+      if (!out["particles"] || out["particles"].IsNull())
+        out["particles"] = YAML::Node(YAML::NodeType::Map);
+      YAML::Node parts = out["particles"];
+      if (parts.IsMap())
+        for (const auto& k : pa)
+          if (!parts[k.first.as<std::string>()])
+            parts[k.first.as<std::string>()] = YAML::Clone(k.second);
     }
   }
   return out;

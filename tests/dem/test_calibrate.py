@@ -16,6 +16,7 @@ ROOT = sys.argv.pop(1)
 BIN = sys.argv.pop(1)
 SCRIPT = os.path.join(ROOT, "scripts", "calibrate.py")
 TARGETS = os.path.join(ROOT, "configs", "materials", "dry_sand.targets.yaml")
+ROTATING = os.path.join(ROOT, "configs", "materials", "dry_sand_rotating.targets.yaml")
 
 spec = importlib.util.spec_from_file_location("calibrate", SCRIPT)
 calibrate = importlib.util.module_from_spec(spec)
@@ -34,10 +35,12 @@ def check(doc_or_text, extra=()):
 
 with open(TARGETS) as f:
     BASE = yaml.safe_load(f)
+with open(ROTATING) as f:
+    ROT = yaml.safe_load(f)
 
 
-def variant(edit):
-    d = copy.deepcopy(BASE)
+def variant(edit, base=None):
+    d = copy.deepcopy(BASE if base is None else base)
     edit(d)
     return d
 
@@ -106,6 +109,44 @@ class Refusals(unittest.TestCase):
         self.refused(variant(lambda d: d.update(name="a b")), "name:")
         self.refused(variant(lambda d: d.pop("grains")), "grains: missing")
 
+    def test_rotating_model(self):
+        rc, msg = check(ROT)
+        self.assertEqual(rc, 0, msg)
+        cfg = calibrate.read_targets(ROTATING)
+        self.assertEqual(cfg["grains"]["model"], "rotating")
+        self.assertNotIn("mur", cfg["grains"])  # mu_r is a knob
+        self.assertGreaterEqual(len(cfg["design"]["rolling_friction"]), 3)
+        self.refused(variant(lambda d: d["grains"].update(model="spinning"), ROT),
+                     "grains.model: 'spinning' is not allowed")
+        self.refused(variant(lambda d: d["grains"].update(rolling_resistance={"friction": 0.1})),
+                     "grains.rolling_resistance: needs grains.model: rotating")
+        self.refused(variant(lambda d: d["design"].update(rolling_friction=[0.1, 0.2, 0.3])),
+                     "design.rolling_friction: only the rotating model")
+        self.refused(variant(lambda d: d["grains"]["rolling_resistance"].update(damping=2), ROT),
+                     "grains.rolling_resistance.damping: 2 is above 1")
+        self.refused(variant(lambda d: d["grains"]["rolling_resistance"].update(frction=0.1), ROT),
+                     "grains.rolling_resistance.frction: unknown key", "did you mean 'friction'")
+        self.refused(variant(lambda d: d["grains"]["rolling_resistance"].update(friction=1.5), ROT),
+                     "grains.rolling_resistance.friction: 1.5 is above 1.0")
+        self.refused(variant(lambda d: d["grains"]["rolling_resistance"].update(friction=0.2), ROT),
+                     "design.rolling_friction: grains.rolling_resistance.friction fixes mu_r")
+        self.refused(variant(lambda d: d["design"].update(rolling_friction=[0.2, 0.5]), ROT),
+                     "design.rolling_friction: give a list of at least 3 values")
+        self.refused(variant(lambda d: d["design"].update(rolling_friction=[0.0, 0.5, 0.8]), ROT),
+                     "design.rolling_friction: '0.0' must be a number in [0.01, 1.0]")
+        self.refused(variant(lambda d: d["targets"].pop("angle_of_repose"), ROT),
+                     "grains.rolling_resistance.friction: missing", "both angle targets")
+
+        def fixed(d):  # mu_r given: mu alone from the angles, accepted
+            d["grains"]["rolling_resistance"]["friction"] = 0.3
+            d["design"].pop("rolling_friction")
+        rc, msg = check(variant(fixed, ROT))
+        self.assertEqual(rc, 0, msg)
+        mat = calibrate.material_doc(calibrate.read_targets(ROTATING), 0.5, 0.1, 0.42)
+        self.assertEqual(mat["particles"]["model"], "rotating")
+        self.assertEqual(mat["particles"]["rolling_resistance"]["friction"], 0.42)
+        self.assertNotIn("particles", calibrate.material_doc(calibrate.read_targets(TARGETS), 0.3, 0.1))
+
     def test_bad_files_and_options(self):
         rc, msg = check("targets: [unclosed\n")
         self.assertEqual(rc, 2, msg)
@@ -149,6 +190,40 @@ class Method(unittest.TestCase):
         with self.assertRaises(calibrate.Refused) as e:
             calibrate.solve({"a": a}, {"a": {"value": 9.0, "tolerance": 0.1}}, "friction")
         self.assertIn("outside what the design reaches", str(e.exception))
+
+    def test_two_knobs_recover_a_quadratic_and_meet_both_targets(self):
+        # Two angle surfaces over a 3 x 3 (mu, mu_r) design with two noisy replicates:
+        # A = 10 + 40 mu + 10 mu_r + 5 mu mu_r, B = 12 + 4 mu + 30 mu_r - 6 mu_r^2.
+        A = lambda x, y: 10 + 40 * x + 10 * y + 5 * x * y
+        B = lambda x, y: 12 + 4 * x + 30 * y - 6 * y * y
+        pts = [(x, y) for x in (0.2, 0.5, 0.8) for y in (0.1, 0.5, 0.9)] * 2
+        noise = [0.2, -0.1, 0.15, -0.2, 0.1, 0.0, -0.15, 0.05, 0.1] * 2
+        noise = noise[:9] + [-e for e in noise[9:]]
+        sa = calibrate.Surface2(pts, [A(x, y) + e for (x, y), e in zip(pts, noise)])
+        sb = calibrate.Surface2(pts, [B(x, y) - e for (x, y), e in zip(pts, noise)])
+        self.assertAlmostEqual(sa(0.5, 0.5), A(0.5, 0.5), delta=0.2)
+        self.assertAlmostEqual(sb(0.3, 0.7), B(0.3, 0.7), delta=0.3)
+        self.assertEqual(sa.dof, 12)
+        # Both at 30: Newton on the exact surfaces gives mu 0.3148, mu_r 0.6399 (A = B = 30.0).
+        targets = {"a": {"value": 30.0, "tolerance": 1.0}, "b": {"value": 30.0, "tolerance": 1.0}}
+        x, y, (hx, hy) = calibrate.solve2({"a": sa, "b": sb}, targets)
+        self.assertAlmostEqual(A(x, y), 30.0, delta=0.3)
+        self.assertAlmostEqual(B(x, y), 30.0, delta=0.3)
+        self.assertAlmostEqual(x, 0.3148, delta=0.01)
+        self.assertAlmostEqual(y, 0.6399, delta=0.01)
+        self.assertGreater(hx, 0.0)
+        self.assertLess(hx, 0.05)
+        self.assertGreater(hy, 0.0)
+        self.assertLess(hy, 0.05)
+        # One Newton step from a miss returns to the solution of the exact surfaces.
+        reached = {"a": {"mean": A(0.5, 0.3)}, "b": {"mean": B(0.5, 0.3)}}
+        nx, ny = calibrate.newton2({"a": sa, "b": sb}, targets, reached, 0.5, 0.3)
+        self.assertAlmostEqual(nx, 0.3148, delta=0.03)
+        self.assertAlmostEqual(ny, 0.6399, delta=0.03)
+        with self.assertRaises(calibrate.Refused) as e:
+            calibrate.solve2({"a": sa, "b": sb}, {"a": {"value": 80.0, "tolerance": 1.0},
+                                                  "b": {"value": 30.0, "tolerance": 1.0}})
+        self.assertIn("design.rolling_friction", str(e.exception))
 
     def test_normal_stiffness_from_the_allowed_overlap(self):
         # k_N = 8 pi sigma / (phi Z delta), sigma = phi rho g h: 8 pi 2650 9.81 3 / (4.5 0.01)

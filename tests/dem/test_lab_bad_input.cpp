@@ -129,6 +129,44 @@ TEST(dem_LabBadInput, ReposeValuesNamed) {
   expect_has(repose_error(g + "repose: {cont: 300}\n"), {"repose.cont", "unknown key", "did you mean 'count'"});
 }
 
+TEST(dem_LabBadInput, ParticleModelNamed) {
+  // grains.model and grains.rolling_resistance: the engine's reader and checks, named by the
+  // lab's keys (docs/soil_lab.md).
+  const std::string t = "triaxial: {confining_pressures: [1.0e4]}\n";
+  const std::string g = kGrains;
+  const lab::TriaxialOptions ok = lab::parse_triaxial(cosim::config::load_string(
+      g + "  model: rotating\n  rolling_resistance: {friction: 0.2, damping: 0.3}\n" + t, "t"));
+  EXPECT_TRUE(ok.grains.rotation.rotating());
+  EXPECT_EQ(ok.grains.rotation.rolling.kind, dem::RollingResistance::Kind::epsd);
+  EXPECT_EQ(ok.grains.rotation.rolling.friction, 0.2);
+  EXPECT_EQ(ok.grains.rotation.rolling.damping, 0.3);
+  EXPECT_FALSE(lab::parse_triaxial(cosim::config::load_string(g + t, "t")).grains.rotation.rotating());
+  EXPECT_FALSE(lab::parse_triaxial(cosim::config::load_string(g + "  model: translating\n" + t, "t"))
+                   .grains.rotation.rotating());
+  expect_has(triaxial_error(g + "  model: spinning\n" + t),
+             {"grains.model", "'spinning' is not allowed", "rotating"});
+  expect_has(triaxial_error(g + "  rolling_resistance: {friction: 0.2}\n" + t),
+             {"grains.rolling_resistance", "grains.model: rotating"});
+  expect_has(triaxial_error(g + "  model: rotating\n  rolling_resistance: {friction: -0.1}\n" + t),
+             {"grains.rolling_resistance.friction", "> 0"});
+  expect_has(triaxial_error(g + "  model: rotating\n  rolling_resistance: {friction: 1.5}\n" + t),
+             {"grains.rolling_resistance.friction", "above 1"});
+  expect_has(triaxial_error(g + "  model: rotating\n  rolling_resistance: {friction: 0.1, damping: 2}\n" + t),
+             {"grains.rolling_resistance.damping", "[0, 1]"});
+  expect_has(triaxial_error(g + "  model: rotating\n  rolling_resistance: {friction: 0.1, stiffness_factor: 0}\n" + t),
+             {"grains.rolling_resistance.stiffness_factor", "> 0"});
+  expect_has(triaxial_error(g + "  model: rotating\n  rolling_resistance: {frction: 0.1}\n" + t),
+             {"grains.rolling_resistance.frction", "unknown key", "did you mean 'friction'"});
+  expect_has(triaxial_error(g + "  model: rotating\n  rolling_resistance: 0.1\n" + t),
+             {"grains.rolling_resistance", "expected a map"});
+  expect_has(triaxial_error(g + "  modle: rotating\n" + t),
+             {"grains.modle", "unknown key", "model"});
+  // The same in the repose test.
+  expect_has(repose_error(g + "  model: rolling\nrepose: {count: 300}\n"), {"grains.model"});
+  expect_has(repose_error(g + "  model: rotating\n  rolling_resistance: {friction: 0}\nrepose: {count: 300}\n"),
+             {"grains.rolling_resistance.friction"});
+}
+
 // dem_lab: the program refuses with exit code 2 and a message on stderr naming the key.
 std::pair<int, std::string> run(const std::string& args) {
   const std::string cmd = std::string(DEM_LAB_EXE) + " " + args + " 2>&1";
@@ -159,6 +197,13 @@ TEST(dem_LabBadInput, ProgramRefusesWithExitCodeTwo) {
   std::tie(rc, out) = run("repose " + cfg.string() + " --no-plot");
   EXPECT_EQ(rc, 2);
   EXPECT_NE(out.find("unknown key 'triaxial'"), std::string::npos) << out;
+  std::tie(rc, out) = run("triaxial " + cfg.string() + " --set grains.model=spinning --no-plot");
+  EXPECT_EQ(rc, 2) << out;
+  EXPECT_NE(out.find("grains.model"), std::string::npos) << out;
+  std::tie(rc, out) = run("triaxial " + cfg.string() +
+                          " --set grains.model=rotating --set grains.rolling_resistance.friction=-1 --no-plot");
+  EXPECT_EQ(rc, 2) << out;
+  EXPECT_NE(out.find("grains.rolling_resistance.friction"), std::string::npos) << out;
   std::tie(rc, out) = run("triaxial " + cfg.string() + " --bogus");
   EXPECT_EQ(rc, 2);
   EXPECT_NE(out.find("--bogus"), std::string::npos) << out;

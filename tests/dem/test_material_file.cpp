@@ -95,6 +95,36 @@ TEST_F(dem_MaterialFile, TheConfigsOwnKeysWin) {
   EXPECT_DOUBLE_EQ(rc.prepare.deposition_friction, 0.0);
 }
 
+TEST_F(dem_MaterialFile, GivesTheParticleModelItWasCalibratedFor) {
+  // A material of the rotating model (configs/materials/dry_sand_rotating.yaml) names it; the
+  // scene runs it unless the config says otherwise; a bad entry is refused by name.
+  const std::string rotating = std::string(kMaterial) +
+      "particles: {model: rotating, rolling_resistance: {friction: 0.3, damping: 0.3}}\n";
+  write("sand.yaml", rotating);
+  dem::RunConfig rc = load(YAML::Load(kScene));
+  EXPECT_TRUE(rc.scene.rotation.rotating());
+  EXPECT_EQ(rc.scene.rotation.rolling.kind, dem::RollingResistance::Kind::epsd);
+  EXPECT_DOUBLE_EQ(rc.scene.rotation.rolling.friction, 0.3);
+  EXPECT_EQ(rc.state.size(), 2u);  // the config's own particles section kept
+  YAML::Node root = YAML::Load(kScene);
+  root["particles"]["rolling_resistance"] = YAML::Load("{friction: 0.1, damping: 0.3}");
+  rc = load(root);
+  EXPECT_TRUE(rc.scene.rotation.rotating());
+  EXPECT_DOUBLE_EQ(rc.scene.rotation.rolling.friction, 0.1);  // the config's own key wins
+  write("sand.yaml", kMaterial);
+  EXPECT_FALSE(load(YAML::Load(kScene)).scene.rotation.rotating());  // none named: translating
+  write("sand.yaml", std::string(kMaterial) + "particles: rotating\n");
+  std::string m = refusal(YAML::Load(kScene));
+  EXPECT_NE(m.find("materials.sand.file"), std::string::npos) << m;
+  EXPECT_NE(m.find(".particles: expected a map"), std::string::npos) << m;
+  write("sand.yaml", std::string(kMaterial) + "particles: {model: rotating, count: 3}\n");
+  m = refusal(YAML::Load(kScene));
+  EXPECT_NE(m.find("unknown key 'count'"), std::string::npos) << m;
+  write("sand.yaml", std::string(kMaterial) + "particles: {model: spinning}\n");
+  m = refusal(YAML::Load(kScene));
+  EXPECT_NE(m.find("particles.model"), std::string::npos) << m;
+}
+
 TEST_F(dem_MaterialFile, AMissingOrMalformedFileIsRefusedByName) {
   const YAML::Node root = YAML::Load(kScene);
   std::string m = refusal(root);

@@ -5,7 +5,9 @@
 // returns a copy of the config with the file's values put in where the config leaves them out:
 // materials.<name>.density, the radius of every species of that material, the keys of
 // contact.particle_particle (the config's own keys win, so --set can vary one) and
-// prepare.deposition_friction (when the config has a prepare: section). A missing, unreadable
+// prepare.deposition_friction (when the config has a prepare: section), and the particle model
+// the law was calibrated for (particles.model, particles.rolling_resistance: where the config
+// does not give them; docs/soil_models.md). A missing, unreadable
 // or malformed file is refused naming materials.<name>.file and the problem.
 #pragma once
 
@@ -20,7 +22,7 @@ namespace dem {
 
 // Keys of a material file.
 inline const std::vector<std::string> kMaterialFileKeys{
-    "name", "density", "radius", "contact", "prepare", "calibration"};
+    "name", "density", "radius", "contact", "prepare", "particles", "calibration"};
 
 // The config with every materials.<name>.file resolved (paths by cosim::input_path from
 // base_dir); the files read are appended to `inputs` (an output may not overwrite them). A

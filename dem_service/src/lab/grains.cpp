@@ -8,6 +8,7 @@
 
 #include "cosim/yaml_config.hpp"
 #include "dem/bed.hpp"
+#include "dem/rotation.hpp"
 #include "dem/stability.hpp"
 
 namespace dem::lab {
@@ -21,7 +22,7 @@ double Grains::mean_volume() const {
 
 Grains parse_grains(const YAML::Node& n, const std::string& path) {
   if (!n) throw cfg::ConfigError(path + ": missing (expected {density, radius, contact})");
-  cfg::check_keys(n, path, {"density", "radius", "contact"});
+  cfg::check_keys(n, path, {"density", "radius", "contact", "model", "rolling_resistance"});
   Grains g;
   g.density = cfg::get_double(n, path, "density");
   if (!(g.density > 0) || !std::isfinite(g.density))
@@ -41,7 +42,29 @@ Grains parse_grains(const YAML::Node& n, const std::string& path) {
   if (!n["contact"]) throw cfg::ConfigError(path + ".contact: missing (the particle contact law, "
                                             "keys of contact.particle_particle in docs/dem.md)");
   g.law = parse_contact_law(n["contact"], path + ".contact");
+  g.rotation = parse_model(n, path);
   return g;
+}
+
+RotationOptions parse_model(const YAML::Node& n, const std::string& path) {
+  // The engine's own reader and checks of particles.model and particles.rolling_resistance,
+  // with their messages naming the lab's keys (path.model, path.rolling_resistance).
+  YAML::Node parts(YAML::NodeType::Map);
+  if (n && n.IsMap()) {
+    if (n["model"]) parts["model"] = n["model"];
+    if (n["rolling_resistance"]) parts["rolling_resistance"] = n["rolling_resistance"];
+  }
+  Scene sc;  // no sleeping: the lab does not sleep
+  try {
+    parse_rotation(parts, sc);
+  } catch (const cfg::ConfigError& e) {
+    std::string m = e.what();
+    const std::string from = "particles.", to = path + ".";
+    for (std::size_t at = m.find(from); at != std::string::npos; at = m.find(from, at + to.size()))
+      m.replace(at, from.size(), to);
+    throw cfg::ConfigError(m);
+  }
+  return sc.rotation;
 }
 
 Scene make_scene(const Grains& g, Vec3 gravity, int threads, double dt_factor) {
@@ -57,6 +80,7 @@ Scene make_scene(const Grains& g, Vec3 gravity, int threads, double dt_factor) {
   sp.radius.max = g.radius_max;
   sc.species.push_back(sp);
   sc.particle_particle = g.law;
+  sc.rotation = g.rotation;
   ContactLaw wall = g.law;
   wall.friction = 0;
   wall.damping_from_restitution = false;

@@ -8,6 +8,7 @@
 
 #include "cosim/yaml_config.hpp"
 #include "dem/mesh.hpp"
+#include "dem/rotation.hpp"
 #include "dem/stability.hpp"
 
 namespace dem::lab {
@@ -251,14 +252,19 @@ ReposeResult run_repose(const ReposeOptions& o, const Progress& progress) {
       if (s.id[i] < nbase) {
         s.x[i] = base_x[static_cast<std::size_t>(s.id[i])];
         s.v[i] = s.u[i] = Vec3{};
+        if (!s.w.empty()) s.w[i] = s.wu[i] = Vec3{};  // the rotating model: the base does not spin
       }
   };
+  // Kinetic energy per free grain; with the rotating model the spins count (a grain rolling
+  // down the heap is not at rest).
   auto free_ke = [&]() {
     double e = 0;
     long n = 0;
     for (std::size_t i = 0; i < s.size(); ++i)
       if (s.id[i] >= nbase) {
         e += 0.5 * s.mass[i] * norm2(s.v[i]);
+        if (!s.w.empty())
+          e += 0.5 * moment_of_inertia(s.mass[i], s.radius[i]) * norm2(s.w[i]);
         ++n;
       }
     return n ? e / static_cast<double>(n) : 0.0;

@@ -26,19 +26,29 @@ struct Grains {
   double density = 0;              // kg/m^3
   double radius_min = 0, radius_max = 0;  // m; uniform in [min, max] (equal: one size)
   ContactLaw law;
+  // The particle model (grains.model, grains.rolling_resistance: the keys of dem_run's
+  // particles.model and particles.rolling_resistance): translating (default) or rotating.
+  RotationOptions rotation;
 
   double mean_radius() const { return 0.5 * (radius_min + radius_max); }
   // Mean volume of one grain, m^3: 4/3 pi E[r^3] for r uniform in [min, max].
   double mean_volume() const;
 };
 
-// Reads `grains: {density, radius, contact}` at dotted `path`; radius is a number (m) or
-// {min, max} (uniform). Unknown keys and bad values are refused with
-// cosim::config::ConfigError (or std::invalid_argument from the contact law) naming the key.
+// Reads `grains: {density, radius, contact, model, rolling_resistance}` at dotted `path`;
+// radius is a number (m) or {min, max} (uniform); model translating (default) or rotating,
+// rolling_resistance as particles.rolling_resistance of dem_run (docs/dem.md). Unknown keys
+// and bad values are refused with cosim::config::ConfigError (or std::invalid_argument from the
+// contact law) naming the key under `path`.
 Grains parse_grains(const YAML::Node& node, const std::string& path);
+// The particle model alone: `model` and `rolling_resistance` of the map at `path`, read and
+// checked by the engine's reader (parse_rotation) with its messages naming path.model and
+// path.rolling_resistance instead of particles.model and particles.rolling_resistance.
+RotationOptions parse_model(const YAML::Node& node, const std::string& path);
 
-// The scene of a lab test: one species "grain" of these grains, their law between particles,
-// the frictionless elastic wall law, the given gravity; dt is the largest safe step for the
+// The scene of a lab test: one species "grain" of these grains, their law between particles
+// and their particle model (the rotating model's rolling resistance acts at the walls too: it is
+// one setting of the scene), the frictionless elastic wall law, the given gravity; dt is the largest safe step for the
 // contact law (scene.stability.min_steps_per_contact 20) times dt_factor (<= 1).
 Scene make_scene(const Grains& g, Vec3 gravity, int threads, double dt_factor = 1.0);
 
