@@ -83,7 +83,7 @@ GRAIN_KEYS = ["density", "radius", "restitution", "tangential_stiffness_ratio",
               "deposition_friction", "model", "rolling_resistance"]
 MODELS = ["translating", "rotating"]  # particles.model of the engine (docs/soil_models.md)
 ROLLING_KEYS = ["friction", "damping", "stiffness_factor"]
-DESIGN_KEYS = ["friction", "rolling_friction", "deposition_friction", "seeds", "triaxial_grains", "repose_grains",
+DESIGN_KEYS = ["friction", "rolling_friction", "deposition_friction", "seeds", "repose_seeds", "triaxial_grains", "repose_grains",
                "deposition_grains", "confining_pressure", "axial_strain", "freeze_friction",
                "confirmation_seeds", "refinements"]
 DESIGN_DEFAULTS = {"friction": [0.12, 0.18, 0.24, 0.30, 0.36], "rolling_friction": [0.2, 0.5, 0.8],
@@ -271,6 +271,11 @@ def read_targets(path):
         "rolling_friction": number_list(d, "design", "rolling_friction", 0.01, 1.0),
         "deposition_friction": number_list(d, "design", "deposition_friction", 0.0, 1.0),
         "seeds": int(number(d, "design", "seeds", lo=2, hi=20, default=DESIGN_DEFAULTS["seeds"])),
+        # The repose design's own replicates (the costliest test): 1 is allowed when the
+        # surface keeps residual degrees of freedom (checked below).
+        "repose_seeds": int(number(d, "design", "repose_seeds", lo=1, hi=20,
+                                   default=d.get("seeds", DESIGN_DEFAULTS["seeds"])
+                                   if isinstance(d.get("seeds"), int) else DESIGN_DEFAULTS["seeds"])),
         "confirmation_seeds": int(number(d, "design", "confirmation_seeds", lo=2, hi=20,
                                          default=DESIGN_DEFAULTS["confirmation_seeds"])),
         "refinements": int(number(d, "design", "refinements", lo=0, hi=5,
@@ -288,6 +293,14 @@ def read_targets(path):
         "freeze_friction": number(d, "design", "freeze_friction", lo=0.0, hi=2.0,
                                   default=DESIGN_DEFAULTS["freeze_friction"]),
     }
+    if "angle_of_repose" in targets:
+        two = grains["model"] == "rotating" and "mur" not in grains
+        points = len(design["friction"]) * (len(design["rolling_friction"]) if two else 1)
+        coef = 6 if two else 3
+        if points * design["repose_seeds"] - coef < 1:
+            raise Refused(f"design.repose_seeds: {design['repose_seeds']} x {points} design points "
+                          f"leave the repose surface ({coef} coefficients) no residual degrees of "
+                          f"freedom, so no interval; give more seeds or levels")
     src = doc.get("source", {})
     if not isinstance(src, (dict, str)):
         raise Refused("source: expected a map or text (where the targets come from)")
@@ -683,14 +696,16 @@ def main():
                              for s in seeds]
                     xy = [(c[1][0], c[1][4]) for c in calls]
                 else:
-                    calls = [(fn, (x, s, d["repose_grains"], y)) for x, y in points for s in seeds]
+                    calls = [(fn, (x, s, d["repose_grains"], y)) for x, y in points
+                             for s in range(1, d["repose_seeds"] + 1)]
                     xy = [(c[1][0], c[1][3]) for c in calls]
                 res = run.many(calls)
                 surfaces[k] = Surface2(xy, [r[k] for r in res])
                 for x, y in points:
                     v = [r[k] for q, r in zip(xy, res) if q == (x, y)]
+                    sd = f" (sd {statistics.stdev(v):.2f})" if len(v) > 1 else " (1 run)"
                     log(f"  mu {x:.3f}, mu_r {y:.3f}: {k.replace('_', ' ')} "
-                        f"{statistics.mean(v):.2f} deg (sd {statistics.stdev(v):.2f})")
+                        f"{statistics.mean(v):.2f} deg{sd}")
             mu, mur, (mu_half, mur_half) = solve2(surfaces, targets)
             log(f"  -> mu {mu:.4f} +- {mu_half:.4f}, mu_r {mur:.4f} +- {mur_half:.4f} (surfaces: "
                 + ", ".join(f"{k} {s(mu, mur):.2f}" for k, s in surfaces.items()) + ")")
@@ -710,14 +725,14 @@ def main():
                         f"(sd {statistics.stdev(v):.2f})")
             if "angle_of_repose" in targets:
                 calls = [(run.repose, (x, s, d["repose_grains"], mur))
-                         for x in d["friction"] for s in seeds]
+                         for x in d["friction"] for s in range(1, d["repose_seeds"] + 1)]
                 res = run.many(calls)
                 surfaces["angle_of_repose"] = Surface(
                     [c[1][0] for c in calls], [r["angle_of_repose"] for r in res])
                 for x in d["friction"]:
                     v = [r["angle_of_repose"] for c, r in zip(calls, res) if c[1][0] == x]
-                    log(f"  mu {x:.3f}: angle of repose {statistics.mean(v):.2f} deg "
-                        f"(sd {statistics.stdev(v):.2f})")
+                    sd = f"sd {statistics.stdev(v):.2f}" if len(v) > 1 else "1 run"
+                    log(f"  mu {x:.3f}: angle of repose {statistics.mean(v):.2f} deg ({sd})")
             mu, mu_half = solve(surfaces, targets, "friction")
             log(f"  -> mu {mu:.4f} +- {mu_half:.4f} (surfaces: " + ", ".join(
                 f"{k} {s(mu):.2f}" for k, s in surfaces.items()) + ")")
@@ -832,6 +847,7 @@ def main():
         "reached": rec_reached,
         "sizes": {"triaxial_grains": d["triaxial_grains"], "repose_grains": d["repose_grains"],
                   "deposition_grains": d["deposition_grains"], "seeds": d["seeds"],
+                  **({"repose_seeds": d["repose_seeds"]} if d["repose_seeds"] != d["seeds"] else {}),
                   "confirmation_seeds": d["confirmation_seeds"],
                   "confining_pressure_Pa": d["confining_pressure"],
                   "axial_strain": d["axial_strain"]},

@@ -106,6 +106,12 @@ class Refusals(unittest.TestCase):
         self.refused(variant(lambda d: d["design"].update(friction=[0.2, 0.2, 0.3])),
                      "design.friction: values repeat")
         self.refused(variant(lambda d: d["design"].update(seeds=1)), "design.seeds: 1 is below 2")
+        # One heap per design point: only where the surface keeps residual degrees of freedom.
+        self.refused(variant(lambda d: d["design"].update(repose_seeds=1,
+                                                          friction=[0.1, 0.2, 0.3])),
+                     "design.repose_seeds: 1 x 3 design points", "no residual degrees of freedom")
+        rc, msg = check(variant(lambda d: d["design"].update(repose_seeds=1)))  # 4 levels: 1 dof
+        self.assertEqual(rc, 0, msg)
         self.refused(variant(lambda d: d.update(name="a b")), "name:")
         self.refused(variant(lambda d: d.pop("grains")), "grains: missing")
 
@@ -140,6 +146,7 @@ class Refusals(unittest.TestCase):
         def fixed(d):  # mu_r given: mu alone from the angles, accepted
             d["grains"]["rolling_resistance"]["friction"] = 0.3
             d["design"].pop("rolling_friction")
+            d["design"]["repose_seeds"] = 2  # a 1D design needs replicates for an interval
         rc, msg = check(variant(fixed, ROT))
         self.assertEqual(rc, 0, msg)
         mat = calibrate.material_doc(calibrate.read_targets(ROTATING), 0.5, 0.1, 0.42)
