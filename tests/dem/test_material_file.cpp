@@ -201,4 +201,19 @@ TEST(dem_MaterialFileShipped, DrySandLoads) {
   EXPECT_LT(rc.scene.particle_particle.friction, 0.6);
 }
 
+// The shipped rotating material names its particle model: a scene that names the file runs
+// rotating grains with its rolling resistance.
+TEST(dem_MaterialFileShipped, DrySandRotatingLoadsWithItsModel) {
+  YAML::Node root = YAML::Load(kScene);
+  root["materials"]["sand"]["file"] = "configs/materials/dry_sand_rotating.yaml";
+  const dem::RunConfig rc = dem::load_config(root, DEM_SOURCE_DIR);
+  EXPECT_DOUBLE_EQ(rc.scene.species[0].density, 2650.0);
+  EXPECT_TRUE(rc.scene.rotation.rotating());
+  EXPECT_EQ(rc.scene.rotation.rolling.kind, dem::RollingResistance::Kind::epsd);
+  EXPECT_GT(rc.scene.rotation.rolling.friction, 0.0);
+  EXPECT_LE(rc.scene.rotation.rolling.friction, 1.0);
+  EXPECT_GT(rc.scene.particle_particle.friction, 0.0);
+  EXPECT_LT(rc.scene.particle_particle.friction, 0.6);
+}
+
 }  // namespace
