@@ -116,12 +116,31 @@ class Refusals(unittest.TestCase):
         self.refused(variant(lambda d: d.pop("grains")), "grains: missing")
 
     def test_rotating_model(self):
+        # The shipped rotating targets: mu_r fixed (1.0), mu and the deposition friction fitted.
         rc, msg = check(ROT)
         self.assertEqual(rc, 0, msg)
         cfg = calibrate.read_targets(ROTATING)
         self.assertEqual(cfg["grains"]["model"], "rotating")
-        self.assertNotIn("mur", cfg["grains"])  # mu_r is a knob
-        self.assertGreaterEqual(len(cfg["design"]["rolling_friction"]), 3)
+        self.assertEqual(cfg["grains"]["mur"], 1.0)
+
+        # The two-knob design that was run first (docs/soil_models.md): all three targets,
+        # mu_r a knob over design.rolling_friction, one heap per point.
+        def two_knobs(d):
+            d["targets"]["angle_of_repose"] = {"value": 34, "tolerance": 2.0}
+            d["grains"]["rolling_resistance"].pop("friction")
+            d["design"]["rolling_friction"] = [0.6, 0.8, 1.0]
+            d["design"]["repose_seeds"] = 1
+        ROT2 = variant(two_knobs, ROT)
+        rc, msg = check(ROT2)
+        self.assertEqual(rc, 0, msg)
+        with tempfile.TemporaryDirectory() as tmp:
+            path = os.path.join(tmp, "t.yaml")
+            with open(path, "w") as f:
+                yaml.safe_dump(ROT2, f)
+            cfg2 = calibrate.read_targets(path)
+        self.assertNotIn("mur", cfg2["grains"])  # mu_r is a knob
+        self.assertEqual(cfg2["design"]["rolling_friction"], [0.6, 0.8, 1.0])
+
         self.refused(variant(lambda d: d["grains"].update(model="spinning"), ROT),
                      "grains.model: 'spinning' is not allowed")
         self.refused(variant(lambda d: d["grains"].update(rolling_resistance={"friction": 0.1})),
@@ -134,22 +153,15 @@ class Refusals(unittest.TestCase):
                      "grains.rolling_resistance.frction: unknown key", "did you mean 'friction'")
         self.refused(variant(lambda d: d["grains"]["rolling_resistance"].update(friction=1.5), ROT),
                      "grains.rolling_resistance.friction: 1.5 is above 1.0")
-        self.refused(variant(lambda d: d["grains"]["rolling_resistance"].update(friction=0.2), ROT),
+        self.refused(variant(lambda d: d["grains"]["rolling_resistance"].update(friction=0.2), ROT2),
                      "design.rolling_friction: grains.rolling_resistance.friction fixes mu_r")
-        self.refused(variant(lambda d: d["design"].update(rolling_friction=[0.2, 0.5]), ROT),
+        self.refused(variant(lambda d: d["design"].update(rolling_friction=[0.2, 0.5]), ROT2),
                      "design.rolling_friction: give a list of at least 3 values")
-        self.refused(variant(lambda d: d["design"].update(rolling_friction=[0.0, 0.5, 0.8]), ROT),
+        self.refused(variant(lambda d: d["design"].update(rolling_friction=[0.0, 0.5, 0.8]), ROT2),
                      "design.rolling_friction: '0.0' must be a number in [0.01, 1.0]")
-        self.refused(variant(lambda d: d["targets"].pop("angle_of_repose"), ROT),
+        self.refused(variant(lambda d: d["targets"].pop("angle_of_repose"), ROT2),
                      "grains.rolling_resistance.friction: missing", "both angle targets")
-
-        def fixed(d):  # mu_r given: mu alone from the angles, accepted
-            d["grains"]["rolling_resistance"]["friction"] = 0.3
-            d["design"].pop("rolling_friction")
-            d["design"]["repose_seeds"] = 2  # a 1D design needs replicates for an interval
-        rc, msg = check(variant(fixed, ROT))
-        self.assertEqual(rc, 0, msg)
-        mat = calibrate.material_doc(calibrate.read_targets(ROTATING), 0.5, 0.1, 0.42)
+        mat = calibrate.material_doc(cfg2, 0.5, 0.1, 0.42)
         self.assertEqual(mat["particles"]["model"], "rotating")
         self.assertEqual(mat["particles"]["rolling_resistance"]["friction"], 0.42)
         self.assertNotIn("particles", calibrate.material_doc(calibrate.read_targets(TARGETS), 0.3, 0.1))
@@ -241,23 +253,27 @@ class Method(unittest.TestCase):
 
 class ShippedMaterial(unittest.TestCase):
     def test_dry_sand_deposits_at_its_target_bulk_density(self):
-        """configs/lab/deposition.yaml with the shipped dry_sand.yaml (seed 1, not one of the
-        calibration's confirmation seeds): the bulk density within the recorded target's
-        tolerance, the packing a frictional random one (below random close packing)."""
-        with open(os.path.join(ROOT, "configs", "materials", "dry_sand.yaml")) as f:
-            mat = yaml.safe_load(f)
-        target = mat["calibration"]["targets"]["bulk_density"]
-        with tempfile.TemporaryDirectory() as tmp:
-            r = subprocess.run([os.path.join(BIN, "dem_run"), "configs/lab/deposition.yaml",
-                                "--set", f"output.file={tmp}/bed.h5"], cwd=ROOT,
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-        self.assertEqual(r.returncode, 0, r.stderr[-2000:])
-        m = re.search(r"Prepared bed: packing fraction ([0-9.]+), bulk density ([0-9.]+)", r.stdout)
-        self.assertIsNotNone(m, r.stdout[-2000:])
-        packing, rho = float(m.group(1)), float(m.group(2))
-        self.assertLessEqual(abs(rho - target["value"]), target["tolerance"], rho)
-        self.assertGreater(packing, 0.55)
-        self.assertLess(packing, 0.63)
+        """configs/lab/deposition.yaml with the shipped dry_sand.yaml and dry_sand_rotating.yaml
+        (seed 1, not one of the calibration's confirmation seeds; the rotating one brings its
+        particle model): the bulk density within the recorded target's tolerance, the packing a
+        frictional random one (below random close packing)."""
+        for name in ("dry_sand.yaml", "dry_sand_rotating.yaml"):
+            with open(os.path.join(ROOT, "configs", "materials", name)) as f:
+                mat = yaml.safe_load(f)
+            target = mat["calibration"]["targets"]["bulk_density"]
+            with tempfile.TemporaryDirectory() as tmp:
+                r = subprocess.run([os.path.join(BIN, "dem_run"), "configs/lab/deposition.yaml",
+                                    "--set", f"materials.soil.file=../materials/{name}",
+                                    "--set", f"output.file={tmp}/bed.h5"], cwd=ROOT,
+                                   stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+            self.assertEqual(r.returncode, 0, r.stderr[-2000:])
+            m = re.search(r"Prepared bed: packing fraction ([0-9.]+), bulk density ([0-9.]+)",
+                          r.stdout)
+            self.assertIsNotNone(m, r.stdout[-2000:])
+            packing, rho = float(m.group(1)), float(m.group(2))
+            self.assertLessEqual(abs(rho - target["value"]), target["tolerance"], (name, rho))
+            self.assertGreater(packing, 0.55, name)
+            self.assertLess(packing, 0.63, name)
 
 
 if __name__ == "__main__":
