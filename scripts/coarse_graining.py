@@ -215,11 +215,12 @@ def chart(args):
         name = v["name"]
         if name not in STUDY_SIZES:
             continue
-        ens = v.get("ensemble", {})
-        outs = ens.get("outcomes", {})
-        outcomes[name] = {k: outs[k]["values"] for k in (PAYLOAD, FORCE) if k in outs}
+        outs = v.get("outcomes", {})
+        outcomes[name] = {k: [x for x in outs[k] if math.isfinite(x)] for k in (PAYLOAD, FORCE)
+                          if k in outs}
         cpu[name] = [m["cpu_seconds"] for m in member_outcomes(study_dir, name)]
-        verdict[name] = ens.get("verdict"), ens.get("p_value"), ens.get("distance")
+        c = v.get("comparison", {})
+        verdict[name] = c.get("verdict"), c.get("p_value"), c.get("distance")
     if "cg1" not in outcomes or not outcomes["cg1"]:
         raise SystemExit("coarse_graining chart: the reference (cg1) has no members yet: run "
                          "master/studies/study.py configs/studies/coarse_graining_wheel_loader.yaml")
@@ -271,6 +272,8 @@ def chart(args):
             a.scatter(mcpu[:len(vals)], vals, s=14, color=c, alpha=0.5)
             a.errorbar([r["cpu_s"]], [r[k]["mean"]], yerr=[r[k]["ci95"]], fmt="o", color=c,
                        capsize=4, label=f"{r['size']:g}x grains ({r['members']} members)")
+            a.annotate(f"{r['size']:g}x", (r["cpu_s"], r[k]["mean"]), textcoords="offset points",
+                       xytext=(8, -4), fontsize=9, color=c)
         a.set_xscale("log")
         a.set_xlabel("CPU seconds per 7 s member (master + machine + soil)")
         a.set_ylabel(lab_)
@@ -309,8 +312,10 @@ def chart(args):
     h2, l2 = a3.get_legend_handles_labels()
     a.legend(h1 + h2, l1 + l2, fontsize=7, loc="lower left")
     a.grid(alpha=0.3)
-    fig.suptitle(f"Coarse graining, wheel loader in dry sand: the coarsest grain within the "
-                 f"scatter of 1x is {coarsest:g}x")
+    verdict_text = (f"the coarsest grain within the scatter of 1x is {coarsest:g}x" if coarsest > 1
+                    else "no coarser grain is within the scatter of 1x")
+    fig.suptitle(f"Coarse graining, wheel loader in dry sand (7 s, H 1 ms, ensembles; Welch 95 % "
+                 f"and permutation test against 1x): {verdict_text}")
     fig.tight_layout()
     png = os.path.join(OUT, "coarse_graining.png")
     fig.savefig(png, dpi=110)
@@ -332,7 +337,7 @@ def chart(args):
             if r["p_value"] is not None else str(r["verdict"])
         print(f"| {r['size']:g}x | {r['members']} | {r['cpu_s']:.0f} | {cell(PAYLOAD)} | {diff(PAYLOAD, '.2f')} | "
               f"{cell(FORCE)} | {diff(FORCE, '.1f')} | {ver} |")
-    print(f"coarsest grain within the scatter of 1x: {coarsest:g}x")
+    print(f"coarsest grain within the scatter of 1x: {coarsest:g}x" + (" (none coarser)" if coarsest == 1 else ""))
     with open(os.path.join(OUT, "summary.json"), "w") as f:
         json.dump({"table": table, "coarsest_within_scatter": coarsest, "lab": labd,
                    "blade": blade}, f, indent=1, default=str)
