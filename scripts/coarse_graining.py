@@ -279,13 +279,12 @@ def chart(args):
         a.set_ylabel(lab_)
         a.grid(alpha=0.3)
         a.legend(fontsize=8)
-    if blade:
-        a2 = ax[2]
-        xs = [float(s) for s in blade["sizes"]]
-        ms = [blade["sizes"][s]["mean"] for s in blade["sizes"]]
-        es = [blade["sizes"][s]["ci95"] for s in blade["sizes"]]
-        a2.errorbar(xs, ms, yerr=es, fmt="s-", color="tab:green", capsize=4,
-                    label="blade draft force [N/m] (right axis: " + blade.get("label", "") + ")")
+    if blade and "1" in blade["sizes"]:
+        b0 = blade["sizes"]["1"]["mean"]
+        bs = sorted(blade["sizes"], key=float)
+        ax[2].errorbar([float(k) for k in bs], [blade["sizes"][k]["mean"] / b0 for k in bs],
+                       yerr=[blade["sizes"][k]["ci95"] / b0 for k in bs], fmt="D-.", color="tab:purple",
+                       capsize=4, label=f"blade draft / 1x ({len(blade['sizes']['1']['seeds'])} beds per size)")
     a = ax[2]
     xs = [r["size"] for r in table]
     for k, mk, lab_ in [(PAYLOAD, "o", "payload / 1x"), (FORCE, "s", "A-bearing mean / 1x")]:
@@ -310,7 +309,7 @@ def chart(args):
     a3.set_ylabel("CPU seconds per member (log)")
     h1, l1 = a.get_legend_handles_labels()
     h2, l2 = a3.get_legend_handles_labels()
-    a.legend(h1 + h2, l1 + l2, fontsize=7, loc="lower left")
+    a.legend(h1 + h2, l1 + l2, fontsize=7, loc="upper left")
     a.grid(alpha=0.3)
     verdict_text = (f"the coarsest grain within the scatter of 1x is {coarsest:g}x" if coarsest > 1
                     else "no coarser grain is within the scatter of 1x")
@@ -320,7 +319,7 @@ def chart(args):
     png = os.path.join(OUT, "coarse_graining.png")
     fig.savefig(png, dpi=110)
 
-    print(f"| grains | members | CPU s per member | payload at 7 s [t] | vs 1x | A-bearing long. mean 2-7 s [kN] | vs 1x | series vs 1x (permutation test) |")
+    print("| grains | members | CPU s per member | payload at 7 s [t] | vs 1x | A-bearing long. mean 2-7 s [kN] | vs 1x | series vs 1x (permutation test) |")
     print("| --- | ---: | ---: | ---: | ---: | ---: | ---: | --- |")
     for r in table:
         def cell(k):
@@ -338,12 +337,160 @@ def chart(args):
         print(f"| {r['size']:g}x | {r['members']} | {r['cpu_s']:.0f} | {cell(PAYLOAD)} | {diff(PAYLOAD, '.2f')} | "
               f"{cell(FORCE)} | {diff(FORCE, '.1f')} | {ver} |")
     print(f"coarsest grain within the scatter of 1x: {coarsest:g}x" + (" (none coarser)" if coarsest == 1 else ""))
+    if blade and "1" in blade["sizes"]:
+        print(f"\nblade ({blade['label']}): draft per metre of blade over the steady window, mean +- 95 % over the beds")
+        print("| grains | grains in the bin | beds | CPU s per cut | draft [kN/m] | vs 1x [kN/m] |")
+        print("| --- | ---: | ---: | ---: | ---: | --- |")
+        ref_b = [r["mean_N"] / 1e3 / BLADE["width"] for r in blade["sizes"]["1"]["seeds"]]
+        for k in sorted(blade["sizes"], key=float):
+            e = blade["sizes"][k]
+            vals = [r["mean_N"] / 1e3 / BLADE["width"] for r in e["seeds"]]
+            d = ""
+            if k != "1":
+                dm, h = welch(ref_b, vals)
+                e["diff_kN_per_m"], e["diff_ci95"] = dm, h
+                d = f"{dm:+.1f} [{dm - h:+.1f}, {dm + h:+.1f}]" + ("*" if abs(dm) > h else "")
+            print(f"| {float(k):g}x | {e['grains']} | {len(vals)} | {e['cpu_seconds']:.0f} | "
+                  f"{e['mean'] / 1e3:.1f} +- {e['ci95'] / 1e3:.1f} | {d} |")
     with open(os.path.join(OUT, "summary.json"), "w") as f:
         json.dump({"table": table, "coarsest_within_scatter": coarsest, "lab": labd,
                    "blade": blade}, f, indent=1, default=str)
     print(f"coarse_graining chart: wrote {os.path.relpath(png, REPO)}")
     return 0
 
+
+
+# --- blade ---------------------------------------------------------------------------------------
+# A vertical blade pushed through a bin of dry sand at each grain size: the same scene in metres
+# (bin, bed height, cut depth, speed, skim), only the grains coarsened (the bed inserted with
+# particles.coarse_grain s; the cut loads it with the radius and the DEM step written out, as a
+# checkpoint refuses coarse_grain). The bin is 1.08 m thick with smooth side walls (plane
+# strain): 8 mean diameters at 1x, 4 at 2x, 2.7 at 3x.
+BLADE = dict(length=3.78, width=1.08, bed=1.215, depth=0.81, travel=1.08, speed=0.2,
+             steady_from=0.54, skim=0.405, dt=1.2e-4)
+
+
+def blade_configs(s, seed, out):
+    g = calibrate.read_targets(TARGETS)["grains"]
+    r1 = (g["radius"][0], g["radius"][1])
+    vmean = 4.0 / 3.0 * math.pi * (r1[1] ** 4 - r1[0] ** 4) / (4 * (r1[1] - r1[0]))
+    L, W, H = BLADE["length"], BLADE["width"], BLADE["bed"]
+    count = int(round(L * W * H * 0.6 / vmean))  # at 1x; coarse_grain divides it by s^3
+    walls = (f"walls:\n  - {{name: floor, type: plane, point: [0, 0, 0], normal: [0, 0, 1]}}\n"
+             f"  - {{name: back, type: plane, point: [0, 0, 0], normal: [1, 0, 0], contact: {{friction: 0.0}}}}\n"
+             f"  - {{name: front, type: plane, point: [{L}, 0, 0], normal: [-1, 0, 0], contact: {{friction: 0.0}}}}\n"
+             f"  - {{name: side0, type: plane, point: [0, 0, 0], normal: [0, 1, 0], contact: {{friction: 0.0}}}}\n"
+             f"  - {{name: side1, type: plane, point: [0, {W}, 0], normal: [0, -1, 0], contact: {{friction: 0.0}}}}\n")
+    head = (f"scene:\n  dt: {BLADE['dt']}\n  gravity: [0, 0, -9.81]\n  broad_phase_interval: 5\n"
+            f"  skin: 0.5\n  threads: 1\nmaterials:\n  sand: {{file: {MATERIAL}}}\n")
+    bed = os.path.join(out, f"bed_s{seed}.h5")
+    with open(os.path.join(out, "bed.yaml"), "w") as f:
+        f.write(head + "species:\n  - {name: grain, material: sand}\n" + walls +
+                f"particles:\n  coarse_grain: {s}\n  insert:\n    - {{species: grain, min: [0, 0, 0], "
+                f"max: [{L}, {W}, {3.5 * H:.4f}], count: {count}, seed: {seed}}}\n"
+                f"prepare:\n  ke_per_particle: {3e-4 * s ** 3:.6g}\n  max_time: 6.0\n  margin: {1.0 / s:.4g}\n"
+                f"  checkpoint: {bed}\nrun:\n  duration: 0\noutput:\n  file: {os.path.join(out, 'bed_run.h5')}\n")
+    return bed, count, (r1[0] * s, r1[1] * s)
+
+
+def surface_height(bed, L):
+    import h5py
+    with h5py.File(bed, "r") as f:
+        x, r = np.asarray(f["x"]), np.asarray(f["radius"])
+    d = 2 * float(np.mean(r))
+    tops = []
+    for a in np.arange(0.15 * L, 0.85 * L, d):  # away from the end walls
+        m = (x[:, 0] >= a) & (x[:, 0] < a + d)
+        if m.any():
+            tops.append(float((x[m, 2] + r[m]).max()))
+    return float(np.mean(tops)), len(r)
+
+
+def blade(args):
+    results = {"scene": BLADE, "sizes": {}, "label": f"vertical blade, {BLADE['depth']} m deep, "
+               f"{BLADE['speed']} m/s, bin {BLADE['length']} x {BLADE['width']} m"}
+    W = BLADE["width"]
+    for s in args.sizes:
+        per_seed = []
+        for seed in range(1, args.seeds + 1):
+            per_seed.append(blade_cut(s, seed))
+        means = [r["mean_N"] for r in per_seed]
+        st = calibrate.stats(means)
+        results["sizes"][f"{s:g}"] = {
+            "grains": per_seed[0]["grains"], "seeds": per_seed, "mean": st["mean"] / W,
+            "ci95": st["ci95"] / W, "sd": st["sd"] / W,
+            "cpu_seconds": statistics.mean(r["cpu_seconds"] for r in per_seed)}
+        e = results["sizes"][f"{s:g}"]
+        print(f"  blade {s:g}x: draft {e['mean'] / 1e3:.2f} +- {e['ci95'] / 1e3:.2f} kN/m (sd "
+              f"{e['sd'] / 1e3:.2f}, {len(means)} beds), {e['cpu_seconds']:.0f} CPU s per cut", flush=True)
+        with open(os.path.join(OUT, "blade.json"), "w") as f:
+            json.dump(results, f, indent=1)
+    return 0
+
+
+def blade_cut(s, seed):
+    import h5py
+    import subprocess
+    L, W = BLADE["length"], BLADE["width"]
+    out = os.path.join(OUT, "blade", f"s{s:g}", f"seed{seed}")
+    os.makedirs(out, exist_ok=True)
+    bed, count, (rmin, rmax) = blade_configs(s, seed, out)
+    if not os.path.exists(bed):
+        r = subprocess.run(["nice", os.path.join(REPO, "build", "bin", "dem_run"),
+                            os.path.join(out, "bed.yaml")], capture_output=True, text=True)
+        open(os.path.join(out, "bed.log"), "w").write(r.stdout + r.stderr)
+        if r.returncode != 0:
+            raise SystemExit(f"coarse_graining blade: the bed at {s:g}x failed: {r.stderr[-800:]}")
+    surf, n = surface_height(bed, L)
+    bottom = surf - BLADE["depth"]
+    T = BLADE["travel"] / BLADE["speed"]
+    case = os.path.join(out, "case.yaml")
+    mesh = os.path.join(out, "blade.obj")
+    with open(mesh, "w") as f:  # a vertical rectangle spanning the bin, 2 m high
+        f.write(f"v 0 -0.1 0\nv 0 {W + 0.1} 0\nv 0 {W + 0.1} 2.0\nv 0 -0.1 2.0\nf 1 2 3\nf 1 3 4\n")
+    dt = BLADE["dt"] * s
+    with open(case, "w") as f:
+        f.write(f"scene:\n  dt: {dt:.6g}\n  gravity: [0, 0, -9.81]\n  broad_phase_interval: 5\n"
+                f"  skin: 0.5\n  threads: 1\n  region: {{min: [-1, -1, -1], max: [{L + 1}, {W + 1}, {surf + BLADE['skim']:.4f}]}}\n"
+                f"materials:\n  sand: {{file: {MATERIAL}}}\n"
+                f"species:\n  - {{name: grain, material: sand, radius: {{distribution: uniform, min: {rmin:.6g}, max: {rmax:.6g}}}}}\n")
+        f.write("walls:\n" + "".join(l + "\n" for l in blade_walls(L, W)))
+        f.write(f"tools:\n  - name: blade\n    mesh: {mesh}\n    contact: {{friction: 0.2}}\n    motion:\n"
+                f"      interpolation: linear\n      keyframes:\n"
+                f"        - {{time: 0.0, position: [0.0, 0.0, {bottom:.5f}], orientation: [1, 0, 0, 0]}}\n"
+                f"        - {{time: {T:.6g}, position: [{BLADE['travel']}, 0.0, {bottom:.5f}], orientation: [1, 0, 0, 0]}}\n"
+                f"particles:\n  checkpoint: {bed}\nrun:\n  duration: {T:.6g}\n"
+                f"output:\n  file: {os.path.join(out, 'case.h5')}\n  particles_every: {T:.6g}\n"
+                f"  wrenches_every: {max(dt, 0.005 / BLADE['speed']):.6g}\n  progress_every: 60\n")
+    done = os.path.join(out, "case.done")
+    if not os.path.exists(done):
+        t0 = os.times()
+        r = subprocess.run(["nice", os.path.join(REPO, "build", "bin", "dem_run"), case],
+                           capture_output=True, text=True)
+        t1 = os.times()
+        open(os.path.join(out, "case.log"), "w").write(r.stdout + r.stderr)
+        if r.returncode != 0:
+            raise SystemExit(f"coarse_graining blade: the cut at {s:g}x failed: {r.stderr[-800:]}")
+        cpu = (t1.children_user - t0.children_user) + (t1.children_system - t0.children_system)
+        with open(done, "w") as f:
+            json.dump({"cpu_seconds": cpu}, f)
+    with open(done) as f:
+        cpu = json.load(f)["cpu_seconds"]
+    with h5py.File(os.path.join(out, "case.h5"), "r") as f:
+        smp = f["/tools/blade/samples"][()]
+    travel, draft = smp[:, 0] * BLADE["speed"], -smp[:, 1]
+    mean = float(np.mean(draft[travel >= BLADE["steady_from"]]))
+    print(f"    {s:g}x seed {seed}: {n} grains, surface {surf:.3f} m, draft {mean / 1e3:.2f} kN over "
+          f"{BLADE['steady_from']}-{BLADE['travel']} m of travel, {cpu:.0f} CPU s", flush=True)
+    return {"seed": seed, "grains": n, "surface_m": surf, "mean_N": mean, "cpu_seconds": cpu}
+
+
+def blade_walls(L, W):
+    return [f"  - {{name: floor, type: plane, point: [0, 0, 0], normal: [0, 0, 1]}}",
+            f"  - {{name: back, type: plane, point: [-0.5, 0, 0], normal: [1, 0, 0], contact: {{friction: 0.0}}}}",
+            f"  - {{name: front, type: plane, point: [{L}, 0, 0], normal: [-1, 0, 0], contact: {{friction: 0.0}}}}",
+            f"  - {{name: side0, type: plane, point: [0, 0, 0], normal: [0, 1, 0], contact: {{friction: 0.0}}}}",
+            f"  - {{name: side1, type: plane, point: [0, {W}, 0], normal: [0, -1, 0], contact: {{friction: 0.0}}}}"]
 
 def main():
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -352,6 +499,9 @@ def main():
     pl.add_argument("--sizes", type=sizes_arg, default=[1.0, 1.5, 2.0, 3.0])
     pl.add_argument("--seeds", type=int, default=3)
     pl.add_argument("--jobs", type=int, default=1)
+    pb = sub.add_parser("blade")
+    pb.add_argument("--sizes", type=sizes_arg, default=[3.0, 2.0, 1.5, 1.0])
+    pb.add_argument("--seeds", type=int, default=3)
     pc = sub.add_parser("chart")
     pc.add_argument("--study", default="results/coarse_graining/wheel_loader")
     args = p.parse_args()
@@ -361,6 +511,10 @@ def main():
         if not (1 <= args.jobs <= 8):
             raise SystemExit("coarse_graining lab: --jobs must be 1..8")
         return lab(args)
+    if args.cmd == "blade":
+        if not (2 <= args.seeds <= 20):
+            raise SystemExit("coarse_graining blade: --seeds must be 2..20 (an interval needs 2)")
+        return blade(args)
     return chart(args)
 
 
