@@ -3,6 +3,7 @@
 the bulk targets and charted against the fine grains (docs/soil_models.md "Coarse graining").
 
     /usr/bin/python3 scripts/coarse_graining.py lab [--sizes 1,1.5,2,3] [--seeds 3] [--jobs 1]
+    /usr/bin/python3 scripts/coarse_graining.py blade [--sizes 3,2,1.5,1] [--seeds 4]
     /usr/bin/python3 scripts/coarse_graining.py chart [--study results/coarse_graining/wheel_loader]
 
 lab:   the calibration's confirmation protocol of scripts/calibrate.py (its own runner, imported:
@@ -16,6 +17,11 @@ lab:   the calibration's confirmation protocol of scripts/calibrate.py (its own 
        Also reads the prepared piles (results/pile_dry_sand[_cg<T>]_bed.h5: packing, bulk
        density and coordination of stage 1) and measures the slope of each released pile's
        face (results/pile_dry_sand[_cg<T>].h5).
+blade: a vertical blade pushed through the same bin of dry sand (in metres: 3.78 x 1.08 m,
+       bed about 1.2 m, cut 0.81 m deep, 0.2 m/s, 1.08 m of travel) at each grain size, one
+       bed per seed (inserted with particles.coarse_grain, deposited and frozen); the draft per
+       metre over the second half of the travel, mean +- 95 % over the beds. Writes
+       results/coarse_graining/blade.json (runs in results/coarse_graining/blade/).
 chart: the wheel-loader ensembles of configs/studies/coarse_graining_wheel_loader.yaml (run
        with master/studies/study.py first) and, when there, lab.json and
        results/coarse_graining/blade.json: payload at 7 s and the mean A-bearing longitudinal
