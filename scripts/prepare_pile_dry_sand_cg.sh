@@ -7,7 +7,7 @@
 # (configs/soil/pile_dry_sand_release.yaml) loads that bed, so its grain radius and step are set
 # to the same scaled values (a checkpoint refuses coarse_grain). The settle threshold per grain
 # (3e-4 J at 1x) is scaled by S^3: the same grain speed. The packing is measured inside the same
-# 0.34 m margin as at 1x (2.5 / S diameters), since the 1.2 m high bed is only 4.3 / S
+# 0.34 m margin as at 1x (2.5 / S diameters), since the 1.2 m high bed is only 8.7 / S
 # diameters high and 2.5 diameters would leave no inner region at S >= 2.
 # Writes results/pile_dry_sand_cg<T>.h5, T = S with '.' as 'p' (skipped when it exists).
 #   bash scripts/prepare_pile_dry_sand_cg.sh 1.5 [2 3 ...]
