@@ -78,7 +78,7 @@ BladeRun run(std::vector<std::string> overrides) {
 }
 
 const std::vector<std::string> kImplicit = {
-    "coupling.type=implicit", "coupling.max_iterations=30", "coupling.at_max_iterations=stop",
+    "coupling.type=implicit", "coupling.max_iterations=50", "coupling.at_max_iterations=stop",
     "coupling.convergence=[{connection: tool.blade_wrench, measure: absolute_or_relative, absolute: 10.0, "
     "relative: 1.0e-3}]",
     "coupling.acceleration={type: iqn_ils, relaxation: 0.5, reuse: 8}"};
