@@ -9,8 +9,11 @@ Runs configs/blade_light.yaml (a 5 kg blade on a 1e5 N/m spring to its driver, p
 
 * explicit Jacobi at 0.1 ms (the DEM step: the reference and the cost anchor), 0.2, 0.5 and 1 ms
   (the paper's macro step);
-* implicit Jacobi at 1 ms with IQN-ILS (reuse 8) and with Aitken, and IQN-ILS at 2 and 5 ms
-  (--quick: explicit 0.1 and 1 ms, IQN-ILS 1 ms).
+* implicit Jacobi at 1 ms with IQN-ILS (reuse 8) and with Aitken, IQN-ILS at 2 ms, each stopping
+  at 30 iterations, and Aitken at 1 ms and IQN-ILS at 2 and 5 ms accepting a step at 30 iterations
+  (`at max`: how many);
+* the reference again with particle snapshots, to count the grains on the plate
+  (--quick: explicit 0.1 and 1 ms, IQN-ILS 1 ms and the snapshots).
 
 For each: how it ended (finished, or the message that stopped it), the coupling energy
 residual, the mean draft force over the push (1.3-2.0 s) against the reference, the rms change of
@@ -21,7 +24,8 @@ kernel's accounting) over the reference's.
 Beside them, cosim_stability's limits for the blade against a bed of n contacts, each the wall
 law's stiffness k = 4e7 Pa x r and its damping from the restitution 0.3, behind the contacts the
 grains' mass (n x 3.39 kg) held by the same stiffness; n is counted in the reference run's
-particle snapshots (grains overlapping the plate).
+particle snapshots (grains overlapping the plate). "soil/ref": the soil's compute seconds over the
+reference's; "CPU/ref": the run's CPU seconds (master and participants) over the reference's.
 """
 import argparse
 import csv
@@ -36,9 +40,12 @@ import numpy as np
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 CONFIG = os.path.join(ROOT, "configs/blade_light.yaml")
-IQN = ["coupling.type=implicit", "coupling.max_iterations=30", "coupling.at_max_iterations=stop",
+MAX_IT = 30
+IQN = ["coupling.type=implicit", f"coupling.max_iterations={MAX_IT}", "coupling.at_max_iterations=stop",
        "coupling.convergence=[{connection: tool.blade_wrench, measure: absolute_or_relative, absolute: 10.0, relative: 1.0e-3}]",
        "coupling.acceleration={type: iqn_ils, relaxation: 0.5, reuse: 8}"]
+# Accept a step at max_iterations (with a warning) instead of stopping: the run goes on.
+ACCEPT = ["coupling.at_max_iterations=accept"]
 AITKEN = IQN[:4] + ["coupling.acceleration={type: aitken, relaxation: 0.5}"]
 
 # The paper's soil at the wall (configs/blade_bed.yaml): k = 4e7 Pa x r_i, restitution 0.3,
@@ -54,7 +61,7 @@ def run(name, H, sets, out, port):
     h5 = os.path.join(out, name + ".h5")
     soil = os.path.join(out, name + "_soil.h5")
     extra = []
-    if name == "explicit_0.1ms":  # the reference keeps particle snapshots to count contacts
+    if name == "snapshots_0.1ms":  # the reference again, with particle snapshots to count contacts
         extra = ["--set", "participants.soil.parameters={output.file: '%s', output.particles_every: 0.05}" % soil]
     cmd = ["nice", os.path.join(ROOT, "build/bin/cosim_master"), CONFIG, "--output", h5,
            "--set", "output.progress=off", "--set", f"bus.url=udpm://239.255.76.67:{port}?ttl=0",
@@ -67,9 +74,15 @@ def run(name, H, sets, out, port):
     failed = [line for line in log.splitlines() if "run failed" in line]
     r = {"name": name, "H": H, "exit": p.returncode, "cpu": cpu,
          "ended": failed[0].split("run failed: ", 1)[1] if failed else "finished"}
+    if os.path.exists(h5):
+        with h5py.File(h5) as f:
+            if "status" in f:
+                status = f["status"][()]
+                status = status.decode() if isinstance(status, bytes) else str(status)
+                r["ended"] = "finished" if status == "finished" else status.replace("stopped: ", "", 1)
     if not os.path.exists(h5):
         r.update(t_end=0.0, energy=np.nan, fx=np.nan, chatter=np.nan, iterations=np.nan, max_iterations=0,
-                 soil_compute=np.nan, max_force=np.nan)
+                 soil_compute=np.nan, max_force=np.nan, at_max=0, wall=np.nan)
         return r, log
     with h5py.File(h5) as f:
         t = f["time"][:].ravel()
@@ -78,13 +91,15 @@ def run(name, H, sets, out, port):
         it = f["timing/iterations"][:].ravel()
         energy = f["power/blade/energy_residual"][:].ravel()
         compute = f["participants/soil/timing/compute"][1:].sum()
+        wall = f["timing/step_wall"][1:].sum()
     push = (t > 1.3) & (t <= 2.0)
     bed = (t > 1.2) & (t <= 2.0)
     r.update(t_end=float(t[-1]), energy=float(energy[-1]), fx=float(fx[push].mean()) if push.any() else np.nan,
              chatter=float(np.sqrt(np.mean(np.diff(fx[push]) ** 2))) if push.sum() > 1 else np.nan,
              iterations=float(it[bed].mean()) if bed.any() else np.nan,
-             max_iterations=int(it.max()), soil_compute=float(compute), max_force=float(force.max()))
-    if name == "explicit_0.1ms":
+             max_iterations=int(it.max()), soil_compute=float(compute), max_force=float(force.max()),
+             at_max=int((it >= MAX_IT).sum()) if "coupling.type=implicit" in sets else 0, wall=float(wall))
+    if name == "snapshots_0.1ms":
         r["contacts"] = count_contacts(soil, f_master=h5)
     return r, log
 
@@ -132,9 +147,11 @@ def main():
             sys.exit(f"light_blade: build/bin/{b} is missing: build first (docs: README.md)")
     runs = [("explicit_0.1ms", 1e-4, []), ("explicit_0.2ms", 2e-4, []), ("explicit_0.5ms", 5e-4, []),
             ("explicit_1ms", 1e-3, []), ("iqn_ils_1ms", 1e-3, IQN), ("aitken_1ms", 1e-3, AITKEN),
-            ("iqn_ils_2ms", 2e-3, IQN), ("iqn_ils_5ms", 5e-3, IQN)]
+            ("aitken_1ms_accept", 1e-3, AITKEN + ACCEPT), ("iqn_ils_2ms", 2e-3, IQN),
+            ("iqn_ils_2ms_accept", 2e-3, IQN + ACCEPT), ("iqn_ils_5ms_accept", 5e-3, IQN + ACCEPT),
+            ("snapshots_0.1ms", 1e-4, [])]
     if a.quick:
-        runs = [r for r in runs if r[0] in ("explicit_0.1ms", "explicit_1ms", "iqn_ils_1ms")]
+        runs = [r for r in runs if r[0] in ("explicit_0.1ms", "explicit_1ms", "iqn_ils_1ms", "snapshots_0.1ms")]
     out = a.out or tempfile.mkdtemp(prefix="light_blade_")
     os.makedirs(out, exist_ok=True)
     results = []
@@ -147,18 +164,22 @@ def main():
     ref = results[0]
     print(f"\nlight blade (configs/blade_light.yaml): 5 kg on 1e5 N/m through 500 spheres of the paper's soil, "
           f"DEM step 1e-4 s; reference = explicit at 0.1 ms")
-    print(f"{'run':16} {'H [ms]':>6} {'ended':>9} {'E_res [J]':>11} {'Fx 1.3-2 s [N]':>15} {'vs ref':>8} "
-          f"{'chatter [N]':>11} {'max|F| [N]':>10} {'iter/step':>9} {'max it':>6} {'soil [s]':>8} {'CPU/ref':>7}")
+    print(f"{'run':19} {'H [ms]':>6} {'ended':>9} {'E_res [J]':>11} {'Fx 1.3-2 s [N]':>15} {'vs ref':>8} "
+          f"{'chatter [N]':>11} {'max|F| [N]':>10} {'iter/step':>9} {'max it':>6} {'at max':>6} {'soil [s]':>8} "
+          f"{'soil/ref':>8} {'CPU/ref':>7}")
     for r in results:
+        if r["name"] == "snapshots_0.1ms":
+            continue
         ended = "finished" if r["ended"] == "finished" else f"t={r['t_end']:.3f}"
         rel = (r["fx"] / ref["fx"] - 1) * 100 if np.isfinite(r["fx"]) else np.nan
-        print(f"{r['name']:16} {r['H'] * 1e3:6.1f} {ended:>9} {r['energy']:11.4g} {r['fx']:15.1f} {rel:+7.2f}% "
+        print(f"{r['name']:19} {r['H'] * 1e3:6.1f} {ended:>9} {r['energy']:11.4g} {r['fx']:15.1f} {rel:+7.2f}% "
               f"{r['chatter']:11.1f} {r['max_force']:10.3g} {r['iterations']:9.2f} {r['max_iterations']:6d} "
-              f"{r['soil_compute']:8.2f} {r['cpu'] / ref['cpu']:7.2f}")
+              f"{r['at_max']:6d} {r['soil_compute']:8.2f} {r['soil_compute'] / ref['soil_compute']:8.2f} "
+              f"{r['cpu'] / ref['cpu']:7.2f}")
     for r in results:
         if r["ended"] != "finished":
             print(f"{r['name']} stopped: {r['ended'][:300]}")
-    counts = ref.get("contacts", [])
+    counts = results[-1].get("contacts", [])
     if counts:
         print(f"\ngrains overlapping the plate in the reference's snapshots (1.3-2.0 s): mean {np.mean(counts):.1f}, "
               f"range {min(counts)}-{max(counts)} ({len(counts)} snapshots)")
