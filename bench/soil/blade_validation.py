@@ -59,6 +59,7 @@ G = 9.81
 MATERIAL = None               # the material file (absolute path) when --material is given
 DEPOSITION_FRICTION = 0.0     # of the bed's fall (the material's with --material)
 MODEL = "translating"         # particles.model of the cases and the triaxial test
+BED_DT = DT                   # dt of the bed's preparation (the translating model's)
 ROLLING = dict(friction=0.1, damping=0.3)   # EPSD rolling resistance of the rotating model
 D_REF = 0.01                  # m: the mean diameter the default scene's lengths are written for
 SCALE = 1.0                   # D / D_REF
@@ -96,9 +97,9 @@ def walls_yaml():
         f"  - {{name: side1, type: plane, point: [0, {BIN_W}, 0], normal: [0, -1, 0], contact: {smooth}}}\n")
 
 
-def head_yaml(threads=1, region_top=None):
+def head_yaml(threads=1, region_top=None, dt=None):
     s = ("scene:\n"
-         f"  dt: {DT}\n"
+         f"  dt: {dt or DT}\n"
          "  gravity: [0, 0, -9.81]\n"
          "  broad_phase_interval: 5\n"
          "  skin: 0.5\n"
@@ -140,7 +141,9 @@ def model_yaml():
 def bed_config(seed, out):
     n = int(round(0.63 * BIN_L * BIN_W * BED_H / mean_grain_volume()))
     top = BED_H * 0.63 / 0.27   # insertion at a solid fraction of 0.27 (at most 0.3 allowed)
-    return n, (head_yaml() + walls_yaml() +
+    # The translating model's dt: one bed serves both models (a rotating scene loads a bed
+    # saved without spins at rest).
+    return n, (head_yaml(dt=BED_DT) + walls_yaml() +
                "particles:\n  insert:\n"
                f"    - {{species: grain, min: [0, 0, 0], max: [{BIN_L}, {BIN_W}, {top:.4f}], count: {n}, seed: {seed}}}\n"
                "prepare:\n" +
@@ -217,6 +220,10 @@ def triaxial(out, build):
              f"grains.radius={{min: {GRAIN['r_min']}, max: {GRAIN['r_max']}}}",
              f"sample.preparation_friction={DEPOSITION_FRICTION}",
              "triaxial.confining_pressures=[" + ", ".join(f"{p:g}" for p in CONFINING) + "]"]
+    if MATERIAL:
+        # the material's samples (compacted with its deposition friction, looser than the
+        # default study's frictionless ones) peak late: to 15 % axial strain
+        sets.append("triaxial.max_axial_strain=0.15")
     if MODEL != "translating":
         sets += [f"grains.model={MODEL}",
                  f"grains.rolling_resistance={{model: epsd, friction: {ROLLING['friction']}, "
@@ -225,12 +232,13 @@ def triaxial(out, build):
         return ARGS.phi, [(CONFINING[0], ARGS.phi, float("nan"), float("nan"))]
     cmd = [ARGS.lab or os.path.join(build, "bin", "dem_lab"), "triaxial", cfg, "--out",
            tri_dir, "--no-plot"] + sum([["--set", x] for x in sets], [])
-    stamp = os.path.join(out, f"triaxial{tag()}.cmd")
-    if ARGS.fresh or not os.path.exists(fit) or not same_config(stamp, " ".join(cmd[1:]) + "\n"):
+    stamp = os.path.join(out, f"triaxial{tag()}.cmd")   # the test's inputs (not its output folder)
+    what = " ".join(["triaxial", cfg] + sets) + "\n"
+    if ARGS.fresh or not os.path.exists(fit) or not same_config(stamp, what):
         print("triaxial: dem_lab triaxial", cfg, flush=True)
         run(cmd, os.path.join(out, f"triaxial{tag()}.log"))
         with open(stamp, "w") as f:
-            f.write(" ".join(cmd[1:]) + "\n")
+            f.write(what)
     rows = list(csv.DictReader(open(fit)))
     s3 = np.array([float(r["sigma3_peak_Pa"]) for r in rows])
     s1 = np.array([float(r["sigma1_peak_Pa"]) for r in rows])
@@ -447,8 +455,14 @@ def main():
     build = os.path.abspath(ARGS.build)
     os.makedirs(os.path.join(out, "meshes"), exist_ok=True)
     dem_run = os.path.join(build, "bin", "dem_run")
+    global BED_DT
     if MATERIAL or MODEL != "translating":
         DT = float(f"{0.85 * safe_dt(build, out):.3g}")
+    BED_DT = DT
+    if MODEL != "translating":
+        MODEL = "translating"
+        BED_DT = float(f"{0.85 * safe_dt(build, out):.3g}") if MATERIAL else 3.0e-5
+        MODEL = ARGS.model
     print(f"soil: {'material ' + MATERIAL if MATERIAL else 'the study own grains'}; model {MODEL}"
           + (f" (rolling friction {ROLLING['friction']}, damping {ROLLING['damping']})" if MODEL != "translating" else "")
           + f"; D {dm:g} m; bin {BIN_L:.4g} x {BIN_W:.4g} m, bed {BED_H:.4g} m; depths "

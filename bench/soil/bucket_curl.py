@@ -21,11 +21,11 @@ every window (the lift is outside them). The balance holds while S touches nothi
 bucket and itself: the script checks, at every snapshot of the window, that no grain of S
 overlaps a grain outside S or a wall, and says so. Windows:
 
-  curl in the pile   2.1-3.4 s   the bucket turns 0 -> 35 deg through the pile (no reference:
+  curl in the pile   1.6-2.4 s   the bucket turns 0 -> 35 deg through the pile (no reference:
                                  the pile pushes too; the two models against each other)
-  held, at rest      5.8-6.3 s   the check of the method: the torque is the load's weight torque
-  curl, load held    6.4-7.7 s   35 -> 55 deg at 0.233 rad/s, clear of the pile
-  held after         7.85-8.1 s
+  held, at rest      4.3-4.7 s   the check of the method: the torque is the load's weight torque
+  curl, load held    4.8-5.6 s   35 -> 55 deg at 0.35 rad/s, clear of the pile
+  held after         5.75-6.0 s
 
 It prints one table per model and writes OUT/bucket_curl.csv and the chart OUT/bucket_curl.png
 (the torque against time with each model).
@@ -42,8 +42,8 @@ import numpy as np
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 CONFIG = os.path.join(ROOT, "configs", "soil", "curl_dry_sand.yaml")
 G = np.array([0.0, 0.0, -9.81])
-WINDOWS = [("curl in the pile", 2.1, 3.4, False), ("held, at rest", 5.8, 6.3, True),
-           ("curl, load held", 6.4, 7.7, True), ("held after", 7.85, 8.1, True)]
+WINDOWS = [("curl in the pile", 1.6, 2.4, False), ("held, at rest", 4.3, 4.7, True),
+           ("curl, load held", 4.8, 5.6, True), ("held after", 5.75, 6.0, True)]
 
 
 def material_density():
