@@ -7,7 +7,7 @@ model (docs/soil_blade.md "The bucket's curl").
         [--jobs 2] [--analyse-only]
 
 Runs `dem_run configs/soil/curl_dry_sand.yaml` (the prepared dry-sand pile of
-scripts/prepare_pile_dry_sand.sh, the bucket's mesh of the wheel_loader_meshes target, moved by
+scripts/prepare_pile_dry_sand.sh, cut at x = 9 m by configs/soil/curl_dry_sand_cut.yaml; the bucket's mesh of the wheel_loader_meshes target, moved by
 keyframes: penetration, a curl in the pile, a lift out, a hold, a curl with the load held clear
 of the pile, a hold) once per particle model, and compares the soil's torque on the bucket about
 its A-pin (the recorded wrench, about y) with what the load's weight and angular momentum give:
@@ -161,6 +161,9 @@ def main():
     if not a.analyse_only:
         if not os.path.exists(os.path.join(ROOT, "results", "pile_dry_sand.h5")):
             subprocess.run(["nice", "bash", os.path.join(ROOT, "scripts", "prepare_pile_dry_sand.sh")], check=True)
+        if not os.path.exists(os.path.join(ROOT, "results", "pile_dry_sand_cut.h5")):
+            subprocess.run(["nice", os.path.join(a.build, "bin", "dem_run"),
+                            os.path.join(ROOT, "configs", "soil", "curl_dry_sand_cut.yaml")], check=True, cwd=ROOT)
         if not os.path.exists(os.path.join(a.build, "meshes", "bucket_r1.stl")):
             subprocess.run(["cmake", "--build", a.build, "--target", "wheel_loader_meshes"], check=True)
         with ThreadPoolExecutor(a.jobs) as ex:
