@@ -197,16 +197,21 @@ def plot(out, curves):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    fig, ax = plt.subplots(figsize=(10, 4.5))
-    for m, (t, my) in curves.items():
-        k = max(1, int(round(0.05 / (t[1] - t[0]))))
-        ax.plot(t[k - 1:], np.convolve(my, np.ones(k) / k, mode="valid") / 1e3, lw=0.9, label=m)
-    for label, t0, t1, _ in WINDOWS:
-        ax.axvspan(t0, t1, color="0.92", zorder=0)
-        ax.text((t0 + t1) / 2, 0.02, label, transform=ax.get_xaxis_transform(), ha="center", fontsize=7)
-    ax.set_xlabel("time (s)")
-    ax.set_ylabel("soil torque on the bucket about the A-pin, y (kN m; 0.05 s mean)")
-    ax.legend()
+    fig, axes = plt.subplots(1, 2, figsize=(13, 4.5))
+    for ax, (lo, hi) in zip(axes, [(0, None), (WINDOWS[0][1] + 0.05, None)]):
+        for m, (t, my) in curves.items():
+            k = max(1, int(round(0.05 / (t[1] - t[0]))))
+            tt, mm = t[k - 1:], np.convolve(my, np.ones(k) / k, mode="valid") / 1e3
+            sel = tt >= lo
+            ax.plot(tt[sel], mm[sel], lw=0.9, label=m)
+        for label, t0, t1, _ in WINDOWS:
+            ax.axvspan(t0, t1, color="0.92", zorder=0)
+            ax.text((t0 + t1) / 2, 0.02, label, transform=ax.get_xaxis_transform(), ha="center", fontsize=7)
+        ax.set_xlabel("time (s)")
+        ax.legend()
+    axes[0].set_ylabel("soil torque on the bucket about the A-pin, y (kN m; 0.05 s mean)")
+    axes[0].set_title("the whole run (penetration: the pile's push)", fontsize=9)
+    axes[1].set_title("from the curl in the pile on", fontsize=9)
     fig.tight_layout()
     png = os.path.join(out, "bucket_curl.png")
     fig.savefig(png, dpi=120)
