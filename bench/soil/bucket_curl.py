@@ -4,12 +4,14 @@ model (docs/soil_blade.md "The bucket's curl").
 
     /usr/bin/python3 bench/soil/bucket_curl.py [--out results/bucket_curl] [--build build]
         [--models translating,rotating] [--rolling-friction 0.1] [--rolling-damping 0.3]
-        [--jobs 2] [--analyse-only]
+        [--jobs 2] [--members 1] [--fresh] [--analyse-only]
 
 Runs `dem_run configs/soil/curl_dry_sand.yaml` (the prepared dry-sand pile of
-scripts/prepare_pile_dry_sand.sh, cut at x = 9 m by configs/soil/curl_dry_sand_cut.yaml; the bucket's mesh of the wheel_loader_meshes target, moved by
-keyframes: penetration, a curl in the pile, a lift out, a hold, a curl with the load held clear
-of the pile, a hold) once per particle model, and compares the soil's torque on the bucket about
+scripts/prepare_pile_dry_sand.sh, cut at x = 9 m by configs/soil/curl_dry_sand_cut.yaml; the
+bucket's mesh of the wheel_loader_meshes target, moved by keyframes: penetration, a curl in the
+pile, a lift out, a hold, a curl with the load held clear of the pile, a hold) once per particle
+model and member (member k > 1 perturbs every grain by up to 1e-6 m with seed k; a complete
+output is reused unless --fresh), and compares the soil's torque on the bucket about
 its A-pin (the recorded wrench, about y) with what the load's weight and angular momentum give:
 
     tau_expected = sum_i (x_i - r) x m_i g - (L_r(t1) - L_r(t0)) / (t1 - t0),
@@ -52,16 +54,36 @@ def material_density():
         return float(yaml.safe_load(f)["density"])
 
 
-def run(model, a):
-    out = os.path.join(a.out, f"curl_{model}.h5")
+def name(model, member):
+    return f"curl_{model}" + ("" if member == 1 else f"_m{member}")
+
+
+def complete(h5):
+    import h5py
+    try:
+        with h5py.File(h5, "r") as f:
+            return int(f.attrs.get("complete", 0)) == 1
+    except OSError:
+        return False
+
+
+def run(model, member, a):
+    out = os.path.join(a.out, name(model, member) + ".h5")
+    if not a.fresh and complete(out):
+        print(f"bucket_curl: {out} exists (--fresh runs it again)", flush=True)
+        return out
     sets = [f"output.file={out}", f"particles.model={model}"]
+    if member > 1:   # ensemble members: a seeded shift of every grain by up to 1e-6 m
+        sets.append(f"particles.perturb={{amplitude: 1.0e-6, seed: {member}}}")
+        # the shift pushes a contact past the bed's recorded largest overlap (1.25 %)
+        sets.append("scene.stability.overlap_tolerance=0.02")
     if model == "rotating":
         sets.append("particles.rolling_resistance={model: epsd, friction: %g, damping: %g}"
                     % (a.rolling_friction, a.rolling_damping))
     cmd = ["nice", os.path.join(a.build, "bin", "dem_run"), CONFIG]
     for s in sets:
         cmd += ["--set", s]
-    log = os.path.join(a.out, f"curl_{model}.log")
+    log = os.path.join(a.out, name(model, member) + ".log")
     print("bucket_curl:", " ".join(cmd[1:]), flush=True)
     with open(log, "w") as f:
         r = subprocess.run(cmd, stdout=f, stderr=subprocess.STDOUT, cwd=ROOT)
@@ -147,6 +169,9 @@ def main():
     p.add_argument("--load-above", type=float, default=1.9,
                    help="m: the load is the grains whose centre is above this at a window's start")
     p.add_argument("--jobs", type=int, default=2)
+    p.add_argument("--members", type=int, default=1,
+                   help="runs per model: member 1 as configured, member k > 1 with particles.perturb seed k (1e-6 m)")
+    p.add_argument("--fresh", action="store_true", help="run again even when a complete output exists")
     p.add_argument("--analyse-only", action="store_true")
     a = p.parse_args()
     models = a.models.split(",")
@@ -156,6 +181,9 @@ def main():
         sys.exit("bucket_curl: --rolling-friction must lie in (0, 1], --rolling-damping in [0, 1]")
     if a.jobs < 1:
         sys.exit("bucket_curl: --jobs must be >= 1")
+    if not 1 <= a.members <= 20:
+        sys.exit("bucket_curl: --members must lie in 1..20")
+    runs = [(m, k) for k in range(1, a.members + 1) for m in models]
     a.out, a.build = os.path.abspath(a.out), os.path.abspath(a.build)
     os.makedirs(a.out, exist_ok=True)
     if not a.analyse_only:
@@ -167,15 +195,16 @@ def main():
         if not os.path.exists(os.path.join(a.build, "meshes", "bucket_r1.stl")):
             subprocess.run(["cmake", "--build", a.build, "--target", "wheel_loader_meshes"], check=True)
         with ThreadPoolExecutor(a.jobs) as ex:
-            files = dict(zip(models, ex.map(lambda m: run(m, a), models)))
+            files = dict(zip(runs, ex.map(lambda mk: run(mk[0], mk[1], a), runs)))
     else:
-        files = {m: os.path.join(a.out, f"curl_{m}.h5") for m in models}
+        files = {(m, k): os.path.join(a.out, name(m, k) + ".h5") for m, k in runs}
     density = material_density()
     allrows, curves = [], {}
-    for m in models:
-        rows, t, my = analyse(files[m], density, a.load_above)
-        curves[m] = (t, my)
-        print(f"\n{m}" + (f" (rolling friction {a.rolling_friction}, damping {a.rolling_damping})" if m == "rotating" else ""))
+    for m, k in runs:
+        rows, t, my = analyse(files[(m, k)], density, a.load_above)
+        if k == 1:
+            curves[m] = (t, my)
+        print(f"\n{m}, member {k}" + (f" (rolling friction {a.rolling_friction}, damping {a.rolling_damping})" if m == "rotating" else ""))
         print("| window | s | load t (grains) | soil torque on the bucket kN m | weight torque kN m | dL/dt kN m "
               "| weight - dL/dt kN m | excess | grains of the load touching pile or walls |")
         print("| --- | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: |")
@@ -185,7 +214,12 @@ def main():
             print(f"| {r['window']} | {r['t0']:.2f}-{r['t1']:.2f} | {r['load_t']:.2f} ({r['grains']}) | "
                   f"{r['measured_kNm']:.1f} | {r['weight_kNm']:.1f} | {r['dLdt_kNm']:.1f} | "
                   f"{r['expected_kNm']:.1f} | {ex} | {tc} |")
-            allrows.append(dict(model=m, **r))
+            allrows.append(dict(model=m, member=k, **r))
+    print("\nthe curl with the load held, excess over the load's weight and momentum per member:")
+    for m in models:
+        ex = [r["excess"] for r in allrows if r["model"] == m and r["window"] == "curl, load held"]
+        print(f"  {m}: " + ", ".join(f"{100 * e:+.1f} %" for e in ex)
+              + (f"; mean {100 * np.mean(ex):+.1f} %" if len(ex) > 1 else ""))
     with open(os.path.join(a.out, "bucket_curl.csv"), "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(allrows[0].keys()))
         w.writeheader()
