@@ -7,8 +7,8 @@ The load is settled in the dump body standing at the pose the hauler has at the 
 discharge, and that pose depends on the load (hauler_adapter's static_load: mass, centre of
 gravity, radius of gyration). This script iterates: it asks hauler_adapter for the start pose
 under the current static_load (a one-step co-simulation with an empty soil), writes that pose
-into configs/soil/hauler_load_prepare.yaml, prepares the load with dem_run
-(results/hauler_load.h5), measures it in the body frame, and repeats. It prints the static_load
+into configs/soil/hauler_load_prepare.yaml and hauler_load_release.yaml, prepares the load with
+dem_run (both stages: results/hauler_load.h5), measures it in the body frame, and repeats. It prints the static_load
 to put into configs/hauler.yaml and the remaining change of the pose.
 """
 import argparse
@@ -22,7 +22,9 @@ import h5py
 import numpy as np
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-PREP = os.path.join(ROOT, "configs/soil/hauler_load_prepare.yaml")
+# the load's preparation, in order: deposition with the tail closed, then released
+PREPS = [os.path.join(ROOT, "configs/soil/hauler_load_prepare.yaml"),
+         os.path.join(ROOT, "configs/soil/hauler_load_release.yaml")]
 
 
 def rotation(q):
@@ -56,19 +58,24 @@ particles: {{list: [{{species: grain, position: [50, 0, 5]}}]}}
 
 
 def prepare(pose):
-    text = open(PREP).read()
     new = (f"- {{time: 0.0, position: [{pose[0]:.6f}, 0, {pose[2]:.6f}], "
            f"orientation: [{pose[3]:.8f}, 0, {pose[5]:.8f}, 0]}}")
-    text, n = re.subn(r"- \{time: 0\.0, position: \[.*?\], orientation: \[.*?\]\}", new, text)
-    if n != 1:
-        sys.exit(f"hauler_load_pose: {PREP} has no single start keyframe to update")
-    open(PREP, "w").write(text)
+    for prep in PREPS:
+        text = open(prep).read()
+        text, n = re.subn(r"- \{time: 0\.0, position: \[.*?\], orientation: \[.*?\]\}", new, text)
+        if n != 1:
+            sys.exit(f"hauler_load_pose: {prep} has no single start keyframe to update")
+        open(prep, "w").write(text)
     out = os.path.join(ROOT, "results/hauler_load.h5")
-    if os.path.exists(out):
-        os.remove(out)
-    r = subprocess.run([os.path.join(ROOT, "build/bin/dem_run"), PREP], capture_output=True, text=True, cwd=ROOT)
-    if r.returncode != 0:
-        sys.exit("hauler_load_pose: dem_run failed:\n" + r.stderr[-2000:])
+    for old in (out, os.path.join(ROOT, "results/hauler_load_bed.h5")):
+        if os.path.exists(old):
+            os.remove(old)
+    for prep in PREPS:
+        r = subprocess.run([os.path.join(ROOT, "build/bin/dem_run"), prep], capture_output=True, text=True, cwd=ROOT)
+        if r.returncode != 0:
+            sys.exit(f"hauler_load_pose: dem_run {prep} failed:\n" + r.stderr[-2000:])
+        print("\n".join(line for line in (r.stdout + r.stderr).splitlines()
+                        if line.startswith(("Prepared bed:", "settle: at rest", "prepare: deposition"))), flush=True)
     with h5py.File(out, "r") as f:
         x = f["x"][:].reshape(-1, 3)
         m = f["mass"][:]

@@ -3,10 +3,11 @@
 
     /usr/bin/python3 scripts/hauler_models.py [--end 3] [--members 2] [--out results/hauler_models]
         [--models translating,rotating] [--rolling 0.1] [--rolling-damping 0.3] [--dt-rotating 1.25e-4]
-        [--analyse-only]
+        [--analyse-only] [--config configs/hauler.yaml]
 
 Runs `cosim_master configs/hauler.yaml` (hauler_adapter + dem_service, the prepared load of
-results/hauler_load.h5; run scripts/run_hauler.sh once first) up to --end seconds for each
+results/hauler_load.h5; run scripts/run_hauler.sh once first; --config configs/hauler_lattice.yaml:
+the lattice load of before issue 43, results/hauler_load_lattice.h5) up to --end seconds for each
 model and ensemble member (members differ by particles.perturb.seed, amplitude 1e-6 m), with the
 soil's particle snapshots every 0.02 s, then compares, over windows of 0.5 s, the soil's torque on
 the dump body about its hinge (the recorded wrench) with what the load's weight and angular
@@ -33,7 +34,24 @@ import numpy as np
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 G = np.array([0.0, 0.0, -9.81])
-DENSITY = 2600.0  # configs/soil/hauler_load.yaml materials.soil
+DENSITY = 2600.0  # the grains' density when the soil's record does not give it (density())
+
+
+def density(soil_h5):
+    """The grains' density from the resolved config the soil stored (materials.<name>.density;
+    a material file is resolved into it), else DENSITY."""
+    with h5py.File(soil_h5, "r") as f:
+        text = f.attrs.get("config", b"")
+    text = text.decode() if isinstance(text, bytes) else str(text)
+    try:
+        import yaml
+        mats = (yaml.safe_load(text) or {}).get("materials", {})
+        values = {float(m["density"]) for m in mats.values() if isinstance(m, dict) and "density" in m}
+        if len(values) == 1:
+            return values.pop()
+    except Exception:  # noqa: BLE001 - an unreadable record falls back to the default
+        pass
+    return DENSITY
 
 
 def run(model, seed, a):
@@ -50,7 +68,7 @@ def run(model, seed, a):
         sets += [f"participants.soil.parameters.particles.rolling_resistance.friction={a.rolling}",
                  f"participants.soil.parameters.particles.rolling_resistance.damping={a.rolling_damping}",
                  f"participants.soil.parameters.scene.dt={a.dt_rotating}"]
-    cmd = [os.path.join(ROOT, "build/bin/cosim_master"), os.path.join(ROOT, "configs/hauler.yaml")]
+    cmd = [os.path.join(ROOT, "build/bin/cosim_master"), os.path.join(ROOT, a.config)]
     for s in sets:
         cmd += ["--set", s]
     print("hauler_models:", " ".join(cmd), flush=True)
@@ -70,6 +88,7 @@ def analyse(out):
         w = f["participants/soil/outputs/body"][:].reshape(len(t), -1)
         fz = f["participants/hauler/outputs/front_fz"][:].reshape(len(t), -1)[:, 0]
     snaps = []
+    rho = density(out + "_soil.h5")
     with h5py.File(out + "_soil.h5", "r") as f:
         for name in f["particles"]:
             g = f["particles"][name]
@@ -83,7 +102,7 @@ def analyse(out):
     vref = np.gradient(ref, ts, axis=0)
     W, L, P = [], [], []
     for k, (_, x, v, r, om) in enumerate(snaps):
-        m = DENSITY * 4.0 / 3.0 * np.pi * r ** 3
+        m = rho * 4.0 / 3.0 * np.pi * r ** 3
         arm = x - ref[k]
         W.append(np.cross(arm, m[:, None] * G).sum(axis=0))
         L.append((m[:, None] * np.cross(arm, v)).sum(axis=0) + ((0.4 * m * r * r)[:, None] * om).sum(axis=0))
@@ -115,10 +134,12 @@ def main():
     ap.add_argument("--rolling-damping", type=float, default=0.3)
     ap.add_argument("--dt-rotating", type=float, default=1.25e-4)
     ap.add_argument("--analyse-only", action="store_true")
+    ap.add_argument("--config", default="configs/hauler.yaml", help="the hauler scene (relative to the repo)")
     a = ap.parse_args()
-    if not os.path.exists(os.path.join(ROOT, "results/hauler_load.h5")):
-        sys.exit("hauler_models: results/hauler_load.h5 is missing; run scripts/run_hauler.sh once "
-                 "(or build/bin/dem_run configs/soil/hauler_load_prepare.yaml)")
+    if not os.path.exists(os.path.join(ROOT, a.config)):
+        sys.exit(f"hauler_models: --config {a.config}: no such file")
+    if a.config == "configs/hauler.yaml" and not os.path.exists(os.path.join(ROOT, "results/hauler_load.h5")):
+        sys.exit("hauler_models: results/hauler_load.h5 is missing; run scripts/run_hauler.sh once")
     os.makedirs(a.out, exist_ok=True)
     for model in a.models.split(","):
         results = []

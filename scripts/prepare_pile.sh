@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Prepares a variant of the main job's pile (configs/soil/pile_prepare.yaml) once, for studies
+# Prepares a variant of the lattice pile (configs/soil/pile_prepare.yaml: the main job's pile
+# before issue 43, the scene of docs/wheel_loader_studies.md) once, for studies
 # that change the soil (contact stiffness, friction, grain size): a pile must be settled with the
 # contact law it is run with, or it starts by slumping or springing up.
 #   bash scripts/prepare_pile.sh NAME [dotted.key=value ...]

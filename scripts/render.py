@@ -103,7 +103,7 @@ if not np.all(np.isfinite(lo)):  # no tools: frame the particles of the first ch
 speeds = np.concatenate(speeds) if speeds else np.zeros(1)
 # The 99.5th percentile: a few flying grains do not wash out the pile's colours.
 vmax = float(np.percentile(speeds, 99.5)) if speeds.size else 1.0
-vmax = vmax if vmax > 1e-6 else max(float(speeds.max()), 1e-3)
+vmax = vmax if vmax > 1e-6 else builtins.max(float(speeds.max()), 1e-3)  # a soil at rest
 
 view = CreateRenderView()
 view.ViewSize = [width, height]

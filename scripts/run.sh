@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
-# The main job: sets up, builds, prepares the soil pile (once; results/pile_small.h5), runs the
-# wheel loader filling its bucket (cosim_master + wheel_loader_adapter + dem_service, 15 s of
-# maneuver, a few minutes on 2 cores) and draws the charts:
+# The main job: sets up, builds, prepares the soil pile (once: the dry-sand pile,
+# results/pile_dry_sand.h5, scripts/prepare_pile_dry_sand.sh, about a minute), runs the wheel
+# loader filling its bucket (configs/wheel_loader.yaml: cosim_master + wheel_loader_adapter +
+# dem_service, 15 s of maneuver, a few minutes on 2 cores) and draws the charts:
 #   results/wheel_loader.h5, .csv, results/wheel_loader_bearing_forces.png, _machine.png,
 #   results/wheel_loader_soil.h5 + .xdmf (particles, bucket and walls for ParaView) and
 #   results/wheel_loader_soil_last.png (a picture of the last snapshot; docs/visualise.md).
@@ -11,10 +12,7 @@ cd "$(dirname "$0")/.."
 bash scripts/build.sh
 bash scripts/multicast.sh
 mkdir -p results
-if [ ! -f results/pile_small.h5 ]; then
-  echo "run: preparing the soil pile (once): dem_run configs/soil/pile_prepare.yaml"
-  ./build/bin/dem_run configs/soil/pile_prepare.yaml
-fi
+bash scripts/prepare_pile_dry_sand.sh
 ./build/bin/cosim_master configs/wheel_loader.yaml "$@"
 /usr/bin/python3 master/studies/plot_run.py results/wheel_loader.h5
 # A picture of the last snapshot (ParaView under xvfb-run, a few seconds); a movie of the whole

@@ -3,8 +3,8 @@
 
     /usr/bin/python3 bench/coupling/rollback_cost.py [--horizon S] [--macro-step H] [--scene main|paper]
 
-Runs the wheel loader (--scene main: configs/wheel_loader.yaml, the 10,000-sphere pile
-results/pile_small.h5, prepared by scripts/run.sh; --scene paper: configs/wheel_loader_paper.yaml,
+Runs the wheel loader (--scene main: configs/wheel_loader.yaml, the 10,000-sphere dry-sand pile
+results/pile_dry_sand.h5, prepared by scripts/run.sh; --scene paper: configs/wheel_loader_paper.yaml,
 the 150,000-sphere pile results/pile_paper.h5, prepared by bench/paper/prepare_pile.sh) twice over the same horizon at the same macro step: explicit Jacobi
 (the anchor) and implicit Jacobi with exactly two iterations per step (min_iterations =
 max_iterations = 2, a limit every iteration meets), so that every step is rolled back once. A
@@ -30,7 +30,7 @@ import numpy as np
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 
-SCENES = {"main": ("configs/wheel_loader.yaml", "results/pile_small.h5", "10,000", "bash scripts/run.sh"),
+SCENES = {"main": ("configs/wheel_loader.yaml", "results/pile_dry_sand.h5", "10,000", "bash scripts/run.sh"),
           "paper": ("configs/wheel_loader_paper.yaml", "results/pile_paper.h5", "150,000",
                     "nice -n 19 bash bench/paper/prepare_pile.sh")}
 

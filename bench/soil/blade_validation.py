@@ -11,6 +11,19 @@ and for the soil-blade friction angle delta = atan(blade friction).
     /usr/bin/python3 bench/soil/blade_validation.py [--out results/blade] [--build build]
         [--seeds 2] [--jobs 2] [--rate-check] [--skim 1.0] [--speed 0.02]
         [--depths 0.04,0.06] [--rakes 90,45] [--bin-length 0.28] [--bed-height 0.09]
+        [--material configs/materials/dry_sand.yaml] [--model translating|rotating]
+        [--rolling-friction 0.1] [--rolling-damping 0.3] [--blade-friction 0.2]
+
+Without --material the soil is the study's own (1 cm grains, mu 0.2, GRAIN and LAW below). With
+--material the grains (density, radius), the particle law and the deposition friction of the bed
+come from that material file, and every length of the scene (bin, bed, depths, travel, blade,
+skim) is the same number of mean grain diameters D as the default scene's with its 1 cm grains;
+lengths on the command line are metres, or mean diameters with a trailing D ("4D,6D"). The
+default speed keeps the inertial number of the default scene (0.02 m/s x sqrt(D / 1 cm)) and dt
+is 0.85 of the engine's largest safe step for the law and model (asked from dem_run).
+--model rotating runs the cases with spheres that rotate (6 DOF) and the EPSD rolling
+resistance; the bed is prepared (and shared) by the translating model, and the triaxial test is
+run with the same model (dem_lab must know `grains.model`, or --phi gives the angle).
 
 Steps (each skipped when its output exists, made from the same config, and --fresh is not
 given):
@@ -43,6 +56,14 @@ LAW = dict(normal_stiffness=1.0e4, stiffness_unit="N/m", restitution=0.3,
 BLADE_FRICTION = 0.2          # soil-blade mu: delta = atan(0.2) = 11.3 deg (about phi / 3)
 DT = 3.0e-5                   # s; the engine checks it against the contact period (largest safe 3.5e-5)
 G = 9.81
+MATERIAL = None               # the material file (absolute path) when --material is given
+DEPOSITION_FRICTION = 0.0     # of the bed's fall (the material's with --material)
+MODEL = "translating"         # particles.model of the cases and the triaxial test
+BED_DT = DT                   # dt of the bed's preparation (the translating model's)
+ROLLING = dict(friction=0.1, damping=0.3)   # EPSD rolling resistance of the rotating model
+D_REF = 0.01                  # m: the mean diameter the default scene's lengths are written for
+SCALE = 1.0                   # D / D_REF
+CONFINING = [1.0e3, 2.0e3, 4.0e3]   # Pa: the triaxial test's sigma_3 (the wedge's 1-4 kPa)
 
 # --- the bin (plane strain: thin in y, smooth side walls) ---------------------------------
 BIN_L, BIN_W = 0.28, 0.04     # m: length along the travel, thickness (4 mean diameters)
@@ -51,6 +72,7 @@ DEPTHS = [0.04, 0.06]          # m: 4 and 6 mean grain diameters
 RAKES = [90.0, 45.0]          # deg from the horizontal
 TRAVEL = 0.08                 # m of blade travel
 STEADY_FROM = 0.04            # m: the steady window is [STEADY_FROM, TRAVEL] of travel
+REACH = 0.06                  # m: the blade reaches this far above the surface
 
 
 def law_yaml(law, indent):
@@ -75,40 +97,64 @@ def walls_yaml():
         f"  - {{name: side1, type: plane, point: [0, {BIN_W}, 0], normal: [0, -1, 0], contact: {smooth}}}\n")
 
 
-def head_yaml(threads=1, region_top=None):
+def head_yaml(threads=1, region_top=None, dt=None):
     s = ("scene:\n"
-         f"  dt: {DT}\n"
+         f"  dt: {dt or DT}\n"
          "  gravity: [0, 0, -9.81]\n"
          "  broad_phase_interval: 5\n"
          "  skin: 0.5\n"
          f"  threads: {threads}\n")
     if region_top is not None:
         s += f"  region: {{min: [-1, -1, -1], max: [{BIN_L + 1}, {BIN_W + 1}, {region_top:.6f}]}}\n"
-    s += ("materials:\n"
-          f"  sand: {{density: {GRAIN['density']}}}\n"
-          "species:\n"
-          "  - name: grain\n"
-          "    material: sand\n"
-          f"    radius: {{distribution: uniform, min: {GRAIN['r_min']}, max: {GRAIN['r_max']}}}\n"
-          "contact:\n"
-          "  particle_particle:\n" + law_yaml(LAW, 4))
+    if MATERIAL:
+        # density, radius and the particle law from the file (docs/soil.md "Material files")
+        s += ("materials:\n"
+              f"  sand: {{file: {MATERIAL}}}\n"
+              "species:\n"
+              "  - {name: grain, material: sand}\n")
+    else:
+        s += ("materials:\n"
+              f"  sand: {{density: {GRAIN['density']}}}\n"
+              "species:\n"
+              "  - name: grain\n"
+              "    material: sand\n"
+              f"    radius: {{distribution: uniform, min: {GRAIN['r_min']}, max: {GRAIN['r_max']}}}\n"
+              "contact:\n"
+              "  particle_particle:\n" + law_yaml(LAW, 4))
     return s
+
+
+def tag():
+    """Suffix of the files of the rotating model's runs (the translating one keeps the old names)."""
+    return "" if MODEL == "translating" else "_rot"
+
+
+def model_yaml():
+    """particles.model lines of a case (nothing for the default translating model)."""
+    if MODEL == "translating":
+        return ""
+    return ("  model: rotating\n"
+            f"  rolling_resistance: {{model: epsd, friction: {ROLLING['friction']}, "
+            f"damping: {ROLLING['damping']}}}\n")
 
 
 def bed_config(seed, out):
     n = int(round(0.63 * BIN_L * BIN_W * BED_H / mean_grain_volume()))
     top = BED_H * 0.63 / 0.27   # insertion at a solid fraction of 0.27 (at most 0.3 allowed)
-    return n, (head_yaml() + walls_yaml() +
+    # The translating model's dt: one bed serves both models (a rotating scene loads a bed
+    # saved without spins at rest).
+    return n, (head_yaml(dt=BED_DT) + walls_yaml() +
                "particles:\n  insert:\n"
                f"    - {{species: grain, min: [0, 0, 0], max: [{BIN_L}, {BIN_W}, {top:.4f}], count: {n}, seed: {seed}}}\n"
-               "prepare:\n"
-               "  deposition_friction: 0.0\n"
-               "  ke_per_particle: 1.0e-7\n"
-               "  max_time: 3.0\n"
+               "prepare:\n" +
+               ("" if MATERIAL else "  deposition_friction: 0.0\n") +
+               f"  ke_per_particle: {1.0e-7 * SCALE ** 4:.6g}\n"
+               f"  max_time: {3.0 * math.sqrt(SCALE):.6g}\n"
                "  margin: 1.0\n"
                f"  checkpoint: bed_s{seed}.h5\n"
                "run:\n  duration: 0\n"
                f"output:\n  file: bed_s{seed}_run.h5\n  progress_every: 30\n")
+
 
 
 def blade_mesh(path, rake_deg, length):
@@ -116,7 +162,7 @@ def blade_mesh(path, rake_deg, length):
     (towards -x) at the rake angle from the horizontal; wider than the bin by 5 mm a side."""
     a = math.radians(rake_deg)
     tx, tz = -length * math.cos(a), length * math.sin(a)
-    y0, y1 = -0.005, BIN_W + 0.005
+    y0, y1 = -0.5 * D_REF * SCALE, BIN_W + 0.5 * D_REF * SCALE
     with open(path, "w") as f:
         f.write("# generated by bench/soil/blade_validation.py\n")
         for v in [(0, y0, 0), (0, y1, 0), (tx, y1, tz), (tx, y0, tz)]:
@@ -125,9 +171,9 @@ def blade_mesh(path, rake_deg, length):
 
 
 def case_config(out, seed, depth, rake, surface, speed, skim):
-    name = f"case_s{seed}_d{int(round(depth * 1000))}_a{int(rake)}" + ("" if speed == ARGS.speed else f"_v{speed:g}")
+    name = f"case_s{seed}_d{int(round(depth * 1000))}_a{int(rake)}" + ("" if speed == ARGS.speed else f"_v{speed:g}") + tag()
     mesh = f"meshes/blade_a{int(rake)}.obj"
-    length = (depth + 0.06) / math.sin(math.radians(rake))   # reaches 6 cm above the surface
+    length = (depth + REACH) / math.sin(math.radians(rake))   # reaches REACH above the surface
     blade_mesh(os.path.join(out, mesh), rake, length)
     ztip = surface - depth
     dur = TRAVEL / speed
@@ -142,10 +188,10 @@ def case_config(out, seed, depth, rake, surface, speed, skim):
            "      keyframes:\n"
            f"        - {{time: 0.0, position: [0.0, 0.0, {ztip:.6f}], orientation: [1, 0, 0, 0]}}\n"
            f"        - {{time: {dur:.6f}, position: [{TRAVEL}, 0.0, {ztip:.6f}], orientation: [1, 0, 0, 0]}}\n"
-           f"particles:\n  checkpoint: bed_s{seed}.h5\n"
+           f"particles:\n  checkpoint: bed_s{seed}.h5\n" + model_yaml() +
            f"run:\n  duration: {dur:.6f}\n"
            f"output:\n  file: {name}.h5\n  particles_every: {dur / 4:.6f}\n"
-           f"  wrenches_every: {max(DT, 0.0005 / speed * 0.02):.6g}\n  progress_every: 60\n")
+           f"  wrenches_every: {max(DT, 0.001 * D_REF * SCALE / speed):.6g}\n  progress_every: 60\n")
     return name, os.path.join(out, name + ".yaml"), txt
 
 
@@ -166,16 +212,33 @@ def run(cmd, log, cwd=None):
 
 
 def triaxial(out, build):
-    fit = os.path.join(out, "triaxial", "triaxial_summary.csv")
-    if ARGS.fresh or not os.path.exists(fit):
-        cfg = os.path.join(os.path.dirname(os.path.abspath(__file__)), "blade_triaxial.yaml")
-        sets = [f"--set=grains.contact.{k}={v}" for k, v in LAW.items()]
-        sets += [f"--set=grains.density={GRAIN['density']}",
-                 f"--set=grains.radius={{min: {GRAIN['r_min']}, max: {GRAIN['r_max']}}}"]
+    tri_dir = os.path.join(out, "triaxial" + tag())
+    fit = os.path.join(tri_dir, "triaxial_summary.csv")
+    cfg = os.path.join(os.path.dirname(os.path.abspath(__file__)), "blade_triaxial.yaml")
+    sets = [f"grains.contact.{k}={v}" for k, v in LAW.items()]
+    sets += [f"grains.density={GRAIN['density']}",
+             f"grains.radius={{min: {GRAIN['r_min']}, max: {GRAIN['r_max']}}}",
+             f"sample.preparation_friction={DEPOSITION_FRICTION}",
+             "triaxial.confining_pressures=[" + ", ".join(f"{p:g}" for p in CONFINING) + "]"]
+    if MATERIAL:
+        # the material's samples (compacted with its deposition friction, looser than the
+        # default study's frictionless ones) peak late: to 15 % axial strain
+        sets.append("triaxial.max_axial_strain=0.15")
+    if MODEL != "translating":
+        sets += [f"grains.model={MODEL}",
+                 f"grains.rolling_resistance={{model: epsd, friction: {ROLLING['friction']}, "
+                 f"damping: {ROLLING['damping']}}}"]
+    if ARGS.phi is not None:
+        return ARGS.phi, [(CONFINING[0], ARGS.phi, float("nan"), float("nan"))]
+    cmd = [ARGS.lab or os.path.join(build, "bin", "dem_lab"), "triaxial", cfg, "--out",
+           tri_dir, "--no-plot"] + sum([["--set", x] for x in sets], [])
+    stamp = os.path.join(out, f"triaxial{tag()}.cmd")   # the test's inputs (not its output folder)
+    what = " ".join(["triaxial", cfg] + sets) + "\n"
+    if ARGS.fresh or not os.path.exists(fit) or not same_config(stamp, what):
         print("triaxial: dem_lab triaxial", cfg, flush=True)
-        run([os.path.join(build, "bin", "dem_lab"), "triaxial", cfg, "--out",
-             os.path.join(out, "triaxial"), "--no-plot"] +
-            sum([["--set", s[len("--set="):]] for s in sets], []), os.path.join(out, "triaxial.log"))
+        run(cmd, os.path.join(out, f"triaxial{tag()}.log"))
+        with open(stamp, "w") as f:
+            f.write(what)
     rows = list(csv.DictReader(open(fit)))
     s3 = np.array([float(r["sigma3_peak_Pa"]) for r in rows])
     s1 = np.array([float(r["sigma1_peak_Pa"]) for r in rows])
@@ -192,11 +255,12 @@ def bed_measures(h5):
     with h5py.File(h5, "r") as f:
         a = dict(f["/bed"].attrs)
         pos, rad = f["x"][()], f["radius"][()]   # a State checkpoint (dem/checkpoint.hpp)
-    # Surface: the highest grain top in each 1 cm column along x (away from the end walls),
-    # averaged.
+    # Surface: the highest grain top in each column one mean diameter wide along x (away from
+    # the end walls), averaged.
     tops = []
-    for x0 in np.arange(0.02, BIN_L - 0.02, 0.01):
-        m = (pos[:, 0] >= x0) & (pos[:, 0] < x0 + 0.01)
+    dm = GRAIN["r_min"] + GRAIN["r_max"]
+    for x0 in np.arange(2 * dm, BIN_L - 2 * dm, dm):
+        m = (pos[:, 0] >= x0) & (pos[:, 0] < x0 + dm)
         if m.any():
             tops.append(float(np.max(pos[m, 2] + rad[m])))
     # Bulk density of the whole bin width (the wedge's weight includes the grains the side walls
@@ -271,35 +335,139 @@ def blade_forces(h5, rake, speed):
     return travel, draft, lift, N, T
 
 
+def load_material(path):
+    """GRAIN, LAW and the deposition friction from a material file (docs/soil.md)."""
+    global MATERIAL, GRAIN, LAW, DEPOSITION_FRICTION
+    import yaml
+    try:
+        m = yaml.safe_load(open(path))
+    except (OSError, yaml.YAMLError) as e:
+        sys.exit(f"blade_validation: --material {path}: cannot read it ({e})")
+    try:
+        r = m["radius"]
+        if isinstance(r, dict):
+            if r.get("distribution", "uniform") != "uniform":
+                sys.exit(f"blade_validation: --material {path}: radius.distribution must be uniform")
+            rmin, rmax = float(r["min"]), float(r["max"])
+        else:
+            rmin = rmax = float(r)
+        GRAIN = dict(density=float(m["density"]), r_min=rmin, r_max=rmax)
+        LAW = dict(m["contact"]["particle_particle"])
+        DEPOSITION_FRICTION = float((m.get("prepare") or {}).get("deposition_friction", 0.0))
+    except (KeyError, TypeError, ValueError) as e:
+        sys.exit(f"blade_validation: --material {path}: needs density, radius and "
+                 f"contact.particle_particle ({e!r})")
+    MATERIAL = os.path.abspath(path)
+
+
+def safe_dt(build, out):
+    """The engine's largest safe dt for the law and model: dem_run refuses dt = 1 s and names it."""
+    probe = os.path.join(out, f"dt_probe_{MODEL}.yaml")
+    r = 0.5 * (GRAIN["r_min"] + GRAIN["r_max"])
+    with open(probe, "w") as f:
+        f.write(head_yaml() + walls_yaml().replace("floor, type", "floor, contact: "
+                                                   f"{{friction: {BLADE_FRICTION}}}, type") +
+                "particles:\n" + model_yaml() +
+                f"  list:\n    - {{species: grain, position: [{BIN_L / 2}, {BIN_W / 2}, {3 * r}], "
+                f"velocity: [0, 0, 0], radius: {GRAIN['r_min']}}}\n"
+                "run: {duration: 0}\noutput: {file: dt_probe.h5}\n")
+    txt = subprocess.run([os.path.join(build, "bin", "dem_run"), probe, "--set", "scene.dt=1"],
+                         capture_output=True, text=True, cwd=out)
+    m = re.search(r"Use scene.dt <= ([0-9.eE+-]+) s", txt.stdout + txt.stderr)
+    if not m:
+        sys.exit("blade_validation: could not read the largest safe dt from dem_run:\n" + txt.stdout + txt.stderr)
+    return float(m.group(1))
+
+
 def main():
-    global ARGS, DEPTHS, RAKES, BIN_L, BED_H
+    global ARGS, DEPTHS, RAKES, BIN_L, BIN_W, BED_H, TRAVEL, STEADY_FROM, REACH, DT, SCALE
+    global MODEL, BLADE_FRICTION, CONFINING
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--out", default="results/blade")
     p.add_argument("--build", default="build")
     p.add_argument("--seeds", type=int, default=2, help="beds (insertion seeds) per case")
     p.add_argument("--jobs", type=int, default=2)
-    p.add_argument("--speed", type=float, default=0.02, help="blade speed, m/s")
+    p.add_argument("--speed", type=float, default=None,
+                   help="blade speed, m/s (default 0.02 x sqrt(D / 1 cm): the default scene's inertial number)")
     p.add_argument("--rate-check", action="store_true",
                    help="also run the deep vertical case of seed 1 at half the speed")
     p.add_argument("--skim", type=float, default=1.0,
                    help="grains whose centre rises this many mean diameters above the surface are removed")
     p.add_argument("--fresh", action="store_true", help="rerun every step")
-    p.add_argument("--depths", default=",".join(str(d) for d in DEPTHS), help="m, comma-separated")
+    p.add_argument("--depths", default=None, help="m or mean diameters (4D), comma-separated (default 4D,6D)")
     p.add_argument("--rakes", default=",".join(str(a) for a in RAKES), help="deg, comma-separated")
-    p.add_argument("--bin-length", type=float, default=BIN_L, help="m")
-    p.add_argument("--bed-height", type=float, default=BED_H, help="m")
+    p.add_argument("--bin-length", default=None, help="m or mean diameters (default 28D)")
+    p.add_argument("--bin-width", default=None, help="m or mean diameters (default 4D)")
+    p.add_argument("--bed-height", default=None, help="m or mean diameters (default 9D)")
+    p.add_argument("--material", default=None, help="a material file (configs/materials/*.yaml)")
+    p.add_argument("--model", default="translating", choices=["translating", "rotating"],
+                   help="particles.model of the cases and the triaxial test")
+    p.add_argument("--rolling-friction", type=float, default=ROLLING["friction"],
+                   help="rotating model: EPSD rolling friction mu_r, in (0, 1]")
+    p.add_argument("--rolling-damping", type=float, default=ROLLING["damping"],
+                   help="rotating model: EPSD rolling damping, [0, 1]")
+    p.add_argument("--blade-friction", type=float, default=BLADE_FRICTION,
+                   help="soil-blade Coulomb friction (delta = atan of it)")
+    p.add_argument("--phi", type=float, default=None,
+                   help="friction angle for the theory (deg) instead of the triaxial test's (say where it came from)")
+    p.add_argument("--lab", default=None, help="the dem_lab to run the triaxial test with (default BUILD/bin/dem_lab)")
     ARGS = p.parse_args()
-    DEPTHS = [float(x) for x in ARGS.depths.split(",")]
+    if ARGS.phi is not None and not (10 < ARGS.phi < 70):
+        sys.exit("blade_validation: --phi must lie in (10, 70) deg")
+    if ARGS.material:
+        load_material(ARGS.material)
+    dm = GRAIN["r_min"] + GRAIN["r_max"]
+    SCALE = dm / D_REF
+
+    def length(txt, what):
+        try:
+            return float(txt[:-1]) * dm if txt.strip().upper().endswith("D") else float(txt)
+        except ValueError:
+            sys.exit(f"blade_validation: {what} {txt!r}: give metres or mean diameters (e.g. 4D)")
+
+    DEPTHS = [length(x, "--depths") for x in ARGS.depths.split(",")] if ARGS.depths else \
+        [d * SCALE for d in DEPTHS]
     RAKES = [float(x) for x in ARGS.rakes.split(",")]
-    BIN_L, BED_H = ARGS.bin_length, ARGS.bed_height
-    if max(DEPTHS) > BED_H - 0.02 or min(DEPTHS) <= 0:
-        sys.exit(f"blade_validation: --depths must lie in (0, bed height - 2 cm = {BED_H - 0.02:g}] m")
+    BIN_L = length(ARGS.bin_length, "--bin-length") if ARGS.bin_length else BIN_L * SCALE
+    BIN_W = length(ARGS.bin_width, "--bin-width") if ARGS.bin_width else BIN_W * SCALE
+    BED_H = length(ARGS.bed_height, "--bed-height") if ARGS.bed_height else BED_H * SCALE
+    TRAVEL, STEADY_FROM, REACH = TRAVEL * SCALE, STEADY_FROM * SCALE, REACH * SCALE
+    if ARGS.speed is None:
+        ARGS.speed = 0.02 * math.sqrt(SCALE)
+    if not ARGS.speed > 0:
+        sys.exit("blade_validation: --speed must be > 0 m/s")
+    MODEL = ARGS.model
+    if not (0 < ARGS.rolling_friction <= 1) or not (0 <= ARGS.rolling_damping <= 1):
+        sys.exit("blade_validation: --rolling-friction must lie in (0, 1], --rolling-damping in [0, 1]")
+    ROLLING.update(friction=ARGS.rolling_friction, damping=ARGS.rolling_damping)
+    if not ARGS.blade_friction >= 0:
+        sys.exit("blade_validation: --blade-friction must be >= 0")
+    BLADE_FRICTION = ARGS.blade_friction
+    if ARGS.material:
+        CONFINING = [p * SCALE for p in [0.5e3, 1.0e3, 2.0e3, 4.0e3]]
+    if BIN_W <= 0 or BIN_L <= 0:
+        sys.exit("blade_validation: --bin-length and --bin-width must be > 0")
+    if max(DEPTHS) > BED_H - 2 * dm or min(DEPTHS) <= 0:
+        sys.exit(f"blade_validation: --depths must lie in (0, bed height - 2 D = {BED_H - 2 * dm:g}] m")
     if any(not (0 < a <= 90) for a in RAKES):
         sys.exit("blade_validation: --rakes must lie in (0, 90] deg")
     out = os.path.abspath(ARGS.out)
     build = os.path.abspath(ARGS.build)
     os.makedirs(os.path.join(out, "meshes"), exist_ok=True)
     dem_run = os.path.join(build, "bin", "dem_run")
+    global BED_DT
+    if MATERIAL or MODEL != "translating":
+        DT = float(f"{0.85 * safe_dt(build, out):.3g}")
+    BED_DT = DT
+    if MODEL != "translating":
+        MODEL = "translating"
+        BED_DT = float(f"{0.85 * safe_dt(build, out):.3g}") if MATERIAL else 3.0e-5
+        MODEL = ARGS.model
+    print(f"soil: {'material ' + MATERIAL if MATERIAL else 'the study own grains'}; model {MODEL}"
+          + (f" (rolling friction {ROLLING['friction']}, damping {ROLLING['damping']})" if MODEL != "translating" else "")
+          + f"; D {dm:g} m; bin {BIN_L:.4g} x {BIN_W:.4g} m, bed {BED_H:.4g} m; depths "
+          + ", ".join(f"{d:.4g} m ({d / dm:.3g} D)" for d in DEPTHS)
+          + f"; speed {ARGS.speed:.4g} m/s; dt {DT:g} s", flush=True)
 
     seeds = list(range(1, ARGS.seeds + 1))
 
@@ -419,7 +587,7 @@ def main():
               f"{m / th:.3f} | {summary[-1]['phi_p']:.1f} | {summary[-1]['theory_p']:.2f} | {summary[-1]['ratio_p']:.3f} | "
               f"{summary[-1]['delta_mob']:.1f} | {summary[-1]['theory_pd']:.2f} | {summary[-1]['ratio_pd']:.3f} | "
               f"{1000 * summary[-1]['hq']:.1f} | {summary[-1]['peak']:.2f} | {rs[0]['inertial']:.1e}")
-    with open(os.path.join(out, "blade_summary.csv"), "w", newline="") as f:
+    with open(os.path.join(out, f"blade_summary{tag()}.csv"), "w", newline="") as f:
         wr = csv.DictWriter(f, fieldnames=list(summary[0].keys()))
         wr.writeheader()
         wr.writerows(summary)
@@ -492,7 +660,7 @@ def plot(out, summary, curves, phi, delta):
     ax[1].set_title(f"phi {phi:.1f} deg (triaxial), delta {delta:.1f} deg, width {BIN_W * 100:g} cm", fontsize=9)
     ax[1].legend(fontsize=7)
     fig.tight_layout()
-    png = os.path.join(out, "blade_validation.png")
+    png = os.path.join(out, f"blade_validation{tag()}.png")
     fig.savefig(png, dpi=120)
     print("chart:", png)
 

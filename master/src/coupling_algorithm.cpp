@@ -354,6 +354,7 @@ void AdaptiveStepAlgorithm::setup(const Config& config) {
   if (!spec_.enabled) throw std::logic_error("AdaptiveStepAlgorithm without coupling.adaptive");
   t_end_ = config.t_end;
   next_ = config.macro_step;
+  wanted_ = cosim::to_seconds(config.macro_step);
   previous_error_ = 1.0;
   history_.clear();
   rejected_ = 0;
@@ -455,8 +456,14 @@ Duration AdaptiveStepAlgorithm::do_step(Coupling& coupling, int64_t step, TimePo
   factor = std::clamp(std::isfinite(factor) ? factor : spec_.max_change, spec_.min_change, spec_.max_change);
   if (rejected > 0) factor = std::min(factor, 1.0);
   if (error > 0 && std::isfinite(error)) previous_error_ = error;
-  const double wanted = cosim::to_seconds(taken) * factor;
-  const Duration next = static_cast<int64_t>(std::floor(wanted * 1e9 / static_cast<double>(quantum_.count()))) * quantum_;
+  // The controller's step is continuous; the step taken is the largest whole multiple of the
+  // quantum not above it. A step taken as planned continues from the controller's own length,
+  // so that growth by less than one quantum per step adds up (rounding the taken step down and
+  // multiplying that would hold a step of one quantum there forever at any factor below 2). A
+  // step cut short (time.end, a redo) continues from what was taken.
+  const double basis = (taken == next_ && rejected == 0) ? wanted_ : cosim::to_seconds(taken);
+  wanted_ = std::clamp(basis * factor, cosim::to_seconds(min_), cosim::to_seconds(max_));
+  const Duration next = static_cast<int64_t>(std::floor(wanted_ * 1e9 / static_cast<double>(quantum_.count()))) * quantum_;
   next_ = std::clamp(next, min_, max_);
   // After the update: a checkpoint after this step saves the state the next step starts from.
   coupling.commit_step(error, rejected);
@@ -465,14 +472,17 @@ Duration AdaptiveStepAlgorithm::do_step(Coupling& coupling, int64_t step, TimePo
 
 std::string AdaptiveStepAlgorithm::save_state() const {
   std::string out;
-  put_line(out, "adaptive", {static_cast<double>(next_.count()), previous_error_, static_cast<double>(rejected_)});
+  put_line(out, "adaptive", {static_cast<double>(next_.count()), previous_error_, static_cast<double>(rejected_), wanted_});
   return out + inner_->save_state();
 }
 
 void AdaptiveStepAlgorithm::restore_state(const std::string& state) {
   const auto a = get_line(state, "adaptive");
-  if (a.size() != 3 || !(a[0] > 0) || a[0] != std::floor(a[0]) || !(a[1] > 0) || !(a[2] >= 0))
-    throw std::runtime_error("algorithm state: 'adaptive' holds no step, error and count");
+  // 4 numbers: next step, last error, rejections, the controller's continuous step (s); a record
+  // of an earlier version holds the first 3 (the continuous step is then the next step).
+  if ((a.size() != 3 && a.size() != 4) || !(a[0] > 0) || a[0] != std::floor(a[0]) || !(a[1] > 0) || !(a[2] >= 0) ||
+      (a.size() == 4 && !(a[3] > 0 && std::isfinite(a[3]))))
+    throw std::runtime_error("algorithm state: 'adaptive' holds no step, error, count and controller step");
   const Duration next(static_cast<int64_t>(a[0]));
   if (next < min_ || next > max_ || next % quantum_ != Duration::zero())
     throw std::runtime_error("algorithm state: the next step " + std::to_string(next.count()) +
@@ -483,6 +493,7 @@ void AdaptiveStepAlgorithm::restore_state(const std::string& state) {
     if (line.rfind("adaptive ", 0) != 0) inner += line + "\n";
   inner_->restore_state(inner);
   next_ = next;
+  wanted_ = a.size() == 4 ? a[3] : cosim::to_seconds(next);
   previous_error_ = a[1];
   rejected_ = static_cast<int64_t>(a[2]);
 }

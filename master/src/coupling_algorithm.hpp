@@ -205,6 +205,7 @@ class AdaptiveStepAlgorithm final : public CouplingAlgorithm {
   AdaptiveSpec spec_;
   TimePoint t_end_{};
   Duration next_{}, quantum_{}, min_{}, max_{};
+  double wanted_ = 0;  // s: the controller's step, of which next_ is the largest multiple of the quantum
   double previous_error_ = 1.0;
   std::vector<Record> history_;
   int64_t rejected_ = 0;

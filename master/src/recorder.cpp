@@ -471,8 +471,8 @@ void H5Recorder::step(const StepRecord& r) {
     if (I.conns[i].received_average) I.conns[i].received_average->append(cr.received_average);
     I.conns[i].deviation->append(cr.deviation);
   }
-  const Duration H = c.macro_step;
-  const double h = cosim::to_seconds(H);
+  // The step's own length: an adaptive step's is not time.macro_step.
+  const double h = cosim::to_seconds(r.t_end - r.t_start);
   for (std::size_t i = 0; i < r.power.size(); ++i) {
     auto& p = I.pows[i];
     p.force_side->append(r.power[i].force_side);

@@ -33,6 +33,8 @@ def flatten(prefix, value, out):
     if isinstance(value, dict) and value:
         for k, v in value.items():
             flatten(f"{prefix}.{k}" if prefix else str(k), v, out)
+    elif not prefix:
+        pass  # an empty top-level `set: {}` overrides nothing (not `--set ={}`)
     else:
         out.append((prefix, value))
     return out

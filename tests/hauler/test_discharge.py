@@ -1,9 +1,11 @@
 """The hauler's discharge over LCM on loopback (issue 12; docs/hauler.md), a small load:
 
-* the load is prepared with the project's own config (dem_run configs/soil/hauler_load_prepare.yaml:
-  2,907 grains, 23.3 t, at the pose the hauler starts in under it; docs/hauler.md) and the
-  co-simulation is started from configs/hauler.yaml alone (the first 10.5 s of its tipping
-  profile: the soil flows from about 7.5 s)
+* the load is prepared with the project's own config (dem_run
+  configs/soil/hauler_load_lattice_prepare.yaml: 2,907 coarse grains, r 8-10 cm, 23.3 t, at the
+  pose the hauler starts in under it; docs/hauler.md) and the co-simulation is started from
+  configs/hauler_lattice.yaml alone (the first 10.5 s of its tipping profile: the soil flows from
+  about 7.5 s). The coarse lattice load of before issue 43 keeps the test at about 2 minutes;
+  the hauler job's dry-sand load (configs/hauler.yaml) has 2.3x the grains at half the step
   (cosim_master launches hauler_adapter and the same dem_service as the wheel loader's);
 * the soil is conserved: grains in the scene + grains removed = the grains at the start, at
   every step, exactly;
@@ -44,13 +46,13 @@ class Discharge(unittest.TestCase):
         with tempfile.TemporaryDirectory() as tmp:
             load = os.path.join(tmp, "load.h5")
             prep = subprocess.run(
-                [os.path.join(BIN, "dem_run"), f"{ROOT}/configs/soil/hauler_load_prepare.yaml",
+                [os.path.join(BIN, "dem_run"), f"{ROOT}/configs/soil/hauler_load_lattice_prepare.yaml",
                  "--set", f"settle.checkpoint={load}", "--set", f"output.file={tmp}/prep.h5"],
                 capture_output=True, text=True, cwd=ROOT)
             self.assertEqual(prep.returncode, 0, prep.stdout + prep.stderr)
             # The static load the machine starts under: the settled load's mass, centre of
             # gravity and radius of gyration in the body frame at the preparation's pose.
-            text = open(f"{ROOT}/configs/soil/hauler_load_prepare.yaml").read()
+            text = open(f"{ROOT}/configs/soil/hauler_load_lattice_prepare.yaml").read()
             m = re.search(r"position: \[([-\d.e]+), 0, ([-\d.e]+)\], orientation: \[([-\d.e]+), 0, ([-\d.e]+), 0\]", text)
             pose = [float(m.group(1)), 0.0, float(m.group(2)), float(m.group(3)), 0.0, float(m.group(4)), 0.0]
             with h5py.File(load, "r") as f:
@@ -64,21 +66,21 @@ class Discharge(unittest.TestCase):
             static = f"{{mass: {mass.sum():.3f}, com: [{com[0]:.4f}, {com[2]:.4f}], gyration_radius: {gyr:.3f}}}"
 
             # dem_service reads its config file when it starts, before the master's parameters
-            # arrive: a copy of configs/soil/hauler_load.yaml that loads this load (a clean
-            # clone has no results/hauler_load.h5) and the mesh of this build.
+            # arrive: a copy of configs/soil/hauler_load_lattice.yaml that loads this load (a
+            # clean clone has no results/hauler_load_lattice.h5) and the mesh of this build.
             soil_cfg = os.path.join(tmp, "hauler_load.yaml")
-            text = open(f"{ROOT}/configs/soil/hauler_load.yaml").read()
+            text = open(f"{ROOT}/configs/soil/hauler_load_lattice.yaml").read()
             mesh = os.path.normpath(os.path.join(BIN, "..", "meshes", "hauler_body.stl"))
-            self.assertIn("checkpoint: ../../results/hauler_load.h5", text)
+            self.assertIn("checkpoint: ../../results/hauler_load_lattice.h5", text)
             self.assertIn("mesh: ../../build/meshes/hauler_body.stl", text)
-            text = text.replace("checkpoint: ../../results/hauler_load.h5", f"checkpoint: {load}")
+            text = text.replace("checkpoint: ../../results/hauler_load_lattice.h5", f"checkpoint: {load}")
             text = text.replace("mesh: ../../build/meshes/hauler_body.stl", f"mesh: {mesh}")
             with open(soil_cfg, "w") as f:
                 f.write(text)
 
             def run(name, port):
                 h5 = os.path.join(tmp, name)
-                cmd = [os.path.join(BIN, "cosim_master"), f"{ROOT}/configs/hauler.yaml", "--output", h5,
+                cmd = [os.path.join(BIN, "cosim_master"), f"{ROOT}/configs/hauler_lattice.yaml", "--output", h5,
                        "--set", "output.csv=", "--set", "output.progress=off", "--set", "time.end=10.5",
                        "--set", f"bus.url=udpm://239.255.76.67:{port}?ttl=0",
                        "--set", f"participants.hauler.parameters.static_load={static}",

@@ -509,6 +509,19 @@ TEST(ResumeInProcess, ImplicitAndAdaptiveRunsResumeBitIdentically) {
     fs::remove_all(folder);
     run_in_process(sets, full, folder, 0, false);
     ASSERT_EQ(harness::read_string(full, "status"), "finished") << v.name;
+    {  // The energy residual is the trapezoid over each step's own length (an adaptive step's
+       // is not time.macro_step): row i = row i-1 + (r_(i-1) + r_i) / 2 (t_i - t_(i-1)).
+      const auto t = harness::read_dataset(full, "time");
+      const auto r = harness::read_dataset(full, "power/coupling/residual");
+      const auto e = harness::read_dataset(full, "power/coupling/energy_residual");
+      ASSERT_EQ(t.size(), e.size());
+      ASSERT_EQ(r.size(), e.size());
+      double sum = 0;
+      for (std::size_t i = 1; i < e.size(); ++i) {
+        sum += (i == 1 ? r[i] : 0.5 * (r[i - 1] + r[i])) * (t[i] - t[i - 1]);
+        EXPECT_NEAR(e[i], sum, 1e-12 * (1 + std::abs(sum))) << v.name << ", row " << i;
+      }
+    }
     if (!v.rejected_rows.empty()) {  // the scene this test means: these steps rejected once each
       const auto rejected = harness::read_dataset(full, "coupling/rejected");
       for (std::size_t row = 0; row < rejected.size(); ++row) {

@@ -12,6 +12,14 @@ BIN = sys.argv.pop(1)
 
 
 class StudyRunner(unittest.TestCase):
+    def test_empty_set_overrides_nothing(self):
+        sys.path.insert(0, os.path.join(ROOT, "master", "studies"))
+        import study
+        self.assertEqual(study.as_set_args({}), [])
+        self.assertEqual(study.as_set_args(None), [])
+        self.assertEqual(study.as_set_args({"a": {"b": 1}, "c": {}}),
+                         ["--set", "a.b=1", "--set", "c={}"])
+
     def test_oscillator_study(self):
         with tempfile.TemporaryDirectory() as tmp:
             study = os.path.join(tmp, "study.yaml")
