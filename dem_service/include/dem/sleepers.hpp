@@ -138,8 +138,12 @@ class Sleepers {
   struct AwakeList {
     std::vector<std::int32_t> list, next;  // next: workspace of the update
     ListStamp stamp;
+    // (not ListStamp::built_at: stepped() runs before the step counts towards the broad phase)
     bool holds(const State& s, std::int64_t at_step) const {
-      return stamp.matches(s, ListStamp::lists | ListStamp::step, at_step);
+      return stamp.matches(s, ListStamp::state | ListStamp::size | ListStamp::candidates |
+                                  ListStamp::rebuilds | ListStamp::step,
+                           at_step) &&
+             static_cast<std::size_t>(s.size()) == s.rest_steps.size();
     }
   };
   AwakeList awake_;
