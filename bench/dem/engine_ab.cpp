@@ -10,6 +10,9 @@
 //   build/bin/engine_ab CONFIG [--set KEY=VALUE ...] --a KEY=VALUE [--a ...] --b KEY=VALUE
 //                       [--b ...] [--steps 1000] [--block 50]
 //
+// Besides config keys, --a and --b take the engine switch engine.awake_list=true|false (the
+// sleepers' awake list, EngineOptions::awake_list).
+//
 // Tools follow their motion as in dem_run; nothing is written.
 #include <algorithm>
 #include <cstdio>
@@ -62,6 +65,7 @@ long parse_count(const char* text, const char* what) {
 
 struct Variant {
   std::vector<std::string> sets;
+  dem::EngineOptions options;  // with the engine.* keys below
   dem::RunConfig rc;
   std::vector<double> block_seconds;
 };
@@ -108,8 +112,21 @@ int main(int argc, char** argv) {
     const std::string base = std::filesystem::path(config).parent_path().string();
     for (Variant& x : v) {
       YAML::Node root = cosim::config::load_file(config);
+      x.options = bench_engine_options();
       for (const auto& s : common) cosim::config::apply_override(root, s);
-      for (const auto& s : x.sets) cosim::config::apply_override(root, s);
+      for (const auto& s : x.sets) {
+        // The engine's switches that are no config key: engine.awake_list=true|false.
+        if (s.rfind("engine.", 0) == 0) {
+          if (s == "engine.awake_list=true" || s == "engine.awake_list=false") {
+            x.options.awake_list = s == "engine.awake_list=true";
+            continue;
+          }
+          std::fprintf(stderr, "engine_ab: unknown engine switch '%s' (known: "
+                               "engine.awake_list=true|false)\n", s.c_str());
+          return 2;
+        }
+        cosim::config::apply_override(root, s);
+      }
       if (&x == &v[0]) dem::apply_thread_wait(dem::read_thread_wait(root), argv);
       x.rc = dem::load_config(root, base);
       dem::validate_state(x.rc.scene, x.rc.state, !x.rc.continues);
@@ -119,8 +136,8 @@ int main(int argc, char** argv) {
                    v[0].rc.state.size(), v[1].rc.state.size());
       return 2;
     }
-    dem::Engine engine_a(v[0].rc.scene, bench_engine_options().with_config(v[0].rc.performance)),
-        engine_b(v[1].rc.scene, bench_engine_options().with_config(v[1].rc.performance));
+    dem::Engine engine_a(v[0].rc.scene, v[0].options.with_config(v[0].rc.performance)),
+        engine_b(v[1].rc.scene, v[1].options.with_config(v[1].rc.performance));
     dem::Engine* engines[2] = {&engine_a, &engine_b};
     int b_faster = 0, blocks = 0;
     for (long done = 0; done < steps; done += block, ++blocks) {

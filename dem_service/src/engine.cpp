@@ -180,17 +180,25 @@ void Engine::sum_contact_stats() {
 // The forces on particles [i0, i1) start from gravity, and with sleeping no one has woken them
 // yet. A sleeper's force is not written: nothing reads it (the integration passes sleepers, one
 // woken in this step is integrated from the next on, with the forces of that step; the pair
-// loop adds nothing to it), and its store was most of this loop's memory traffic.
+// loop adds nothing to it), and its store was most of this loop's memory traffic. With the
+// awake list (EngineOptions::awake_list) only the awake particles of the range are visited.
 template <bool Sleep>
 void Engine::start_forces(const State& s, std::size_t i0, std::size_t i1) {
   const Vec3 g = scene_.gravity;
   if (Sleep) {
-    const std::int32_t S = scene_.sleep.steps;
-    const std::int32_t* __restrict const REST = s.rest_steps.data();
     const double* __restrict const M = s.mass.data();
     Vec3* __restrict const F = force_.data();
     std::uint8_t* __restrict const WAKE = sleepers_.wake();
     if (i1 > i0) std::memset(WAKE + i0, 0, i1 - i0);
+    if (awake_now_) {
+      const std::int32_t* const A = awake_now_->data();
+      const std::int32_t* q = std::lower_bound(A, A + awake_now_->size(), static_cast<std::int32_t>(i0));
+      const std::int32_t* const end = A + awake_now_->size();
+      for (; q != end && static_cast<std::size_t>(*q) < i1; ++q) F[*q] = M[*q] * g;
+      return;
+    }
+    const std::int32_t S = scene_.sleep.steps;
+    const std::int32_t* __restrict const REST = s.rest_steps.data();
     for (std::size_t i = i0; i < i1; ++i)
       if (REST[i] < S) F[i] = M[i] * g;
   } else {
@@ -282,7 +290,11 @@ void Engine::pair_forces_impl(State& s) {
   force_.resize(s.size());
   split_pair_work(s);
   detail::PairSleep rules;  // each thread adds its queue of remote wakes
-  if (Sleep) rules = sleepers_.pair_rules(s, options_.sleeper_row_skip);
+  awake_now_ = nullptr;
+  if (Sleep) {
+    rules = sleepers_.pair_rules(s, options_.sleeper_row_skip);
+    if (options_.awake_list) awake_now_ = &sleepers_.awake(s);
+  }
   const detail::PairRows rows = pair_rows_of(s);
   if (options_.pair_schedule == PairSchedule::blocks)
     pair_forces_blocks<Sleep>(s, rows, rules);
@@ -314,6 +326,7 @@ void Engine::pair_forces_blocks(State& s, const detail::PairRows& block_rows,
     std::vector<std::int32_t> remote_wake;
     detail::PairSleep sl = rules;
     sl.remote_wake = &remote_wake;
+    if (Sleep) sl.woken = &sleepers_.woken(t);
     detail::PairRowStats st;
     // This thread's walk: it runs each block that no one has claimed before it. Before an odd
     // block the walk has passed both evens beside it, so they are claimed and, as an even
@@ -378,6 +391,7 @@ void Engine::pair_forces_ranges(State& s, const detail::PairRows& rows,
     if (Sleep) {
       detail::PairSleep sl = rules;
       sl.remote_wake = &remote_wake;
+      sl.woken = &sleepers_.woken(t);
       detail::pair_rows_sleep(rows, sl, a0, a1, remote, st, kernel);
     } else {
       detail::pair_rows(rows, a0, a1, remote, st, kernel);
@@ -435,27 +449,82 @@ void Engine::integrate_impl(State& s) {
   // steps (Sleepers' tally); a particle adds its displacement when it falls asleep.
   const bool keep = Sleep && !close;
   const bool renote = keep && sleepers_.begin_tally(s, T);
+  // The awake list: the awake particles and the sleepers a wake test needs, not the whole bed
+  // (every sleeper is visited when the tally is noted again, or without the shortcuts).
+  const bool listed = keep && !renote && options_.awake_list && options_.sleeper_blocks &&
+                      awake_now_ != nullptr && sleepers_.awake_holds(s);
   StepTally total;
+  if (listed) {
+    integrate_listed(s, total);
+  } else {
 #pragma omp parallel num_threads(T)
-  {
-    const int t = omp_get_thread_num();
-    const cosim::Stopwatch busy;
-    // The particles whose pair forces this thread ran (pair_forces), which are in its cache.
-    const bool own = split_.size() == static_cast<std::size_t>(T) + 1 && split_[T] == n;
-    const std::size_t a0 = own ? split_[t] : n * t / T, a1 = own ? split_[t + 1] : n * (t + 1) / T;
-    StepTally my;
-    Sleepers::ThreadNotes notes;
-    integrate_range<Sleep>(s, a0, a1, keep, renote, my, notes);
-    add_busy(section::integration, t, busy.seconds());
-#pragma omp critical(dem_integrate)
     {
-      total.merge(my);
-      if (Sleep) sleepers_.merge(notes, keep);
+      const int t = omp_get_thread_num();
+      const cosim::Stopwatch busy;
+      // The particles whose pair forces this thread ran (pair_forces), which are in its cache.
+      const bool own = split_.size() == static_cast<std::size_t>(T) + 1 && split_[T] == n;
+      const std::size_t a0 = own ? split_[t] : n * t / T, a1 = own ? split_[t + 1] : n * (t + 1) / T;
+      StepTally my;
+      Sleepers::ThreadNotes notes;
+      integrate_range<Sleep>(s, a0, a1, keep, renote, my, notes, nullptr);
+      add_busy(section::integration, t, busy.seconds());
+#pragma omp critical(dem_integrate)
+      {
+        total.merge(my);
+        if (Sleep) sleepers_.merge(notes, keep);
+      }
     }
   }
   int lists = T;
   if (keep) lists = sleepers_.end_tally(s, T, total.d1, total.d2, total.far, guard_);
   finish_step(s, total, lists, close);
+}
+
+// The integration with the awake list (Sleepers::awake, the awake particles at the start of
+// the step, ascending). First the sleepers' wake tests: those the pair loop woke (its lists),
+// and in each block of 64 whose sleepers are not all beyond every tool's reach, the sleepers
+// near a tool; then, after a barrier, the woken ones are marked and each thread advances an
+// equal, contiguous share of the awake list. The same per-particle work as integrate_range over
+// every particle: a sleeper far from every tool and woken by no one is not read at all.
+void Engine::integrate_listed(State& s, StepTally& total) {
+  const std::size_t n = s.size();
+  const int T = threads_;
+  const std::vector<std::int32_t>& A = *awake_now_;
+  const std::size_t L = A.size();
+  constexpr std::size_t kBlock = Sleepers::kBlock;
+  const std::size_t nb = (n + kBlock - 1) / kBlock;
+  const std::int32_t S = scene_.sleep.steps;
+  const std::int32_t* const REST = s.rest_steps.data();
+  const std::uint8_t* const WAKE = sleepers_.wake();
+  const Vec3* const X = s.x.data();
+  const double* const RAD = s.radius.data();
+#pragma omp parallel num_threads(T)
+  {
+    const int t = omp_get_thread_num();
+    const cosim::Stopwatch busy;
+    StepTally my;
+    Sleepers::ThreadNotes notes;
+    for (const std::int32_t p : sleepers_.woken(t)) notes.woke.push_back(p);
+#pragma omp for schedule(static)
+    for (std::size_t b = 0; b < nb; ++b) {
+      if (sleepers_.block_far(b)) continue;
+      const std::size_t i1 = std::min(n, (b + 1) * kBlock);
+      for (std::size_t i = b * kBlock; i < i1; ++i)
+        if (REST[i] >= S && !WAKE[i] && sleepers_.near(tools_, X[i], RAD[i]))
+          notes.woke.push_back(static_cast<std::int32_t>(i));
+    }
+    // (the barrier of the loop above: no thread changes rest_steps before every test is made)
+    for (const std::int32_t p : notes.woke) s.rest_steps[static_cast<std::size_t>(p)] = 0;
+    integrate_range<true>(s, L * t / T, L * (t + 1) / T, true, false, my, notes, A.data());
+    my.sleeping -= static_cast<std::int64_t>(notes.woke.size());
+    add_busy(section::integration, t, busy.seconds());
+#pragma omp critical(dem_integrate)
+    {
+      total.merge(my);
+      sleepers_.merge(notes, true);
+    }
+  }
+  total.sleeping += static_cast<std::int64_t>(n - L);
 }
 
 // Particles [a0, a1) of thread t: advanced (the awake ones), their displacements tallied for
@@ -464,7 +533,8 @@ void Engine::integrate_impl(State& s) {
 // scene.sleep.speed for scene.sleep.steps steps, away from every tool, falls asleep.
 template <bool Sleep>
 void Engine::integrate_range(State& s, std::size_t a0, std::size_t a1, bool keep, bool renote,
-                             StepTally& my, Sleepers::ThreadNotes& notes) {
+                             StepTally& my, Sleepers::ThreadNotes& notes,
+                             const std::int32_t* list) {
   const double dt = scene_.dt;
   const double vmax2 = scene_.stability.max_speed * scene_.stability.max_speed;
   const std::int32_t S = scene_.sleep.steps;
@@ -516,6 +586,46 @@ void Engine::integrate_range(State& s, std::size_t a0, std::size_t a1, bool keep
     keep_two_largest(notes.d1, notes.d2, d2);
     FarMoverGuard::note(notes.far, notes.tally, i, d2, norm2(U[i]), limits);
   };
+  // An awake particle: advanced, tallied, and asleep after scene.sleep.steps slow steps away from
+  // every tool.
+  auto awake_one = [&](std::size_t i) {
+    const double v2 = advance(dt, M[i], FORCE[i], V[i], U[i], X[i]);
+    if (!(v2 <= vmax2) && my.bad < 0) my.bad = static_cast<std::int64_t>(i);
+    const double d2 = norm2(X[i] - XR[i]);
+    moved(i, d2);
+    std::int32_t r = REST[i];
+    if (v2 < rest_speed2 && !sleepers_.near(tools_, X[i], RAD[i])) {
+      if (++r >= S) {  // falls asleep where it is
+        V[i] = U[i] = Vec3{};
+        ++my.sleeping;
+        notes.fell.push_back(static_cast<std::int32_t>(i));
+        if (keep) note_sleeper(i, d2);
+      }
+    } else {
+      r = 0;
+    }
+    REST[i] = r;
+  };
+  // The awake list's share [a0, a1) (integrate_listed): every one of them awake.
+  if (list) {
+    // The awake particles lie among sleepers in memory, a pattern the hardware prefetcher does
+    // not follow: the arrays of the particle kAhead entries on are asked for now.
+    constexpr std::size_t kAhead = 8;
+    for (std::size_t q = a0; q < a1; ++q) {
+      if (q + kAhead < a1) {
+        const std::size_t p = static_cast<std::size_t>(list[q + kAhead]);
+        __builtin_prefetch(&X[p], 1);
+        __builtin_prefetch(&V[p], 1);
+        __builtin_prefetch(&U[p], 1);
+        __builtin_prefetch(&FORCE[p], 0);
+        __builtin_prefetch(&XR[p], 0);
+        __builtin_prefetch(&M[p], 0);
+        __builtin_prefetch(&REST[p], 1);
+      }
+      awake_one(static_cast<std::size_t>(list[q]));
+    }
+    return;
+  }
   constexpr std::size_t kBlock = Sleepers::kBlock;
   const bool use_blocks = options_.sleeper_blocks;
   bool far_block = false;  // the sleepers of i's block are beyond every tool's reach
@@ -549,22 +659,7 @@ void Engine::integrate_range(State& s, std::size_t a0, std::size_t a1, bool keep
         note_sleeper(i, norm2(X[i] - XR[i]));
       continue;
     }
-    const double v2 = advance(dt, M[i], FORCE[i], V[i], U[i], X[i]);
-    if (!(v2 <= vmax2) && my.bad < 0) my.bad = static_cast<std::int64_t>(i);
-    const double d2 = norm2(X[i] - XR[i]);
-    moved(i, d2);
-    std::int32_t r = REST[i];
-    if (v2 < rest_speed2 && !sleepers_.near(tools_, X[i], RAD[i])) {
-      if (++r >= S) {  // falls asleep where it is
-        V[i] = U[i] = Vec3{};
-        ++my.sleeping;
-        notes.fell.push_back(static_cast<std::int32_t>(i));
-        if (keep) note_sleeper(i, d2);
-      }
-    } else {
-      r = 0;
-    }
-    REST[i] = r;
+    awake_one(i);
   }
 }
 

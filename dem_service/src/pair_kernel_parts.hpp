@@ -12,12 +12,14 @@
 namespace dem::detail {
 namespace {
 
-// Wakes sleeper p: directly in this thread's range, queued otherwise (the partner j > i of a
-// pair in this range is never in an earlier thread's range).
+// Wakes sleeper p: directly in this thread's range (and noted in the thread's list of woken
+// sleepers the first time), queued otherwise (the partner j > i of a pair in this range is never
+// in an earlier thread's range).
 inline void wake(const PairSleep& sl, std::size_t p, std::size_t a1) {
-  if (p < a1)
+  if (p < a1) {
+    if (!sl.wake[p] && sl.woken) sl.woken->push_back(static_cast<std::int32_t>(p));
     sl.wake[p] = 1;
-  else
+  } else
     sl.remote_wake->push_back(static_cast<std::int32_t>(p));
 }
 

@@ -2,6 +2,7 @@
 
 #include <omp.h>
 
+#include <algorithm>
 #include <cstring>
 #include <limits>
 
@@ -9,6 +10,7 @@ namespace dem {
 
 Sleepers::Sleepers(const Scene& scene, int max_threads) : scene_(scene) {
   remote_wake_.resize(static_cast<std::size_t>(max_threads));
+  woken_.resize(static_cast<std::size_t>(max_threads));
 }
 
 void Sleepers::size_arrays(State& s) {
@@ -92,6 +94,8 @@ detail::PairSleep Sleepers::pair_rules(State& s, bool row_skip) {
     }
     if (!awake_partners_.holds(s, s.step)) count_awake_partners(s);
   }
+  for (std::vector<std::int32_t>& w : woken_) w.clear();
+  awake(s);  // this step's, for start_forces and the integration
   detail::PairSleep rules;
   rules.rest = s.rest_steps.data();
   rules.steps = scene_.sleep.steps;
@@ -103,7 +107,58 @@ detail::PairSleep Sleepers::pair_rules(State& s, bool row_skip) {
 
 void Sleepers::apply_remote_wakes(int T) {
   for (int t = 0; t < T; ++t)
-    for (const std::int32_t p : remote_wake_[static_cast<std::size_t>(t)]) wake_[p] = 1;
+    for (const std::int32_t p : remote_wake_[static_cast<std::size_t>(t)])
+      if (!wake_[p]) {
+        wake_[p] = 1;
+        woken_[0].push_back(p);
+      }
+}
+
+// --- The awake list.
+
+const std::vector<std::int32_t>& Sleepers::awake(const State& s) {
+  AwakeList& a = awake_;
+  if (a.holds(s, s.step)) return a.list;
+  const std::size_t n = s.size();
+  const std::int32_t S = scene_.sleep.steps;
+  const std::int32_t* const REST = s.rest_steps.data();
+  a.list.clear();
+  for (std::size_t i = 0; i < n; ++i)
+    if (REST[i] < S) a.list.push_back(static_cast<std::int32_t>(i));
+  a.stamp.take(s);
+  return a.list;
+}
+
+// After the integration of a step (s.step already the next one): those that fell asleep leave
+// the list, those that woke join it, in order. Only if the list was this step's; else it is made
+// again when next needed.
+void Sleepers::update_awake_list(const State& s) {
+  AwakeList& a = awake_;
+  if (!a.holds(s, s.step - 1)) {
+    a.stamp.clear();
+    return;
+  }
+  std::vector<std::int32_t>& woke = awake_partners_.woke;
+  std::vector<std::int32_t>& fell = awake_partners_.fell;
+  if (!woke.empty() || !fell.empty()) {
+    // The threads' notes arrive in any order: the list is kept ascending.
+    std::sort(woke.begin(), woke.end());
+    std::sort(fell.begin(), fell.end());
+    a.next.clear();
+    a.next.reserve(a.list.size() + woke.size());
+    std::size_t w = 0, f = 0;
+    for (const std::int32_t i : a.list) {
+      while (w < woke.size() && woke[w] < i) a.next.push_back(woke[w++]);
+      if (f < fell.size() && fell[f] == i) {
+        ++f;
+        continue;
+      }
+      a.next.push_back(i);
+    }
+    while (w < woke.size()) a.next.push_back(woke[w++]);
+    a.list.swap(a.next);
+  }
+  a.stamp.set_step(s.step);
 }
 
 // --- The integration.
@@ -228,12 +283,14 @@ void Sleepers::stepped(const State& s, std::int64_t sleeping) {
   woke_total_ += static_cast<std::int64_t>(awake_partners_.woke.size());
   fell_asleep_total_ += static_cast<std::int64_t>(awake_partners_.fell.size());
   update_awake_partners(s);
+  update_awake_list(s);
 }
 
 std::size_t Sleepers::bytes() const {
-  return (awake_partners_.count.capacity() + awake_partners_.woke.capacity() +
-          awake_partners_.fell.capacity()) *
-         sizeof(std::int32_t);
+  std::size_t b = awake_partners_.count.capacity() + awake_partners_.woke.capacity() +
+                  awake_partners_.fell.capacity() + awake_.list.capacity() + awake_.next.capacity();
+  for (const auto& w : woken_) b += w.capacity();
+  return b * sizeof(std::int32_t);
 }
 
 }  // namespace dem

@@ -9,6 +9,7 @@
 #include <cstring>
 #include <filesystem>
 #include <map>
+#include <memory>
 #include <random>
 
 #include "cosim/yaml_config.hpp"
@@ -517,6 +518,194 @@ TEST(dem_Sleep, SkippingBlocksOfSleepersFarFromToolsChangesNoBit) {
       EXPECT_EQ(0, std::memcmp(a.st.v.data(), b.st.v.data(), a.st.size() * sizeof(Vec3)));
       EXPECT_EQ(a.st.rest_steps, b.st.rest_steps) << what << threads;
     }
+}
+
+// The scene of the awake-list tests: the pile asleep, then a plate swept over its top (turned,
+// waking a strip of it) while two grains are thrown onto it, so that sleepers wake by a tool,
+// by a contact and fall asleep again, between broad phases and across them. step(k) is called
+// before each step k with the states to pose.
+struct Sweep {
+  static constexpr int kSteps = 5000;
+  static void setup(Pile& p) {
+    std::vector<Vec3> plate;
+    quad(plate, {0, -0.005, 0}, {0.020, -0.005, 0}, {0.020, 0.005, 0}, {0, 0.005, 0});
+    p.scene.sleep.tool_distance = 0.004;
+    p.scene.sleep.neighbourhood = dem::SleepNeighbourhood::box;
+    p.scene.tools.push_back(static_tool("plate", plate));
+    p.st.tool_pose.resize(1);
+    p.st.tool_pose[0].position = {1, 0, 1};
+  }
+  // Before step k of the sweep (top: the pile's top once asleep).
+  static void pose(State& st, int k, double top) {
+    const int sweep = 2500;
+    if (k < sweep) {
+      st.tool_pose[0].position = {-0.05 + 0.1 * k / sweep, 0.004, top + 0.012};
+      st.tool_pose[0].orientation = {std::cos(M_PI / 6), 0, std::sin(M_PI / 6), 0};
+    } else {
+      st.tool_pose[0].position = {1, 0, 1};
+    }
+    if (k == 500) add(st, {0.001, 0.002, top + 0.03}, {0.2, 0, -1}, kR);
+    if (k == 2500) add(st, {-0.004, 0.0, top + 0.03}, {0, 0.1, -1.5}, kR);
+  }
+};
+
+// The pile of make_pile asleep (made once, on 1 thread: pair blocks give every thread count the
+// same bits), with the plate parked.
+const State& asleep_pile() {
+  static const State st = [] {
+    Pile p = make_pile(1, true);
+    Sweep::setup(p);
+    p.scene.broad_phase_interval = 1000000;
+    dem::Engine e(p.scene, kPileOptions);
+    while (e.sleeping() < 150 && p.st.step * p.scene.dt < 2.0) e.step(p.st);
+    return p.st;
+  }();
+  return st;
+}
+double top_of(const State& st) {
+  double top = 0;
+  for (const Vec3& x : st.x) top = std::max(top, x.z);
+  return top;
+}
+
+bool same_bits(const State& a, const State& b) {
+  return a.size() == b.size() &&
+         std::memcmp(a.x.data(), b.x.data(), a.size() * sizeof(Vec3)) == 0 &&
+         std::memcmp(a.v.data(), b.v.data(), a.size() * sizeof(Vec3)) == 0 &&
+         std::memcmp(a.u.data(), b.u.data(), a.size() * sizeof(Vec3)) == 0 &&
+         a.pair_spring.size() == b.pair_spring.size() &&
+         std::memcmp(a.pair_spring.data(), b.pair_spring.data(),
+                     a.pair_spring.size() * sizeof(Vec3)) == 0 &&
+         a.rest_steps == b.rest_steps && a.id == b.id && a.rebuilds == b.rebuilds &&
+         a.max_displacement == b.max_displacement &&
+         a.second_displacement == b.second_displacement;
+}
+
+// The awake list (EngineOptions::awake_list): the pair loop starts the awake particles' forces
+// only and the integration visits the awake particles and the sleepers a wake test needs. It
+// must give the bits of the walk over every particle, step by step (positions, velocities,
+// springs, rest counters, the guard's displacements, the sleeper count), on 1 and 2 threads,
+// with pair blocks and with ranges (whose wakes beyond a thread's range are queued), and
+// through a checkpoint: a run restored mid-sweep continues with the same bits.
+TEST(dem_Sleep, AwakeListChangesNoBit) {
+  const std::string path =
+      (std::filesystem::temp_directory_path() / "dem_awake_list_checkpoint.h5").string();
+  for (const auto schedule : {dem::PairSchedule::blocks, dem::PairSchedule::ranges})
+    for (int threads : {1, 2}) {
+      const std::string what = std::string(schedule == dem::PairSchedule::blocks ? "blocks, " : "ranges, ") +
+                               std::to_string(threads) + " threads";
+      Pile a = make_pile(threads, true), b = make_pile(threads, true);
+      for (Pile* p : {&a, &b}) {
+        Sweep::setup(*p);
+        p->scene.broad_phase_interval = 1000000;  // when needed: sleepers cross broad phases
+        p->st = asleep_pile();
+      }
+      ASSERT_EQ(asleep(a.scene, a.st), 150);
+      dem::EngineOptions listed = kPileOptions, walk = kPileOptions;
+      listed.pair_schedule = walk.pair_schedule = schedule;
+      walk.awake_list = false;
+      dem::Engine ea(a.scene, listed), eb(b.scene, walk);
+      const double top = top_of(a.st);
+      std::int64_t mixed = 0, mismatch_at = -1;
+      std::unique_ptr<Pile> c;
+      std::unique_ptr<dem::Engine> ec;
+      for (int k = 0; k < Sweep::kSteps; ++k) {
+        if (k == 1500) {  // a checkpoint mid-sweep, continued by a third engine
+          dem::save_checkpoint(a.st, path);
+          c = std::make_unique<Pile>(make_pile(threads, true));
+          Sweep::setup(*c);
+          c->scene.broad_phase_interval = 1000000;
+          c->st = dem::load_checkpoint(path);
+          ec = std::make_unique<dem::Engine>(c->scene, listed);
+        }
+        for (State* st : {&a.st, &b.st}) Sweep::pose(*st, k, top);
+        if (c) Sweep::pose(c->st, k, top);
+        ea.step(a.st);
+        eb.step(b.st);
+        if (c) ec->step(c->st);
+        mixed += ea.sleeping() > 0 && ea.sleeping() < static_cast<std::int64_t>(a.st.size());
+        const bool same = same_bits(a.st, b.st) && ea.sleeping() == eb.sleeping() &&
+                          (!c || (same_bits(a.st, c->st) && ea.sleeping() == ec->sleeping()));
+        if (!same) {
+          mismatch_at = k;
+          break;
+        }
+      }
+      std::printf("%s: %lld steps with sleepers and awake ones, woke %lld, fell asleep %lld, "
+                  "%lld broad phases\n",
+                  what.c_str(), static_cast<long long>(mixed),
+                  static_cast<long long>(ea.woke_total()),
+                  static_cast<long long>(ea.fell_asleep_total()),
+                  static_cast<long long>(a.st.rebuilds));
+      EXPECT_EQ(mismatch_at, -1) << what << ": the bits differ after step " << mismatch_at
+                                 << " of the sweep";
+      EXPECT_EQ(ea.woke_total(), eb.woke_total()) << what;
+      // The test means something: wakes and sleeps beside each other for most of the sweep.
+      EXPECT_GT(mixed, 2000) << what;
+      EXPECT_GT(ea.woke_total(), 20) << what;
+      EXPECT_GT(ea.fell_asleep_total(), 20) << what;
+    }
+  std::filesystem::remove(path);
+}
+
+// A sleeper's state is untouched while it sleeps: through the sweep, for every particle asleep
+// before a step and after it, its position, velocity, u, radius and mass keep their bits (found
+// by id across broad phases), and between broad phases the spring of every pair of two such
+// sleepers keeps its bits (1 and 2 threads, the awake list on).
+TEST(dem_Sleep, SleepersStateIsUntouchedWhileAsleep) {
+  for (int threads : {1, 2}) {
+    Pile p = make_pile(threads, true);
+    Sweep::setup(p);
+    p.scene.broad_phase_interval = 1000000;
+    p.st = asleep_pile();
+    dem::Engine e(p.scene, kPileOptions);
+    const double top = top_of(p.st);
+    const std::int32_t S = p.scene.sleep.steps;
+    std::int64_t particle_checks = 0, spring_checks = 0, nonzero_springs = 0, bad = 0;
+    for (int k = 0; k < Sweep::kSteps && bad == 0; ++k) {
+      Sweep::pose(p.st, k, top);
+      const State before = p.st;
+      e.step(p.st);
+      std::map<std::int64_t, std::size_t> at;  // id -> index after the step
+      for (std::size_t i = 0; i < p.st.size(); ++i) at[p.st.id[i]] = i;
+      std::vector<std::uint8_t> slept(before.size(), 0);  // asleep before and after, by old index
+      for (std::size_t i = 0; i < before.size(); ++i) {
+        const std::size_t j = at.at(before.id[i]);
+        if (before.rest_steps[i] < S || p.st.rest_steps[j] < S) continue;
+        slept[i] = 1;
+        ++particle_checks;
+        const bool same = std::memcmp(&before.x[i], &p.st.x[j], sizeof(Vec3)) == 0 &&
+                          std::memcmp(&before.v[i], &p.st.v[j], sizeof(Vec3)) == 0 &&
+                          std::memcmp(&before.u[i], &p.st.u[j], sizeof(Vec3)) == 0 &&
+                          before.radius[i] == p.st.radius[j] && before.mass[i] == p.st.mass[j];
+        if (!same) {
+          ++bad;
+          ADD_FAILURE() << "sleeper id " << before.id[i] << " changed in step " << k << ", "
+                        << threads << " threads";
+        }
+      }
+      // Pairs of two sleepers keep their springs (while the lists are the same lists).
+      if (p.st.rebuilds == before.rebuilds && p.st.pair_j == before.pair_j) {
+        for (std::size_t i = 0; i + 1 < before.pair_offset.size(); ++i)
+          for (std::int32_t q = before.pair_offset[i]; q < before.pair_offset[i + 1]; ++q) {
+            if (!slept[i] || !slept[static_cast<std::size_t>(before.pair_j[q])]) continue;
+            ++spring_checks;
+            nonzero_springs += dem::norm2(before.pair_spring[q]) > 0;
+            if (std::memcmp(&before.pair_spring[q], &p.st.pair_spring[q], sizeof(Vec3)) != 0) {
+              ++bad;
+              ADD_FAILURE() << "spring of two sleepers changed in step " << k;
+            }
+          }
+      }
+    }
+    std::printf("%d threads: %lld sleeper-steps and %lld sleeper-pair springs checked (%lld "
+                "holding a spring)\n",
+                threads, static_cast<long long>(particle_checks),
+                static_cast<long long>(spring_checks), static_cast<long long>(nonzero_springs));
+    EXPECT_EQ(bad, 0);
+    EXPECT_GT(particle_checks, 50000) << threads << " threads";
+    EXPECT_GT(nonzero_springs, 5000) << threads << " threads";
+  }
 }
 
 TEST(dem_Region, RemovalKeepsListsAndHistoryOfTheRest) {

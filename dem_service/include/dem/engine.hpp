@@ -113,7 +113,8 @@ class Engine {
   void integrate_impl(State& s);
   template <bool Sleep>
   void integrate_range(State& s, std::size_t a0, std::size_t a1, bool keep, bool renote,
-                       StepTally& my, Sleepers::ThreadNotes& notes);
+                       StepTally& my, Sleepers::ThreadNotes& notes, const std::int32_t* list);
+  void integrate_listed(State& s, StepTally& total);  // with the awake list
   void finish_step(State& s, const StepTally& total, int lists, bool close);
   void add_busy(std::size_t section, int t, double seconds) {
     busy_[section * static_cast<std::size_t>(max_threads_) + static_cast<std::size_t>(t)] += seconds;
@@ -135,6 +136,8 @@ class Engine {
   BoundaryContacts boundary_;
   Rotation rotation_;  // the rotating model's torques (unused by the translating model)
   std::vector<Vec3> force_;
+  // This step's awake list (Sleepers::awake) when EngineOptions::awake_list is on, else nullptr.
+  const std::vector<std::int32_t>* awake_now_ = nullptr;
   std::vector<std::vector<detail::PairRemote>> remote_;  // per thread
   std::vector<std::size_t> bounds_;  // particle ranges of the threads in pair_forces
   std::vector<std::size_t> split_;   // and the ranges the integration gives them (T + 1)

@@ -54,6 +54,11 @@ struct EngineOptions {
   // compare against.
   bool sleeper_row_skip = true;
   bool sleeper_blocks = true;
+  // The awake list (Sleepers::awake): the pair loop starts the forces of the awake particles
+  // only, and the integration visits only them and the sleepers a wake test needs, instead of
+  // walking the whole bed. Always on in the apps; off only for the tests that hold it to the
+  // walk over every particle (dem_Sleep.AwakeListChangesNoBit).
+  bool awake_list = true;
 
   // The apps' spelling, from the environment: DEM_PAIR_KERNEL (vector | scalar) and
   // DEM_PAIR_CHUNKS (branch-free | branching); unset: the defaults. Throws std::invalid_argument

@@ -90,6 +90,7 @@ struct PairSleep {
   const std::int32_t* awake_partners = nullptr;
   std::uint8_t* wake = nullptr;  // set to 1 for a sleeper to wake in [a0, a1)
   std::vector<std::int32_t>* remote_wake = nullptr;  // sleepers to wake beyond a1
+  std::vector<std::int32_t>* woken = nullptr;  // those of [a0, a1) woken, each once (or nullptr)
 };
 void pair_rows_sleep(const PairRows& p, const PairSleep& sleep, std::size_t a0, std::size_t a1,
                      std::vector<PairRemote>& remote, PairRowStats& stats, Kernel kernel);

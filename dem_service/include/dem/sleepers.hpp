@@ -59,6 +59,19 @@ class Sleepers {
   std::uint8_t* wake() { return wake_.data(); }
   std::vector<std::int32_t>& remote_wake(int t) { return remote_wake_[static_cast<std::size_t>(t)]; }
   void apply_remote_wakes(int T);  // after the loop, in thread order
+  // The sleepers the pair loop woke, each once (its wake flag was clear), per thread (remote
+  // wakes in thread 0's): the integration's wake test reads these instead of every flag.
+  std::vector<std::int32_t>& woken(int t) { return woken_[static_cast<std::size_t>(t)]; }
+
+  // --- The awake list: the particles awake at the start of this step, ascending. The pair
+  // loop starts only their forces and the integration visits only them and the sleepers a wake
+  // test needs (those the pair loop woke, those in a block within a tool's reach), so a sleeper
+  // costs nothing in either. Made from rest_steps when it does not hold for s at this step (a
+  // broad phase reordered the particles, a loaded checkpoint, another state), and kept up to
+  // date from the step's wakes and sleeps after that (stepped()).
+  const std::vector<std::int32_t>& awake(const State& s);
+  // Held for s at its step (made by awake() this step or kept up to date): the engine uses it.
+  bool awake_holds(const State& s) const { return awake_.holds(s, s.step); }
 
   // --- The integration.
   // Each tool's neighbourhood at s's tool poses (sphere or box, scene.sleep.neighbourhood).
@@ -105,6 +118,7 @@ class Sleepers {
   // thread's range are queued per thread and applied after the loop.
   std::vector<std::uint8_t> wake_;
   std::vector<std::vector<std::int32_t>> remote_wake_;  // per thread
+  std::vector<std::vector<std::int32_t>> woken_;        // per thread
   std::vector<std::uint8_t> remove_;                    // region of interest workspace
   std::int64_t removed_last_ = 0;
 
@@ -121,6 +135,19 @@ class Sleepers {
     void add(const State& s, std::int32_t j, std::int32_t delta);
   };
   AwakePartners awake_partners_;
+  struct AwakeList {
+    std::vector<std::int32_t> list, next;  // next: workspace of the update
+    ListStamp stamp;
+    // (not ListStamp::built_at: stepped() runs before the step counts towards the broad phase)
+    bool holds(const State& s, std::int64_t at_step) const {
+      return stamp.matches(s, ListStamp::state | ListStamp::size | ListStamp::candidates |
+                                  ListStamp::rebuilds | ListStamp::step,
+                           at_step) &&
+             static_cast<std::size_t>(s.size()) == s.rest_steps.size();
+    }
+  };
+  AwakeList awake_;
+  void update_awake_list(const State& s);
   void count_awake_partners(const State& s);
   void update_awake_partners(const State& s);
 
