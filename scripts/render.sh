@@ -68,9 +68,21 @@ render() {
   xvfb-run -a -e "$log.x" -s "-screen 0 $((width + 64))x$((height + 64))x24" \
     pvbatch "$here/render.py" "$xdmf" "$out" "$stem" "$every" "$width" "$height" "$last" >"$log" 2>&1
 }
-# One more try when the virtual screen was not there in time (xvfb-run picks a free display
-# number; another X server starting at the same moment can take it).
-if ! render && ! { grep -q "bad X server connection" "$log" && echo "render: the virtual X screen failed, trying again" >&2 && render; }; then
+# Up to three more tries, a few seconds apart, when the virtual screen was not there (xvfb-run
+# picks a free display number, and another X server starting at the same moment can take it;
+# on a loaded host the server has also failed twice in a row).
+render_retrying() {
+  local try
+  render && return 0
+  for try in 1 2 3; do
+    grep -q "bad X server connection" "$log" || return 1
+    echo "render: the virtual X screen failed, trying again in $((2 * try)) s ($try of 3)" >&2
+    sleep $((2 * try))
+    render && return 0
+  done
+  return 1
+}
+if ! render_retrying; then
   # render.py's own refusals (a file it cannot use) are the whole story.
   if grep -q "^render: " "$log"; then grep "^render: " "$log" >&2; exit 2; fi
   grep -v -E "^\s*[0-9]+\s+0x|^\(" "$log" | tail -20 >&2
