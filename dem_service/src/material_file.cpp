@@ -123,15 +123,22 @@ YAML::Node resolve_material_files(const YAML::Node& root, const std::string& bas
         prep["deposition_friction"] = YAML::Clone(pm["deposition_friction"]);
     }
     // The particle model the law was calibrated for; the config's own keys win (checked with
-    // the config's particles section as usual).
+    // the config's particles section as usual). The material's rolling resistance belongs to
+    // its model: a config that names another model does not get it.
     if (const YAML::Node pa = m["particles"]) {
       if (!out["particles"] || out["particles"].IsNull())
         out["particles"] = YAML::Node(YAML::NodeType::Map);
       YAML::Node parts = out["particles"];
-      if (parts.IsMap())
-        for (const auto& k : pa)
-          if (!parts[k.first.as<std::string>()])
-            parts[k.first.as<std::string>()] = YAML::Clone(k.second);
+      if (parts.IsMap()) {
+        const bool own_model = !parts["model"] || !pa["model"] ||
+                               (parts["model"].IsScalar() && pa["model"].IsScalar() &&
+                                parts["model"].Scalar() == pa["model"].Scalar());
+        for (const auto& k : pa) {
+          const std::string key = k.first.as<std::string>();
+          if (key == "rolling_resistance" && !own_model) continue;
+          if (!parts[key]) parts[key] = YAML::Clone(k.second);
+        }
+      }
     }
   }
   return out;

@@ -111,6 +111,10 @@ TEST_F(dem_MaterialFile, GivesTheParticleModelItWasCalibratedFor) {
   rc = load(root);
   EXPECT_TRUE(rc.scene.rotation.rotating());
   EXPECT_DOUBLE_EQ(rc.scene.rotation.rolling.friction, 0.1);  // the config's own key wins
+  root = YAML::Load(kScene);
+  root["particles"]["model"] = "translating";  // another model: the material's rolling resistance stays out
+  rc = load(root);
+  EXPECT_FALSE(rc.scene.rotation.rotating());
   write("sand.yaml", kMaterial);
   EXPECT_FALSE(load(YAML::Load(kScene)).scene.rotation.rotating());  // none named: translating
   write("sand.yaml", std::string(kMaterial) + "particles: rotating\n");
