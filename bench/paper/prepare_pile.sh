@@ -11,18 +11,26 @@
 #                at 5 s, still falling; docs/soil.md, "Not yet").
 # Stage 1 is skipped when its file exists. Stage 2 (configs/soil/pile_paper_prepare.yaml) turns
 # friction on, opens the front and settles until at rest. Fails if stage 2 does not reach its
-# rest criterion.
-#   nice -n 19 bash bench/paper/prepare_pile.sh [--granular]
+# rest criterion. Further arguments are `--set key=value` overrides passed to stage 2
+# (e.g. `--set settle.max_time=8`: the granular bed's slumped face needs longer than 5 s).
+#   nice -n 19 bash bench/paper/prepare_pile.sh [--granular] [--set key=value ...]
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
 cd "$root"
 build="${BUILD_DIR:-build}"
 stage1=compact
-case "${1:-}" in
-  "") ;;
-  --granular) stage1=deposit ;;
-  *) echo "prepare_pile: unknown argument '$1' (only --granular: random insertion and deposition)" >&2; exit 2 ;;
-esac
+stage2_sets=()
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --granular) stage1=deposit; shift ;;
+    --set)
+      if [ $# -lt 2 ] || [[ "$2" != *=* ]]; then
+        echo "prepare_pile: --set needs key=value (e.g. --set settle.max_time=8)" >&2; exit 2
+      fi
+      stage2_sets+=(--set "$2"); shift 2 ;;
+    *) echo "prepare_pile: unknown argument '$1' (--granular: random insertion and deposition; --set key=value: a stage-2 override)" >&2; exit 2 ;;
+  esac
+done
 mkdir -p results
 if [ "$stage1" = compact ]; then
   bed=results/pile_paper_compact.h5
@@ -32,10 +40,12 @@ fi
 if [ ! -f "$bed" ]; then
   "$build/bin/dem_run" "configs/soil/pile_paper_$stage1.yaml" 2>&1 | tee "results/pile_paper_$stage1.log"
 fi
-"$build/bin/dem_run" configs/soil/pile_paper_prepare.yaml --set "particles.checkpoint=../../$bed" 2>&1 \
+"$build/bin/dem_run" configs/soil/pile_paper_prepare.yaml --set "particles.checkpoint=../../$bed" \
+  ${stage2_sets[@]+"${stage2_sets[@]}"} 2>&1 \
   | tee results/pile_paper_prepare.log
 if ! grep -q "^settle: at rest" results/pile_paper_prepare.log; then
   echo "prepare_pile: the pile did NOT reach its rest criterion; see results/pile_paper_prepare.log" >&2
-  rm -f results/pile_paper.h5
+  echo "prepare_pile: its last state kept as results/pile_paper_unsettled.h5 (not for the scene)" >&2
+  if [ -f results/pile_paper.h5 ]; then mv -f results/pile_paper.h5 results/pile_paper_unsettled.h5; fi
   exit 3
 fi

@@ -4,13 +4,17 @@ model (docs/soil_blade.md "The bucket's curl").
 
     /usr/bin/python3 bench/soil/bucket_curl.py [--out results/bucket_curl] [--build build]
         [--models translating,rotating] [--rolling-friction 0.1] [--rolling-damping 0.3]
-        [--jobs 2] [--members 1] [--fresh] [--analyse-only]
+        [--material configs/materials/dry_sand.yaml] [--jobs 2] [--members 1] [--fresh]
+        [--analyse-only]
 
 Runs `dem_run configs/soil/curl_dry_sand.yaml` (the prepared dry-sand pile of
 scripts/prepare_pile_dry_sand.sh, cut at x = 9 m by configs/soil/curl_dry_sand_cut.yaml; the
 bucket's mesh of the wheel_loader_meshes target, moved by keyframes: penetration, a curl in the
 pile, a lift out, a hold, a curl with the load held clear of the pile, a hold) once per particle
-model and member (member k > 1 perturbs every grain by up to 1e-6 m with seed k; a complete
+model and member (`--material FILE`: the grains' law from another material file of the same
+grains, e.g. the calibrated rotating dry sand configs/materials/dry_sand_rotating.yaml, on the
+same pile; a rotating material's own rolling resistance unless --rolling-friction is given;
+member k > 1 perturbs every grain by up to 1e-6 m with seed k; a complete
 output is reused unless --fresh), and compares the soil's torque on the bucket about
 its A-pin (the recorded wrench, about y) with what the load's weight and angular momentum give:
 
@@ -48,10 +52,29 @@ WINDOWS = [("curl in the pile", 1.6, 2.4, False), ("held, at rest", 4.3, 4.7, Tr
            ("curl, load held", 4.8, 5.6, True), ("held after", 5.75, 6.0, True)]
 
 
-def material_density():
+DEFAULT_MATERIAL = os.path.join(ROOT, "configs", "materials", "dry_sand.yaml")
+
+
+def load_material(path):
+    """The material file's density, radii and rolling resistance (None if it names none)."""
     import yaml
-    with open(os.path.join(ROOT, "configs", "materials", "dry_sand.yaml")) as f:
-        return float(yaml.safe_load(f)["density"])
+    try:
+        with open(path) as f:
+            m = yaml.safe_load(f)
+    except OSError as e:
+        sys.exit(f"bucket_curl: --material {path}: {e.strerror}")
+    if not isinstance(m, dict) or "density" not in m or "radius" not in m:
+        sys.exit(f"bucket_curl: --material {path}: not a material file (no density or radius; "
+                 "configs/materials/*.yaml)")
+    with open(DEFAULT_MATERIAL) as f:
+        pile = yaml.safe_load(f)
+    if float(m["density"]) != float(pile["density"]) or m["radius"] != pile["radius"]:
+        sys.exit(f"bucket_curl: --material {path}: its grains (density {m['density']}, radius "
+                 f"{m['radius']}) are not the pile's ({pile['density']}, {pile['radius']}, "
+                 "configs/materials/dry_sand.yaml); the curl loads that pile")
+    parts = m.get("particles") or {}
+    rr = parts.get("rolling_resistance") if parts.get("model") == "rotating" else None
+    return float(m["density"]), rr
 
 
 def name(model, member):
@@ -73,6 +96,8 @@ def run(model, member, a):
         print(f"bucket_curl: {out} exists (--fresh runs it again)", flush=True)
         return out
     sets = [f"output.file={out}", f"particles.model={model}"]
+    if os.path.abspath(a.material) != DEFAULT_MATERIAL:
+        sets.append("materials.soil.file=" + os.path.relpath(os.path.abspath(a.material), os.path.dirname(CONFIG)))
     if member > 1:   # ensemble members: a seeded shift of every grain by up to 1e-6 m
         sets.append(f"particles.perturb={{amplitude: 1.0e-6, seed: {member}}}")
         # the shift pushes a contact past the bed's recorded largest overlap (1.25 %)
@@ -164,8 +189,12 @@ def main():
     p.add_argument("--out", default=os.path.join(ROOT, "results", "bucket_curl"))
     p.add_argument("--build", default=os.path.join(ROOT, "build"))
     p.add_argument("--models", default="translating,rotating")
-    p.add_argument("--rolling-friction", type=float, default=0.1)
-    p.add_argument("--rolling-damping", type=float, default=0.3)
+    p.add_argument("--rolling-friction", type=float, default=None,
+                   help="rotating model: EPSD mu_r (default: the material's, else 0.1)")
+    p.add_argument("--rolling-damping", type=float, default=None,
+                   help="rotating model: EPSD damping (default: the material's, else 0.3)")
+    p.add_argument("--material", default=DEFAULT_MATERIAL,
+                   help="material file of the grains' law (the pile's grains; default the dry sand)")
     p.add_argument("--load-above", type=float, default=1.9,
                    help="m: the load is the grains whose centre is above this at a window's start")
     p.add_argument("--jobs", type=int, default=2)
@@ -174,6 +203,11 @@ def main():
     p.add_argument("--fresh", action="store_true", help="run again even when a complete output exists")
     p.add_argument("--analyse-only", action="store_true")
     a = p.parse_args()
+    density, rolling = load_material(a.material)
+    if a.rolling_friction is None:
+        a.rolling_friction = float(rolling["friction"]) if rolling else 0.1
+    if a.rolling_damping is None:
+        a.rolling_damping = float(rolling.get("damping", 0.3)) if rolling else 0.3
     models = a.models.split(",")
     if any(m not in ("translating", "rotating") for m in models) or not models:
         sys.exit("bucket_curl: --models is a comma-separated list of translating, rotating")
@@ -184,6 +218,9 @@ def main():
     if not 1 <= a.members <= 20:
         sys.exit("bucket_curl: --members must lie in 1..20")
     runs = [(m, k) for k in range(1, a.members + 1) for m in models]
+    print(f"bucket_curl: material {os.path.relpath(os.path.abspath(a.material), ROOT)}"
+          + (f"; rotating model with rolling friction {a.rolling_friction}, damping {a.rolling_damping}"
+             if "rotating" in models else ""), flush=True)
     a.out, a.build = os.path.abspath(a.out), os.path.abspath(a.build)
     os.makedirs(a.out, exist_ok=True)
     if not a.analyse_only:
@@ -198,7 +235,10 @@ def main():
             files = dict(zip(runs, ex.map(lambda mk: run(mk[0], mk[1], a), runs)))
     else:
         files = {(m, k): os.path.join(a.out, name(m, k) + ".h5") for m, k in runs}
-    density = material_density()
+        missing = [f for f in files.values() if not os.path.exists(f)]
+        if missing:
+            sys.exit(f"bucket_curl: --analyse-only, but {missing[0]} does not exist (run without "
+                     "--analyse-only, or give the --out, --models and --members of that run)")
     allrows, curves = [], {}
     for m, k in runs:
         rows, t, my = analyse(files[(m, k)], density, a.load_above)
