@@ -6,9 +6,10 @@
 #   --granular:  random insertion and deposition with friction 0.116, frozen with the paper's
 #                law (configs/soil/pile_paper_deposit.yaml -> results/pile_paper_bed.h5; a
 #                granular packing, issue 43; prints its packing fraction, bulk density and
-#                coordination: 0.616, 1,603 kg/m^3, 5.45). Its stage 2 did not reach the
-#                rest criterion within settle.max_time 5 s on 2026-12-06 (2.3e-4 J per grain
-#                at 5 s, still falling; docs/soil.md, "Not yet").
+#                coordination: 0.616, 1,603 kg/m^3, 5.45). Its stage 2 needs 5.27 s to reach
+#                the rest criterion (the slumped face's last grains), past stage 2's
+#                settle.max_time of 5 s: run it with --set settle.max_time=8 (docs/soil.md,
+#                "Prepared piles").
 # Stage 1 is skipped when its file exists. Stage 2 (configs/soil/pile_paper_prepare.yaml) turns
 # friction on, opens the front and settles until at rest. Fails if stage 2 does not reach its
 # rest criterion. Further arguments are `--set key=value` overrides passed to stage 2
