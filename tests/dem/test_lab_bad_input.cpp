@@ -163,6 +163,10 @@ TEST(dem_LabBadInput, BiaxialValuesNamed) {
   expect_has(triaxial_error(g + "biaxial: {confining_pressures: [1.0e4]}\n"), {"biaxial", "unknown key"});
   expect_has(biaxial_error(g + "sample: {count: 10}\nbiaxial: {confining_pressures: [1.0e4]}\n"),
              {"sample.count"});
+  expect_has(biaxial_error(g + "sample: {aspect: 5}\nbiaxial: {confining_pressures: [1.0e4]}\n"),
+             {"sample.aspect", "0.5 .. 4"});
+  expect_has(biaxial_error(g + "sample: {thickness: 0}\nbiaxial: {confining_pressures: [1.0e4]}\n"),
+             {"sample.thickness", "0.1 .. 1"});
   expect_has(biaxial_error(g + "  model: spinning\nbiaxial: {confining_pressures: [1.0e4]}\n"),
              {"grains.model"});
 }

@@ -98,4 +98,31 @@ TEST(dem_LabBiaxial, PlaneStrainIsStrongerThanTheTriaxialTestOnTheSameSample) {
   EXPECT_LT(std::abs(t.b_peak), 0.05);
 }
 
+TEST(dem_LabBiaxial, SampleShapeIsTheAskedSlab) {
+  // sample.aspect and sample.thickness shape the insertion box: asked twice as high as wide and
+  // 0.4 as thick, the compacted box stays about twice as high (measured 2.11) and a slab (the
+  // walls close the thin side more: measured 0.29); a slab too thin for its grains is refused
+  // naming the key.
+  const auto root = cosim::config::load_string(
+      config("biaxial", 0.04), "test");
+  lab::TriaxialOptions o = lab::parse_biaxial(root);
+  o.count = 600;
+  o.aspect = 2.0;
+  o.thickness = 0.4;
+  const lab::Sample s = lab::prepare_sample(o, 10e3);
+  const dem::Vec3 d = s.hi - s.lo;
+  std::printf("prepared box %.3f x %.3f x %.3f m\n", d.x, d.y, d.z);
+  EXPECT_NEAR(d.z / d.x, 2.0, 0.25);
+  EXPECT_GT(d.y / d.x, 0.2);
+  EXPECT_LT(d.y / d.x, 0.45);
+  o.count = 60;
+  o.thickness = 0.1;
+  try {
+    lab::prepare_sample(o, 10e3);
+    ADD_FAILURE() << "a slab under 2.5 grains thick was accepted";
+  } catch (const std::exception& e) {
+    EXPECT_NE(std::string(e.what()).find("sample.thickness"), std::string::npos) << e.what();
+  }
+}
+
 }  // namespace

@@ -136,7 +136,24 @@ TriaxialOptions parse_test(const YAML::Node& root, const std::string& section) {
   o.grains = parse_grains(root["grains"], "grains");
   const YAML::Node sm = root["sample"];
   if (sm) {
-    cfg::check_keys(sm, "sample", {"count", "seed", "initial_fraction", "preparation_friction"});
+    cfg::check_keys(sm, "sample",
+                    {"count", "seed", "initial_fraction", "preparation_friction", "aspect",
+                     "thickness"});
+    if (sm["aspect"]) {
+      o.aspect = cfg::get_double(sm, "sample", "aspect");
+      if (!(o.aspect >= 0.5 && o.aspect <= 4))
+        throw cfg::ConfigError("sample.aspect: " + sm["aspect"].Scalar() +
+                               " is outside 0.5 .. 4 (the sample's height over its width; 1 a "
+                               "cube, 2 a biaxial sample whose shear band can leave through the "
+                               "sides)");
+    }
+    if (sm["thickness"]) {
+      o.thickness = cfg::get_double(sm, "sample", "thickness");
+      if (!(o.thickness >= 0.1 && o.thickness <= 1))
+        throw cfg::ConfigError("sample.thickness: " + sm["thickness"].Scalar() +
+                               " is outside 0.1 .. 1 (the sample's extent along y over its width "
+                               "along x; below 1 a slab, as thin as a plane-strain bin)");
+    }
     if (sm["count"]) {
       o.count = cfg::get_int(sm, "sample", "count");
       if (o.count < 50 || o.count > 2000000)
@@ -280,8 +297,14 @@ MohrCoulombFit fit_mohr_coulomb(const std::vector<double>& s1, const std::vector
 Sample prepare_sample(const TriaxialOptions& o, double pressure, const Progress& progress) {
   Scene scene = make_scene(o.grains, {0, 0, 0}, o.threads);
   scene.particle_particle.friction = o.preparation_friction;
-  const double L = std::cbrt(static_cast<double>(o.count) * o.grains.mean_volume() / o.initial_fraction);
-  const Vec3 lo{0, 0, 0}, hi{L, L, L};
+  // A box L x thickness L x aspect L holding the grains at the initial fraction.
+  const double L = std::cbrt(static_cast<double>(o.count) * o.grains.mean_volume() /
+                             (o.initial_fraction * o.aspect * o.thickness));
+  const Vec3 lo{0, 0, 0}, hi{L, o.thickness * L, o.aspect * L};
+  if (o.thickness * L < 2.5 * 2 * o.grains.radius_max)
+    throw cfg::ConfigError("sample.thickness: the sample would be " +
+                           std::to_string(o.thickness * L) + " m thick, less than 2.5 grains " +
+                           "after compaction; raise sample.count or sample.thickness");
   Sample out;
   const double r = o.grains.radius_max;
   insert_random(scene, out.state, lo + Vec3{r, r, r}, hi - Vec3{r, r, r}, o.count, o.seed,

@@ -24,6 +24,10 @@ struct TriaxialOptions {
   std::uint64_t seed = 1;
   double initial_fraction = 0.30;    // packing fraction of the random insertion
   double preparation_friction = 0.0; // mu while the sample is compacted (0: densest)
+  double aspect = 1.0;               // height (z) over width (x, y): 1 a cube; a taller biaxial
+                                     // sample lets its shear band leave through the x walls
+  double thickness = 1.0;            // extent along y over the width (x): below 1 a slab
+                                     // (of the insertion box; compaction closes a thin side more)
   // test
   std::vector<double> confining;     // Pa, one test each (ascending after parsing)
   double inertial_number = 1e-3;     // sets the axial strain rate per test: I = rate d sqrt(rho/p)
