@@ -2,14 +2,14 @@
 """Reece's draft of the dry-sand blade cases at another friction angle (docs/soil_blade.md).
 
     /usr/bin/python3 bench/soil/blade_reece_at_phi.py --phi translating=DEG[:LO:HI] \
-        --phi rotating=DEG[:LO:HI] [--cases bench/soil/blade_dry_sand_drafts.csv] [--build build]
+        --phi rotating=DEG[:LO:HI] [--cases FILE.csv] [--build build]
 
 Reece's gamma term is F = gamma d^2 w N(phi, delta, alpha), with N the horizontal passive-wedge
 coefficient of `soil_wedge` (the project's, independent of the DEM). For a case measured at
 phi_tx the draft at another angle is F(phi_tx) N(phi) / N(phi_tx): the same bed, depth, width
-and blade, only the angle changed. The DEM drafts are not rerun; they are the table's
-(blade_dry_sand_drafts.csv, from docs/soil_blade.md). LO:HI (optional) is the angle's interval;
-the ratio's interval follows from it.
+and blade, only the angle changed. The DEM drafts are not rerun: CASES below are the dry-sand
+tables of docs/soil_blade.md (2026-12-06), or --cases gives a CSV of the same columns. LO:HI
+(optional) is the angle's interval; the ratio's interval follows from it.
 """
 import argparse
 import csv
@@ -19,6 +19,22 @@ import subprocess
 import sys
 
 DELTA = 11.31  # deg, atan(0.2): the blade friction of every case
+# The dry-sand cases of docs/soil_blade.md (2026-12-06): the DEM's steady draft (kN, mean over the
+# beds run) and Reece's draft at the triaxial angle phi_tx that table used (kN, deg).
+COLUMNS = "material,model,depth_D,rake_deg,skim_D,dem_kN,reece_kN,phi_tx_deg"
+CASES = """\
+dry_sand,translating,4,90,1.0,14.00,6.08,34.35
+dry_sand,translating,6,90,1.0,22.62,13.67,34.35
+dry_sand,translating,10,90,1.0,56.54,38.30,34.35
+dry_sand,translating,4,45,1.0,7.06,2.65,34.35
+dry_sand,translating,6,45,1.0,11.55,5.96,34.35
+dry_sand,translating,10,45,1.0,22.18,16.71,34.35
+dry_sand,translating,4,90,0.25,10.89,6.08,34.35
+dry_sand,translating,4,45,0.25,5.25,2.65,34.35
+dry_sand_rotating,rotating,4,90,1.0,11.03,5.72,32.79
+dry_sand_rotating,rotating,6,90,1.0,18.67,12.88,32.79
+dry_sand_rotating,rotating,10,90,1.0,43.43,35.68,32.79
+"""
 
 
 def coefficient(build, phi, rake):
@@ -29,8 +45,7 @@ def coefficient(build, phi, rake):
 
 def main():
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    here = os.path.dirname(os.path.abspath(__file__))
-    p.add_argument("--cases", default=os.path.join(here, "blade_dry_sand_drafts.csv"))
+    p.add_argument("--cases", default=None, help=f"a CSV with the columns {COLUMNS} (default: CASES)")
     p.add_argument("--build", default="build")
     p.add_argument("--phi", action="append", default=[],
                    help="MODEL=DEG or MODEL=DEG:LO:HI (translating, rotating), the angle to use")
@@ -48,8 +63,11 @@ def main():
         phis[model] = v
     if not phis:
         sys.exit("blade_reece_at_phi: give at least one --phi MODEL=DEG")
-    with open(a.cases) as f:
-        rows = list(csv.DictReader(line for line in f if not line.startswith("#")))
+    if a.cases:
+        with open(a.cases) as f:
+            rows = list(csv.DictReader(line for line in f if not line.startswith("#")))
+    else:
+        rows = list(csv.DictReader([COLUMNS] + CASES.splitlines()))
     print("material | depth | rake | skim | DEM kN | Reece at phi_tx kN | DEM/that | phi deg | "
           "Reece at phi kN | DEM/that [interval] | within 15 %")
     for r in rows:
