@@ -76,6 +76,12 @@ TEST(dem_LabBiaxial, IntermediateStressLiesBetweenSigma3AndSigma1AtThePeak) {
   EXPECT_NEAR(t.sigma2_peak, pk.sigma2, 1e-12);
   // The sample dilated up to the peak: a positive dilatancy angle.
   EXPECT_GT(t.psi_max, 0.0);
+  // The biaxial test's peak is the first one: its angle is the peak record's, at most the
+  // largest of the test, and no record before it mobilised more.
+  EXPECT_NEAR(std::sin(t.phi_peak * M_PI / 180), pk.sin_phi(), 1e-9);
+  EXPECT_EQ(t.phi_peak, t.phi_first_peak);
+  EXPECT_LE(t.phi_first_peak, t.phi_max);
+  for (std::size_t i = 1; i < t.peak; ++i) EXPECT_LE(t.curve[i].sin_phi(), pk.sin_phi()) << i;
 }
 
 TEST(dem_LabBiaxial, PlaneStrainIsStrongerThanTheTriaxialTestOnTheSameSample) {
