@@ -34,6 +34,9 @@ dry_sand,translating,4,45,0.25,5.25,2.65,34.35
 dry_sand_rotating,rotating,4,90,1.0,11.03,5.72,32.79
 dry_sand_rotating,rotating,6,90,1.0,18.67,12.88,32.79
 dry_sand_rotating,rotating,10,90,1.0,43.43,35.68,32.79
+dry_sand_rotating,rotating,4,45,1.0,7.24,2.63,32.79
+dry_sand_rotating,rotating,6,45,1.0,10.78,5.91,32.79
+dry_sand_rotating,rotating,10,45,1.0,19.35,16.37,32.79
 """
 
 
