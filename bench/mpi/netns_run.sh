@@ -7,7 +7,7 @@
 #   bash bench/mpi/netns_run.sh [options] -- PROGRAM [ARGS...]
 #
 #   --hosts N        hosts to use: 2 (10.199.0.1-2) or 3 (default 2)
-#   --np N           ranks (default: one per host); ranks are dealt round-robin over the hosts
+#   --np N           ranks (default: one per host); host a gets the first ceil(N/hosts), then b, ...
 #   --loss P         the relay drops this fraction of the frames on every link (default 0)
 #   --delay S        the relay delays every frame by S seconds (default 0)
 #   --prefix P       namespace prefix, at most 8 characters (default mr<pid>)
@@ -110,7 +110,7 @@ mpirun_args=(
   --mca pml ob1 --mca btl tcp,self                     # TCP between ranks, no shared memory
   --mca btl_tcp_if_include 10.199.0.0/24
   --mca oob_tcp_if_include 10.199.0.0/24
-  --host "$host_slots" --map-by node -np "$np"
+  --host "$host_slots" --map-by slot -np "$np"           # fill host a first, then b, ...
   "${mpirun_extra[@]}"
 )
 echo "netns_run: $np ranks on $hosts hosts ($host_list), relay $spec" >&2
