@@ -16,17 +16,24 @@
 #   --relay-log F    keep the relay's per-link counts (frames received, forwarded, dropped) in F
 #   --mpirun-arg A   one more argument for mpirun (repeatable), e.g. --mpirun-arg -x
 #                    --mpirun-arg OMP_NUM_THREADS=1
+#   --beside CMD     with --hosts 2: run the shell command CMD in host c (10.199.0.3) while the
+#                    MPI job runs, e.g. the co-simulation master whose DEM participant is the job
+#                    (bus URL with ttl=1 on both sides); its exit status counts as well
+# mpirun passes COSIM_KEY_FILE (the bus key, docs/security.md) to the ranks when it is set.
 #
-# Example, once dem_run runs under mpirun (docs/mpi.md, "Across hosts"):
+# Examples (docs/mpi.md, "Across hosts"):
 #   bash bench/mpi/netns_run.sh --hosts 2 -- dem_run configs/dem/bed.yaml
-# Exit status: mpirun's; 77 if this machine cannot build the rig (not root, no namespaces);
-# 2 for bad options.
+#   bash bench/mpi/netns_run.sh --hosts 2 --beside "build/bin/cosim_master MASTER.yaml
+#     --set bus.url=udpm://239.255.76.67:7667?ttl=1 --set participants.soil.launch=null" \
+#     -- dem_service SOIL.yaml --name soil --bus 'udpm://239.255.76.67:7667?ttl=1' --wait 60
+# Exit status: mpirun's (then CMD's); 77 if this machine cannot build the rig (not root, no
+# namespaces); 2 for bad options.
 set -euo pipefail
 repo=$(cd "$(dirname "$0")/../.." && pwd)
 
 hosts=2 np=0 loss=0 delay=0 prefix="mr$(($$ % 1000000))" bin="$repo/build/bin" relay_log=""
-mpirun_extra=()
-usage() { sed -n '2,24p' "$0" | sed 's/^# \{0,1\}//' >&2; exit 2; }
+mpirun_extra=() beside=""
+usage() { sed -n '2,30p' "$0" | sed 's/^# \{0,1\}//' >&2; exit 2; }
 bad() { echo "netns_run: $*" >&2; exit 2; }
 number() { [[ $2 =~ ^[0-9]*\.?[0-9]+([eE][-+]?[0-9]+)?$ ]] || bad "$1 $2: expected a number"; }
 while [ $# -gt 0 ]; do
@@ -39,6 +46,7 @@ while [ $# -gt 0 ]; do
     --bin) [ $# -ge 2 ] || bad "--bin needs a folder"; bin=$2; shift 2 ;;
     --relay-log) [ $# -ge 2 ] || bad "--relay-log needs a file"; relay_log=$2; shift 2 ;;
     --mpirun-arg) [ $# -ge 2 ] || bad "--mpirun-arg needs an argument"; mpirun_extra+=("$2"); shift 2 ;;
+    --beside) [ $# -ge 2 ] || bad "--beside needs a command"; beside=$2; shift 2 ;;
     -h|--help) usage ;;
     --) shift; break ;;
     *) bad "unknown option '$1' (see --help); put the program after --" ;;
@@ -50,6 +58,7 @@ done
 [ "$np" -gt 0 ] || np=$hosts
 [[ $prefix =~ ^[A-Za-z0-9]{1,8}$ ]] || bad "--prefix $prefix: 1-8 letters or digits (device names have 15 characters)"
 awk -v p="$loss" 'BEGIN { exit !(p >= 0 && p < 1) }' || bad "--loss $loss: expected a fraction in [0, 1)"
+[ -z "$beside" ] || [ "$hosts" = 2 ] || bad "--beside runs in host c: use it with --hosts 2"
 
 # The program: a bare name is looked up in --bin first, then on PATH; every host must find it
 # at the same absolute path (the rig shares this machine's file system).
@@ -72,10 +81,11 @@ command -v ethtool >/dev/null ||
   { echo "netns_run: TCP through the rig's relay needs ethtool (apt-get install ethtool; scripts/setup.sh installs it)" >&2; exit 1; }
 
 work=$(mktemp -d)
-relay_pid=""
+relay_pid="" beside_pid=""
 cleanup() {
   local rc=$?
   trap - EXIT INT TERM
+  if [ -n "$beside_pid" ]; then kill -TERM "$beside_pid" 2>/dev/null || true; wait "$beside_pid" 2>/dev/null || true; fi
   if [ -n "$relay_pid" ]; then kill -TERM "$relay_pid" 2>/dev/null || true; wait "$relay_pid" 2>/dev/null || true; fi
   if [ -s "$work/relay.log" ]; then
     sed 's/^/  /' "$work/relay.log" >&2
@@ -113,11 +123,27 @@ mpirun_args=(
   --host "$host_slots" --map-by slot -np "$np"           # fill host a first, then b, ...
   "${mpirun_extra[@]}"
 )
+if [ -n "${COSIM_KEY_FILE:-}" ]; then mpirun_args+=(-x COSIM_KEY_FILE); fi
+in_host() {  # HOST COMMAND...: run in the rig's host with its own host name
+  local h=$1; shift
+  ip netns exec "$prefix$h" unshare --uts -- /bin/sh -c 'hostname "$1" && shift && exec "$@"' run "$prefix$h" "$@"
+}
+if [ -n "$beside" ]; then
+  echo "netns_run: in host c (10.199.0.3): $beside" >&2
+  in_host c bash -c "$beside" &
+  beside_pid=$!
+fi
 echo "netns_run: $np ranks on $hosts hosts ($host_list), relay $spec" >&2
 echo "netns_run: ip netns exec ${prefix}a mpirun ${mpirun_args[*]} $program $*" >&2
 set +e
-ip netns exec "${prefix}a" unshare --uts -- /bin/sh -c 'hostname "$1" && shift && exec "$@"' run "${prefix}a" \
-  mpirun "${mpirun_args[@]}" "$program" "$@"
+in_host a mpirun "${mpirun_args[@]}" "$program" "$@"
 rc=$?
+if [ -n "$beside_pid" ]; then
+  wait "$beside_pid"
+  beside_rc=$?
+  beside_pid=""
+  echo "netns_run: mpirun exited $rc, the command in host c $beside_rc" >&2
+  [ "$rc" -ne 0 ] || rc=$beside_rc
+fi
 set -e
 exit "$rc"
