@@ -120,6 +120,7 @@ mpirun_args=(
   --mca pml ob1 --mca btl tcp,self                     # TCP between ranks, no shared memory
   --mca btl_tcp_if_include 10.199.0.0/24
   --mca oob_tcp_if_include 10.199.0.0/24
+  --mca mpi_yield_when_idle 1                          # the hosts share this machine's cores
   --host "$host_slots" --map-by slot -np "$np"           # fill host a first, then b, ...
   "${mpirun_extra[@]}"
 )

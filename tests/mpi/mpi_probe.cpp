@@ -6,12 +6,16 @@
 // Exit 0 only if every check passed (rank 0 exits 1 and names the failed check otherwise).
 //
 //   mpirun -np 3 mpi_probe [--mb 4] [--rounds 2] [--ranks N] [--distinct-hosts | --same-host]
+//                          [--pingpong N]
 //
 //   --mb N            ring buffer per rank, MB (1-256; default 4)
 //   --rounds N        ring rounds (1-100; default 2)
 //   --ranks N         fail unless the job has exactly N ranks
 //   --distinct-hosts  fail unless every rank runs on a different host (name and address)
 //   --same-host       fail unless every rank runs on the same host
+//   --pingpong N      then N round trips of an 8-byte message between rank 0 and the last rank;
+//                     prints the median and the 90th percentile round trip (a timing, never
+//                     checked; 0-100000, default 0)
 #include <arpa/inet.h>
 #include <ifaddrs.h>
 #include <mpi.h>
@@ -33,7 +37,7 @@ namespace {
 constexpr int kName = 64;
 
 struct Options {
-  long mb = 4, rounds = 2, ranks = 0;
+  long mb = 4, rounds = 2, ranks = 0, pingpong = 0;
   bool distinct = false, same = false;
 };
 
@@ -93,10 +97,11 @@ std::string parse(int argc, char** argv, Options* o) {
     std::string err;
     if (a == "--mb") err = value(1, 256, &o->mb);
     else if (a == "--rounds") err = value(1, 100, &o->rounds);
+    else if (a == "--pingpong") err = value(0, 100000, &o->pingpong);
     else if (a == "--ranks") err = value(1, 4096, &o->ranks);
     else if (a == "--distinct-hosts") o->distinct = true;
     else if (a == "--same-host") o->same = true;
-    else err = "unknown option '" + a + "' (options: --mb N, --rounds N, --ranks N, --distinct-hosts, --same-host)";
+    else err = "unknown option '" + a + "' (options: --mb N, --rounds N, --ranks N, --distinct-hosts, --same-host, --pingpong N)";
     if (!err.empty()) return err;
   }
   if (o->distinct && o->same) return "--distinct-hosts and --same-host exclude each other";
@@ -199,6 +204,41 @@ int main(int argc, char** argv) {
                 opt.rounds, failures.empty() ? "all checks passed" : "FAILED");
     for (const auto& f : failures) std::fprintf(stderr, "mpi_probe: FAILED: %s\n", f.c_str());
     std::fflush(stdout);
+  }
+  // Latency: round trips of 8 bytes between rank 0 and the last rank (the farthest host when
+  // ranks fill hosts in order). Each message's content is checked too.
+  if (opt.pingpong > 0 && size > 1) {
+    const int peer = size - 1;
+    std::vector<double> trips;
+    long wrong = 0;
+    MPI_Barrier(MPI_COMM_WORLD);
+    for (long k = 0; k < opt.pingpong; ++k) {
+      int64_t msg = k, back = -1;
+      if (rank == 0) {
+        const double t = MPI_Wtime();
+        MPI_Send(&msg, 1, MPI_INT64_T, peer, 7, MPI_COMM_WORLD);
+        MPI_Recv(&back, 1, MPI_INT64_T, peer, 8, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+        trips.push_back(MPI_Wtime() - t);
+        wrong += back != k + 1;
+      } else if (rank == peer) {
+        MPI_Recv(&back, 1, MPI_INT64_T, 0, 7, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+        wrong += back != k;
+        ++back;
+        MPI_Send(&back, 1, MPI_INT64_T, 0, 8, MPI_COMM_WORLD);
+      }
+    }
+    long wrong_total = 0;
+    MPI_Reduce(&wrong, &wrong_total, 1, MPI_LONG, MPI_SUM, 0, MPI_COMM_WORLD);
+    if (rank == 0) {
+      std::sort(trips.begin(), trips.end());
+      std::printf("mpi_probe: ping-pong rank 0 - rank %d, %ld round trips of 8 bytes: median %.1f us, 90th percentile "
+                  "%.1f us\n",
+                  peer, opt.pingpong, 1e6 * trips[trips.size() / 2], 1e6 * trips[trips.size() * 9 / 10]);
+      if (wrong_total) {
+        std::fprintf(stderr, "mpi_probe: FAILED: %ld ping-pong messages came back wrong\n", wrong_total);
+        failures.push_back("ping-pong");
+      }
+    }
   }
   MPI_Finalize();
   return failures.empty() ? 0 : 1;
