@@ -6,7 +6,7 @@ ranks, decomposed into slabs and into the best 2-D and 3-D grids.
 
     /usr/bin/python3 bench/mpi/halo_model.py [--sizes 150k,600k] [--ranks 1,2,4,...,64]
         [--scene-dir results/bench_lammps] [--bandwidth 1.25e9] [--latency 20e-6]
-        [--core-ns 95] [--markdown]
+        [--core-ns 95] [--ghost-bytes 80] [--markdown]
 
 The model (every grain of radius r, skin s, the bed a box Lx x Ly x H of uniform number
 density n = N / (Lx Ly H)):
@@ -15,7 +15,8 @@ density n = N / (Lx Ly H)):
     ranks own: n times the volume of (its box grown by c on every side that has a neighbour,
     clipped to the bed) minus its own box (faces, edges and corners: the full shell);
   * forward communication every step sends each ghost's x, v and angular velocity (9 doubles)
-    and its id (8 bytes): 80 bytes per ghost; a rank sends about what it receives;
+    and its id (8 bytes): 80 bytes per ghost (--ghost-bytes: an engine that sends the ids only
+    when the ghost lists change sends 72); a rank sends about what it receives;
   * messages per step per rank: "staged" exchanges one dimension after another (LAMMPS's
     scheme; edge and corner ghosts ride along), 2 per cut dimension, more when a subdomain is
     thinner than c; "direct" sends to every rank whose box touches its grown box;
@@ -176,7 +177,7 @@ def rows_for(bed, ranks, args, x):
             ghosts, staged, direct = model(bed, g)
             owned = bed.n / p
             gmax, gmean = max(ghosts), sum(ghosts) / p
-            bytes_max = gmax * GHOST_BYTES
+            bytes_max = gmax * args.ghost_bytes
             comm = bytes_max / args.bandwidth + max(staged) * args.latency
             compute = owned * args.core_ns * 1e-9
             row = {
@@ -238,6 +239,8 @@ def main():
     p.add_argument("--latency", type=float, default=20e-6, help="s per message (default 20e-6)")
     p.add_argument("--core-ns", type=float, default=95.0,
                    help="core-ns per particle-step on one core (default 95, docs/performance.md)")
+    p.add_argument("--ghost-bytes", type=float, default=GHOST_BYTES,
+                   help=f"bytes per ghost per step (default {GHOST_BYTES}: x, v, u and the id)")
     p.add_argument("--markdown", action="store_true", help="print Markdown tables")
     args = p.parse_args()
     try:
@@ -246,7 +249,7 @@ def main():
         sys.exit(f"halo_model: --ranks {args.ranks}: expected whole numbers, e.g. 1,2,4")
     if not ranks or min(ranks) < 1:
         sys.exit(f"halo_model: --ranks {args.ranks}: every count must be 1 or more")
-    for name in ("bandwidth", "latency", "core_ns"):
+    for name in ("bandwidth", "latency", "core_ns", "ghost_bytes"):
         if not getattr(args, name) > 0:
             sys.exit(f"halo_model: --{name.replace('_', '-')} must be positive")
     for n in (parse_size(s) for s in args.sizes.split(",") if s.strip()):
@@ -254,11 +257,11 @@ def main():
         x = load_positions(args.scene_dir, n)
         rows = rows_for(bed, ranks, args, x)
         print_table(bed, rows, args.markdown, x is not None)
-        if x is None:
+        if x is None and args.scene_dir:
             print(f"(no {args.scene_dir}/bed_{n}.h5: model only; bench/lammps/side_by_side.sh --sizes "
                   f"{n // 1000}k makes it)")
-    print(f"\nghost = grain within 2r + skin of a rank's box owned by another rank; {GHOST_BYTES} B per ghost "
-          f"per step (x, v, u, id); comm share = (bytes / {args.bandwidth:.3g} B/s + staged msgs x "
+    print(f"\nghost = grain within 2r + skin of a rank's box owned by another rank; {args.ghost_bytes:g} B per ghost "
+          f"per step; comm share = (bytes / {args.bandwidth:.3g} B/s + staged msgs x "
           f"{args.latency:.3g} s) against N/P x {args.core_ns:g} core-ns, one core per rank")
 
 
