@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# mpi_local_test: mpi_probe (tests/mpi/mpi_probe.cpp) with plain mpirun on this host, 2 and 3
+# mpi_local_test: mpi_probe (tests/mpi_hosts/mpi_probe.cpp) with plain mpirun on this host, 2 and 3
 # ranks: the sums, the ring's bytes and checksums, the rank count and the host are right; then
 # the probe's checks fail where they must (one host is not three; a wrong rank count; a bad
 # option), so a pass above means something.
