@@ -5,17 +5,18 @@
 # netns_relay. With --compare, then the same co-simulation with every process on this host (the
 # master launching dem_service itself, one rank), and the bucket's wrench of both compared.
 #
-#   bash bench/mpi/netns_wheel_loader.sh [--np 2] [--end 1.5] [--loss 0] [--compare]
+#   bash bench/mpi/netns_wheel_loader.sh [--np 1] [--end 1.5] [--loss 0] [--compare]
 #        [--config configs/wheel_loader.yaml] [--out results/wheel_loader_rig.h5]
 #
 # --end: the bucket meets the pile at t = 1.23 s (default 1.5 s: 1500 macro steps).
 # The soil's config and its --set options are those of participants.soil.launch in --config
 # (read from the YAML). Needs the prepared pile (bash scripts/prepare_pile_dry_sand.sh) and a
-# build; dem_service must run under mpirun for --np above 1 (docs/mpi.md).
+# build; --np above 1 needs dem_service that decomposes under mpirun (docs/mpi.md; until then two
+# ranks would both join the bus as soil and the master refuses the run, naming both).
 set -euo pipefail
 repo=$(cd "$(dirname "$0")/../.." && pwd)
 cd "$repo"
-np=2 end=1.5 loss=0 compare=0 config=configs/wheel_loader.yaml out=results/wheel_loader_rig.h5 bin=build/bin
+np=1 end=1.5 loss=0 compare=0 config=configs/wheel_loader.yaml out=results/wheel_loader_rig.h5 bin=build/bin
 bad() { echo "netns_wheel_loader: $*" >&2; exit 2; }
 while [ $# -gt 0 ]; do
   case "$1" in
