@@ -27,7 +27,7 @@ while [ $# -gt 0 ]; do
     --config) [ $# -ge 2 ] || bad "--config needs a file"; config=$2; shift 2 ;;
     --out) [ $# -ge 2 ] || bad "--out needs a file"; out=$2; shift 2 ;;
     --bin) [ $# -ge 2 ] || bad "--bin needs a folder"; bin=$2; shift 2 ;;
-    -h|--help) sed -n '2,14p' "$0" | sed 's/^# \{0,1\}//' >&2; exit 2 ;;
+    -h|--help) sed -n '2,15p' "$0" | sed 's/^# \{0,1\}//' >&2; exit 2 ;;
     *) bad "unknown option '$1' (see --help)" ;;
   esac
 done
