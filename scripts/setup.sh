@@ -14,6 +14,7 @@ packages=(
   python3-paraview xvfb xauth ffmpeg
   iproute2 util-linux
   clang libclang-rt-14-dev
+  openmpi-bin libopenmpi-dev
 )
 missing=()
 for p in "${packages[@]}"; do
