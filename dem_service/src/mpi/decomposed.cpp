@@ -220,8 +220,12 @@ Core core_of(const State& s, std::size_t i) {
 void pack_owned(const State& s, std::size_t i, const std::vector<std::int32_t>& rec_offset,
                 const std::vector<Record>& rec, Writer& w) {
   Core c = core_of(s, i);
+  // As the broad phase keeps them: a block's slots whatever the lists (a checkpoint loaded
+  // with new tools has invalid lists but keeps its boundary history); the pair records only
+  // with valid lists (pair_records), as the broad phase carries pair springs.
   const bool slots = s.slot_count.size() == s.size() && s.slot_block.size() == s.size() &&
-                     s.slot_block[i] >= 0 && s.lists_valid;
+                     s.slot_block[i] >= 0 &&
+                     (static_cast<std::size_t>(s.slot_block[i]) + 1) * B <= s.slot_key.size();
   c.nslot = slots ? s.slot_count[i] : 0;
   c.nrec = rec_offset[i + 1] - rec_offset[i];
   w.put(c);
