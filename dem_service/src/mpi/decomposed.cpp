@@ -293,8 +293,11 @@ std::int64_t exchange(MPI_Comm comm, const std::vector<Writer>& out, std::vector
   in.resize(static_cast<std::size_t>(in_start[P]));
   MPI_Alltoallv(send.data(), out_count.data(), out_start.data(), MPI_BYTE, in.data(),
                 in_count.data(), in_start.data(), MPI_BYTE, comm);
-  std::int64_t sent = 0;
-  for (int r = 0; r < P; ++r) sent += out_count[r];
+  int me = 0;
+  MPI_Comm_rank(comm, &me);
+  std::int64_t sent = 0;  // to the other ranks (a rank's own share is a copy)
+  for (int r = 0; r < P; ++r)
+    if (r != me) sent += out_count[r];
   return sent;
 }
 
