@@ -15,6 +15,8 @@ CASE is one of:
             stop where Coulomb friction puts them (closed form)
   restart   a 2-rank run writes one checkpoint (rank 0, the whole scene with every spring); 2
             ranks and 1 rank continue from it and equal the uninterrupted 2-rank run to round-off
+  rotating  the bed with the rotating particle model (spins, rolling springs): 2 and 3 ranks equal
+            1 rank to round-off, spins included
   refused   bad MPI settings refused by name: an unknown decomposition, more ranks than cells,
             sleeping on 2 ranks
 Exit 0 when the case holds, 1 with the reasons, 77 (skipped) when mpirun is not installed.
@@ -361,6 +363,30 @@ elif CASE == "restart":
             check(ok and np.array_equal(xw, xr) and np.array_equal(vw, vr),
                   "restarted on 2 ranks at a broad-phase step: the same bits as the "
                   "uninterrupted 2-rank run")
+
+elif CASE == "rotating":
+    cfg = bed_config("bed.yaml")
+    with open("rot.yaml", "w") as f:
+        f.write(open(cfg).read().replace("particles:\n", "particles:\n  model: rotating\n  rolling_resistance: "
+                         "{model: epsd, friction: 0.1, damping: 0.3}\n")
+                .replace("dt: 1.0e-5", "dt: 7.5e-6"))  # the rotating model's faster period
+    run("rot.yaml", "one.h5")
+    for n in (2, 3):
+        run("rot.yaml", "n%d.h5" % n, ranks=n)
+        d = max_differences("one.h5", "n%d.h5" % n)
+        check(d is not None, "%d ranks: the same particles in the same snapshots" % n)
+        if d is None:
+            continue
+        check(d[0] < 1e-10 and d[1] < 1e-7,
+              "%d ranks: positions and velocities equal 1 rank's to %.2g m, %.2g m/s" % (n, d[0], d[1]))
+        with h5py.File("one.h5", "r") as fa, h5py.File("n%d.h5" % n, "r") as fb:
+            k = sorted(fa["particles"])[-1]
+            wa = fa["particles"][k]["angular_velocity"][:]
+            wb = fb["particles"][k]["angular_velocity"][:]
+        spin = float(np.abs(wa).max())
+        dw = float(np.abs(wa - wb).max())
+        check(spin > 1.0 and dw < 1e-9 * spin,
+              "%d ranks: spins (largest %.3g rad/s) equal 1 rank's to %.2g rad/s" % (n, spin, dw))
 
 elif CASE == "refused":
     bed_config("bed.yaml")

@@ -98,9 +98,6 @@ void check_supported(const RunConfig& rc, const EngineOptions& options, int rank
     refuse("settle: is not supported on " + n +
            ": settle the bed on one rank (dem_run without mpirun) and start from its checkpoint "
            "(particles.checkpoint)");
-  if (sc.rotation.rotating())
-    refuse("scene.rotation.model: rotating is not supported on " + n +
-           " yet; use the translating model or run on one rank");
 }
 
 // --- Wire formats.
