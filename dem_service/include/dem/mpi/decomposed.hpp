@@ -74,6 +74,9 @@ struct HaloStats {
   std::int64_t migrated = 0;         // particles that changed rank
   std::int64_t rebalances = 0;       // re-cuts of the slabs
   std::int64_t migration_bytes = 0;  // sent by the broad phases' migration and ghost setup
+  double seconds_rebuild = 0;   // wall time of the broad phases with migration and ghost setup
+  double seconds_exchange = 0;  // wall time of the forward exchanges and the guard's tally
+                                // (waits for the other ranks included)
 };
 
 // One rank's part of a decomposed run. Every rank calls every member in the same order with the
