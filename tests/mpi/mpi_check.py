@@ -18,7 +18,7 @@ CASE is one of:
   rotating  the bed with the rotating particle model (spins, rolling springs): 2 and 3 ranks equal
             1 rank to round-off, spins included
   refused   bad MPI settings refused by name: an unknown decomposition, more ranks than cells,
-            sleeping on 2 ranks
+            sleeping on 2 ranks, dem_service on 2 ranks
 Exit 0 when the case holds, 1 with the reasons, 77 (skipped) when mpirun is not installed.
 """
 import os
@@ -412,6 +412,11 @@ output:
                      sets=["scene.sleep.enabled=true"], expect_ok=False)
     check(code == 2 and "scene.sleep is not supported on 2 ranks" in text,
           "sleeping on 2 ranks is refused by name with the reason")
+    p = subprocess.run([MPIRUN, "--oversubscribe", "--allow-run-as-root", "-np", "2",
+                        os.path.join(BIN, "dem_service"), "bed.yaml"], env=ENV,
+                       capture_output=True, text=True, timeout=120)
+    check(p.returncode != 0 and "dem_service does not run on several ranks yet" in p.stdout + p.stderr,
+          "dem_service under mpirun -np 2 is refused (not two participants on the bus)")
 else:
     raise SystemExit("mpi_check: unknown case " + CASE)
 

@@ -38,6 +38,9 @@ Options take_options(YAML::Node& root);
 // Whether this process was started by mpirun / mpiexec / srun (their environment variables):
 // only then does a program call MPI_Init. A program started alone is today's program.
 bool launched_by_mpirun();
+// The rank count mpirun / srun gives this job (OMPI_COMM_WORLD_SIZE, PMI_SIZE), from the
+// environment without MPI; 1 when started alone.
+int launched_ranks();
 
 // MPI_Init_thread (funneled: OpenMP threads inside a rank, MPI from the main thread) and
 // MPI_Finalize. rank() and size() of MPI_COMM_WORLD.
