@@ -158,12 +158,14 @@ struct Reader {
 // Particles with their boundary slots and pair records (owned), or without (ghosts, gathers).
 struct Particles {
   std::vector<Core> core;
-  std::vector<Slot> slot;  // B per particle
+  std::vector<std::int32_t> slot_offset{0};  // CSR: each particle's nslot slots
+  std::vector<Slot> slot;
   std::vector<std::int32_t> rec_offset{0};
   std::vector<Record> rec;
   std::size_t size() const { return core.size(); }
   void clear() {
     core.clear();
+    slot_offset.assign(1, 0);
     slot.clear();
     rec_offset.assign(1, 0);
     rec.clear();
@@ -244,9 +246,8 @@ void unpack_owned(Reader& r, Particles& out) {
   while (r.p < r.end) {
     const Core c = r.get<Core>();
     out.core.push_back(c);
-    const std::size_t base = out.slot.size();
-    out.slot.resize(base + B, Slot{0, Vec3{}, Vec3{}});
-    for (int k = 0; k < c.nslot; ++k) out.slot[base + k] = r.get<Slot>();
+    for (int k = 0; k < c.nslot; ++k) out.slot.push_back(r.get<Slot>());
+    out.slot_offset.push_back(static_cast<std::int32_t>(out.slot.size()));
     for (int k = 0; k < c.nrec; ++k) out.rec.push_back(r.get<Record>());
     out.rec_offset.push_back(static_cast<std::int32_t>(out.rec.size()));
   }
@@ -262,10 +263,15 @@ void sort_by_id(Particles& p) {
             [&](std::size_t a, std::size_t b) { return p.core[a].id < p.core[b].id; });
   Particles q;
   q.core.reserve(n);
-  const bool slots = p.slot.size() == n * B;
+  q.slot.reserve(p.slot.size());
+  q.rec.reserve(p.rec.size());
+  const bool slots = p.slot_offset.size() == n + 1;
   for (const std::size_t i : order) {
     q.core.push_back(p.core[i]);
-    if (slots) q.slot.insert(q.slot.end(), p.slot.begin() + i * B, p.slot.begin() + (i + 1) * B);
+    if (slots) {
+      q.slot.insert(q.slot.end(), p.slot.begin() + p.slot_offset[i], p.slot.begin() + p.slot_offset[i + 1]);
+      q.slot_offset.push_back(static_cast<std::int32_t>(q.slot.size()));
+    }
     if (p.rec_offset.size() == n + 1) {
       q.rec.insert(q.rec.end(), p.rec.begin() + p.rec_offset[i], p.rec.begin() + p.rec_offset[i + 1]);
       q.rec_offset.push_back(static_cast<std::int32_t>(q.rec.size()));
@@ -403,10 +409,11 @@ void assemble(const Scene& scene, Particles& own, Particles& gh, State& s, Engin
     t.slot_count[i] = static_cast<std::uint8_t>(ns);
     t.slot_particle.push_back(static_cast<std::int32_t>(i));
     for (int k = 0; k < B; ++k) {
-      const Slot& sl = own.slot[i * B + k];
-      t.slot_key.push_back(k < ns ? sl.key : 0);
-      t.slot_spring.push_back(k < ns ? sl.spring : Vec3{});
-      if (rotating) t.slot_roll.push_back(k < ns ? sl.roll : Vec3{});
+      const Slot sl = k < ns ? own.slot[static_cast<std::size_t>(own.slot_offset[i] + k)]
+                             : Slot{0, Vec3{}, Vec3{}};
+      t.slot_key.push_back(sl.key);
+      t.slot_spring.push_back(sl.spring);
+      if (rotating) t.slot_roll.push_back(sl.roll);
     }
   }
   t.lists_valid = false;
