@@ -121,11 +121,16 @@ walls:
 """
 
 
+BED_MADE = False
+
+
 def bed_checkpoint():
     """A bed of 700 grains 0.08 s after they were released from a lattice: falling into place,
     full of contacts (made by dem_run alone)."""
-    if os.path.exists("bed_ckpt.h5"):
+    global BED_MADE
+    if BED_MADE:  # once per case (never a file left by an earlier build)
         return
+    BED_MADE = True
     with open("prep.yaml", "w") as f:
         f.write(BED_SCENE + """particles:
   fill:
