@@ -334,6 +334,10 @@ output:
         check(float(np.abs(v[stuck]).max()) < 1e-6,
               "%d ranks: the grains of the resting lanes are at rest (|v| < %.2g m/s)"
               % (n, float(np.abs(v[stuck]).max())))
+        cuts = [float(c) for c in re.search(r"cuts at ([-0-9.e ]+) m", text).group(1).split()]
+        crossed = sum(1 for x0, x1 in zip(movers, x[ids >= 27, 0]) for c in cuts if x0 < c <= x1)
+        check(crossed >= 1, "%d ranks: movers slid across the final cut(s) %s and stuck there "
+              "(%d crossings)" % (n, cuts, crossed))
         travelled = x[ids >= 27, 0] - np.array(movers)
         err = float(np.abs(travelled / stop - 1).max())
         check(err < 0.01, "%d ranks: the movers slid %.4f .. %.4f m, Coulomb's v0^2 / (2 (mu g cos "
