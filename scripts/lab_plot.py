@@ -1,12 +1,15 @@
 #!/usr/bin/python3
 """Charts of the virtual lab tests (docs/soil_lab.md), from the CSVs dem_lab writes.
 
-    /usr/bin/python3 scripts/lab_plot.py triaxial|repose DIR
+    /usr/bin/python3 scripts/lab_plot.py triaxial|biaxial|repose DIR
 
 triaxial: DIR/triaxial.png (deviatoric stress and volumetric strain against axial strain, one
 curve per confining pressure) and DIR/triaxial_mohr.png (Mohr circles at peak with the
-Mohr-Coulomb envelope of triaxial_fit.csv). repose: DIR/repose.png (the heap's grains seen from
-the side, the surface points and the fitted slope).
+Mohr-Coulomb envelope of triaxial_fit.csv). biaxial (plane strain): the same from
+biaxial_*.csv as DIR/biaxial.png, with a third panel of the intermediate stress ratio
+b = (sigma_2 - sigma_3) / (sigma_1 - sigma_3) on the fixed walls, and DIR/biaxial_mohr.png.
+The dotted lines mark each test's peak. repose: DIR/repose.png (the heap's grains seen from the
+side, the surface points and the fitted slope).
 """
 import csv
 import math
@@ -23,31 +26,47 @@ def rows(path):
         return list(csv.DictReader(f))
 
 
-def triaxial(d):
-    curves = rows(f"{d}/triaxial_curves.csv")
-    summary = rows(f"{d}/triaxial_summary.csv")
-    fit = {r["state"]: r for r in rows(f"{d}/triaxial_fit.csv")}
+def triaxial(d, name="triaxial"):
+    curves = rows(f"{d}/{name}_curves.csv")
+    summary = rows(f"{d}/{name}_summary.csv")
+    fit = {r["state"]: r for r in rows(f"{d}/{name}_fit.csv")}
+    plane = name == "biaxial"
     by = {}
     for r in curves:
         by.setdefault(float(r["confining_Pa"]), []).append(r)
-    fig, (a, b) = plt.subplots(2, 1, figsize=(7, 8), sharex=True)
-    for p, rs in sorted(by.items()):
+    if plane:
+        fig, (a, b, c) = plt.subplots(3, 1, figsize=(7, 10), sharex=True)
+    else:
+        fig, (a, b) = plt.subplots(2, 1, figsize=(7, 8), sharex=True)
+    peaks = {float(r["confining_Pa"]): float(r["peak_axial_strain"]) for r in summary}
+    for k, (p, rs) in enumerate(sorted(by.items())):
         e = [100 * float(r["axial_strain"]) for r in rs]
         a.plot(e, [float(r["q_Pa"]) / 1e3 for r in rs], label=f"$\\sigma_3$ = {p / 1e3:g} kPa")
         b.plot(e, [-100 * float(r["volumetric_strain"]) for r in rs])
+        if p in peaks:
+            a.axvline(100 * peaks[p], color=f"C{k}", lw=0.6, ls=":")
+        if plane:
+            c.plot(e[1:], [(float(r["sigma2_Pa"]) - float(r["sigma3_Pa"])) /
+                           max(float(r["sigma1_Pa"]) - float(r["sigma3_Pa"]), 1e-9) for r in rs[1:]])
     a.set_ylabel("deviatoric stress $\\sigma_1 - \\sigma_3$ [kPa]")
     a.legend()
     a.grid(alpha=0.3)
     b.set_ylabel("volumetric strain [%] (dilation positive)")
-    b.set_xlabel("axial strain [%]")
     b.grid(alpha=0.3)
+    if plane:
+        c.set_ylabel("b = $(\\sigma_2 - \\sigma_3) / (\\sigma_1 - \\sigma_3)$")
+        c.set_ylim(-0.1, 1.0)
+        c.grid(alpha=0.3)
+        c.set_xlabel("axial strain [%]")
+    else:
+        b.set_xlabel("axial strain [%]")
     pk = fit.get("peak")
-    title = "virtual triaxial test"
+    title = "virtual biaxial (plane-strain) test" if plane else "virtual triaxial test"
     if pk:
         title += f": peak $\\varphi$ = {float(pk['phi_origin_deg']):.1f} deg"
     a.set_title(title)
     fig.tight_layout()
-    fig.savefig(f"{d}/triaxial.png", dpi=120)
+    fig.savefig(f"{d}/{name}.png", dpi=120)
 
     fig, ax = plt.subplots(figsize=(8, 5))
     smax = 0
@@ -75,9 +94,9 @@ def triaxial(d):
     ax.set_xlim(0, smax * 1.05)
     ax.set_ylim(0, smax * 0.6)
     ax.legend(fontsize=8)
-    ax.set_title("Mohr circles at peak")
+    ax.set_title("Mohr circles (sigma_1, sigma_3) at peak" + (", plane strain" if plane else ""))
     fig.tight_layout()
-    fig.savefig(f"{d}/triaxial_mohr.png", dpi=120)
+    fig.savefig(f"{d}/{name}_mohr.png", dpi=120)
 
 
 def repose(d):
@@ -103,6 +122,9 @@ def repose(d):
 
 
 if __name__ == "__main__":
-    if len(sys.argv) != 3 or sys.argv[1] not in ("triaxial", "repose"):
-        sys.exit("usage: lab_plot.py triaxial|repose DIR")
-    (triaxial if sys.argv[1] == "triaxial" else repose)(sys.argv[2])
+    if len(sys.argv) != 3 or sys.argv[1] not in ("triaxial", "biaxial", "repose"):
+        sys.exit("usage: lab_plot.py triaxial|biaxial|repose DIR")
+    if sys.argv[1] == "repose":
+        repose(sys.argv[2])
+    else:
+        triaxial(sys.argv[2], sys.argv[1])

@@ -1,6 +1,10 @@
 #!/usr/bin/env bash
 # Installs every Debian 12 package the project builds, tests and plots with.
 # Idempotent; run as root (CI and the README's commands call it).
+# MPI (docs/mpi.md): OpenMPI's mpirun refuses to start, even on one host, unless an rsh agent
+# (ssh) exists, hence openssh-client (openmpi-bin depends on it as well); ethtool switches off
+# the checksum offload of the netns rig's hosts (tests/netns/rig.sh), without which TCP does not
+# cross its relay.
 set -euo pipefail
 packages=(
   build-essential cmake pkg-config git
@@ -12,8 +16,9 @@ packages=(
   libminizip-dev libpugixml-dev
   python3-matplotlib python3-h5py python3-numpy python3-yaml
   python3-paraview xvfb xauth ffmpeg
-  iproute2 util-linux
+  iproute2 util-linux ethtool openssh-client
   clang libclang-rt-14-dev
+  openmpi-bin libopenmpi-dev
 )
 missing=()
 for p in "${packages[@]}"; do

@@ -5,9 +5,12 @@ Reads the master's record of a main-job run (results/wheel_loader.csv, written b
 `bash scripts/run.sh`) and writes the bucket pose the loader sent to the soil, so that the
 main job's DEM can be stepped alone (dem_run, engine_ab) with the recorded maneuver:
 
-    /usr/bin/python3 bench/dem/main_job_motion.py [results/wheel_loader.csv] [--out FILE]
+    /usr/bin/python3 bench/dem/main_job_motion.py [results/wheel_loader.csv] [--out FILE] [--from T]
 
-Default output: results/main_job_motion.csv (bench/dem/main_job.yaml reads it).
+Default output: results/main_job_motion.csv (bench/dem/main_job.yaml reads it). --from T keeps
+the poses from T s on with T as time 0: a run from a checkpoint at T that starts its clock at
+0 (particles.keep_time: false), e.g. to compare DEM steps of different sizes, which a
+checkpoint's clock (its step count times dt) would put at different times of the maneuver.
 """
 import argparse
 import csv
@@ -20,7 +23,11 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("record", nargs="?", default="results/wheel_loader.csv")
     ap.add_argument("--out", default="results/main_job_motion.csv")
+    ap.add_argument("--from", dest="start", type=float, default=0.0,
+                    help="first time kept, written as time 0 (default 0)")
     a = ap.parse_args()
+    if not a.start >= 0:
+        sys.exit(f"main_job_motion: --from must be a time >= 0 in s, got {a.start}")
     try:
         f = open(a.record, newline="")
     except OSError as e:
@@ -44,10 +51,13 @@ def main():
                 sys.exit(f"main_job_motion: {a.record} line {line}: not a number in the pose columns")
             if last_t is not None and v[0] <= last_t:
                 continue  # keyframes must increase in time
+            if v[0] < a.start - 1e-9:
+                continue
             last_t = v[0]
+            v[0] = max(0.0, v[0] - a.start)
             out.append(v)
     if len(out) < 2:
-        sys.exit(f"main_job_motion: {a.record} has fewer than two poses")
+        sys.exit(f"main_job_motion: {a.record} has fewer than two poses" + (f" from {a.start:g} s" if a.start else ""))
     with open(a.out, "w") as g:
         g.write("time,x,y,z,qw,qx,qy,qz\n")
         for v in out:

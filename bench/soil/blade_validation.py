@@ -13,6 +13,7 @@ and for the soil-blade friction angle delta = atan(blade friction).
         [--depths 0.04,0.06] [--rakes 90,45] [--bin-length 0.28] [--bed-height 0.09]
         [--material configs/materials/dry_sand.yaml] [--model translating|rotating]
         [--rolling-friction 0.1] [--rolling-damping 0.3] [--blade-friction 0.2]
+        [--test triaxial|biaxial] [--lab-seeds 1]
 
 Without --material the soil is the study's own (1 cm grains, mu 0.2, GRAIN and LAW below). With
 --material the grains (density, radius), the particle law and the deposition friction of the bed
@@ -25,9 +26,15 @@ is 0.85 of the engine's largest safe step for the law and model (asked from dem_
 resistance; the bed is prepared (and shared) by the translating model, and the triaxial test is
 run with the same model (dem_lab must know `grains.model`, or --phi gives the angle).
 
+--test biaxial takes the friction angle from `dem_lab biaxial` (plane strain, the blade's own
+deformation: Reece's wedge is a plane analysis) instead; the table and chart then carry
+`_biaxial` in their names. --lab-seeds N runs the lab test on N samples (seeds) and takes the
+mean of their fits (sample 1 is the single-sample run's, reused).
+
 Steps (each skipped when its output exists, made from the same config, and --fresh is not
 given):
   1. triaxial: dem_lab triaxial bench/soil/blade_triaxial.yaml (the blade's law) -> phi
+     (or dem_lab biaxial bench/soil/blade_biaxial.yaml)
   2. beds: one prepared bed per seed (random insertion, frictionless deposition, frozen with
      the law's friction), configs written to OUT/bed_s<seed>.yaml
   3. cases: per seed, depth and rake, a dem_run config OUT/case_*.yaml loading the bed, with
@@ -129,6 +136,11 @@ def tag():
     return "" if MODEL == "translating" else "_rot"
 
 
+def lab_tag():
+    """Suffix of the table and chart whose theory takes the biaxial (plane-strain) angle."""
+    return "" if ARGS.test == "triaxial" else "_" + ARGS.test
+
+
 def model_yaml():
     """particles.model lines of a case (nothing for the default translating model)."""
     if MODEL == "translating":
@@ -212,42 +224,61 @@ def run(cmd, log, cwd=None):
 
 
 def triaxial(out, build):
-    tri_dir = os.path.join(out, "triaxial" + tag())
-    fit = os.path.join(tri_dir, "triaxial_summary.csv")
-    cfg = os.path.join(os.path.dirname(os.path.abspath(__file__)), "blade_triaxial.yaml")
+    """The friction angle for the theory: `dem_lab triaxial` (or `biaxial` with --test biaxial,
+    the plane-strain angle) on the blade's grains, one sample per --lab-seeds. Returns the mean
+    over the samples of the Mohr-Coulomb fit through the origin and, per confining pressure,
+    the samples' mean peak angle, axial strain and inner packing."""
+    name = ARGS.test
+    cfg = os.path.join(os.path.dirname(os.path.abspath(__file__)), f"blade_{name}.yaml")
     sets = [f"grains.contact.{k}={v}" for k, v in LAW.items()]
     sets += [f"grains.density={GRAIN['density']}",
              f"grains.radius={{min: {GRAIN['r_min']}, max: {GRAIN['r_max']}}}",
              f"sample.preparation_friction={DEPOSITION_FRICTION}",
-             "triaxial.confining_pressures=[" + ", ".join(f"{p:g}" for p in CONFINING) + "]"]
+             f"{name}.confining_pressures=[" + ", ".join(f"{p:g}" for p in CONFINING) + "]"]
     if MATERIAL:
         # the material's samples (compacted with its deposition friction, looser than the
         # default study's frictionless ones) peak late: to 15 % axial strain
-        sets.append("triaxial.max_axial_strain=0.15")
+        sets.append(f"{name}.max_axial_strain=0.15")
     if MODEL != "translating":
         sets += [f"grains.model={MODEL}",
                  f"grains.rolling_resistance={{model: epsd, friction: {ROLLING['friction']}, "
                  f"damping: {ROLLING['damping']}}}"]
     if ARGS.phi is not None:
         return ARGS.phi, [(CONFINING[0], ARGS.phi, float("nan"), float("nan"))]
-    cmd = [ARGS.lab or os.path.join(build, "bin", "dem_lab"), "triaxial", cfg, "--out",
-           tri_dir, "--no-plot"] + sum([["--set", x] for x in sets], [])
-    stamp = os.path.join(out, f"triaxial{tag()}.cmd")   # the test's inputs (not its output folder)
-    what = " ".join(["triaxial", cfg] + sets) + "\n"
-    if ARGS.fresh or not os.path.exists(fit) or not same_config(stamp, what):
-        print("triaxial: dem_lab triaxial", cfg, flush=True)
-        run(cmd, os.path.join(out, f"triaxial{tag()}.log"))
-        with open(stamp, "w") as f:
-            f.write(what)
-    rows = list(csv.DictReader(open(fit)))
-    s3 = np.array([float(r["sigma3_peak_Pa"]) for r in rows])
-    s1 = np.array([float(r["sigma1_peak_Pa"]) for r in rows])
-    # Mohr-Coulomb through the origin (cohesionless): sin phi = sum(s t) / sum(s^2).
-    s, t = (s1 + s3) / 2, (s1 - s3) / 2
-    phi = math.degrees(math.asin(float(np.sum(s * t) / np.sum(s * s))))
-    per = [(float(r["confining_Pa"]), float(r["phi_peak_deg"]), float(r["peak_axial_strain"]),
-            float(r["packing_inner"])) for r in rows]
-    return phi, per
+    fits, pers = [], []
+    for seed in range(1, ARGS.lab_seeds + 1):
+        # seed 1 is the config's own sample (the folder and stamp of a single-sample run)
+        sfx = "" if seed == 1 else f"_s{seed}"
+        seed_sets = sets + ([f"sample.seed={seed}"] if seed > 1 else [])
+        tri_dir = os.path.join(out, name + tag() + sfx)
+        fit = os.path.join(tri_dir, f"{name}_summary.csv")
+        cmd = [ARGS.lab or os.path.join(build, "bin", "dem_lab"), name, cfg, "--out",
+               tri_dir, "--no-plot"] + sum([["--set", x] for x in seed_sets], [])
+        stamp = os.path.join(out, f"{name}{tag()}{sfx}.cmd")   # the test's inputs (not its output folder)
+        what = " ".join([name, cfg] + seed_sets) + "\n"
+        if ARGS.fresh or not os.path.exists(fit) or not same_config(stamp, what):
+            print(f"{name}: dem_lab {name}", cfg, f"(sample {seed})", flush=True)
+            run(cmd, os.path.join(out, f"{name}{tag()}{sfx}.log"))
+            with open(stamp, "w") as f:
+                f.write(what)
+        rows = list(csv.DictReader(open(fit)))
+        s3 = np.array([float(r["sigma3_peak_Pa"]) for r in rows])
+        s1 = np.array([float(r["sigma1_peak_Pa"]) for r in rows])
+        # Mohr-Coulomb through the origin (cohesionless): sin phi = sum(s t) / sum(s^2).
+        s, t = (s1 + s3) / 2, (s1 - s3) / 2
+        fits.append(math.degrees(math.asin(float(np.sum(s * t) / np.sum(s * s)))))
+        pers.append([(float(r["confining_Pa"]), float(r["phi_peak_deg"]), float(r["peak_axial_strain"]),
+                      float(r["packing_inner"])) for r in rows])
+    if len(fits) > 1:
+        sd = float(np.std(fits, ddof=1))
+        print(f"{name}: {len(fits)} samples, through the origin " + ", ".join(f"{f:.2f}" for f in fits) +
+              f" deg: mean {np.mean(fits):.2f}, sd {sd:.2f}, 95 % interval of the mean +- "
+              f"{T95[len(fits) - 1] * sd / math.sqrt(len(fits)):.2f} deg", flush=True)
+    per = [tuple(float(np.mean([p[i][j] for p in pers])) for j in range(4)) for i in range(len(pers[0]))]
+    return float(np.mean(fits)), per
+
+
+T95 = {1: 12.71, 2: 4.30, 3: 3.18, 4: 2.78, 5: 2.57, 6: 2.45, 7: 2.36, 8: 2.31, 9: 2.26}
 
 
 def bed_measures(h5):
@@ -411,7 +442,14 @@ def main():
     p.add_argument("--phi", type=float, default=None,
                    help="friction angle for the theory (deg) instead of the triaxial test's (say where it came from)")
     p.add_argument("--lab", default=None, help="the dem_lab to run the triaxial test with (default BUILD/bin/dem_lab)")
+    p.add_argument("--test", default="triaxial", choices=["triaxial", "biaxial"],
+                   help="the lab test whose angle the theory takes: triaxial (default) or biaxial, "
+                        "the plane-strain angle (Reece's wedge is a plane analysis)")
+    p.add_argument("--lab-seeds", type=int, default=1,
+                   help="samples (seeds) of the lab test; the theory takes the mean of their fits")
     ARGS = p.parse_args()
+    if not 1 <= ARGS.lab_seeds <= 10:
+        sys.exit("blade_validation: --lab-seeds must lie in 1 .. 10")
     if ARGS.phi is not None and not (10 < ARGS.phi < 70):
         sys.exit("blade_validation: --phi must lie in (10, 70) deg")
     if ARGS.material:
@@ -487,7 +525,7 @@ def main():
         tri = ex.submit(triaxial, out, build)
         beds = dict(zip(seeds, ex.map(prep, seeds)))
         phi, per = tri.result()
-    print(f"triaxial (dem_lab, {len(per)} tests): peak phi through the origin {phi:.2f} deg; per test " +
+    print(f"{ARGS.test} (dem_lab, {len(per)} tests): peak phi through the origin {phi:.2f} deg; per test " +
           ", ".join(f"{s3 / 1e3:g} kPa {ph:.1f} deg at {100 * e:.1f} %" for s3, ph, e, _ in per), flush=True)
     for s, b in beds.items():
         print(f"bed seed {s}: {b['grains']} grains, packing {b['packing']:.3f} inside (1 diameter from "
@@ -556,7 +594,7 @@ def main():
     # Per case: mean over seeds of the window means; the scatter is the larger of the seeds'
     # spread and the window std of a seed divided by sqrt(windows) (reported both).
     print()
-    print(f"phi {phi:.2f} deg (triaxial peak), delta {delta:.2f} deg (atan {BLADE_FRICTION}), "
+    print(f"phi {phi:.2f} deg ({ARGS.test} peak), delta {delta:.2f} deg (atan {BLADE_FRICTION}), "
           f"gamma {gamma:.0f} N/m^3 (bulk density {rho_b:.0f}), width {BIN_W} m, speed {ARGS.speed} m/s, "
           f"steady window {STEADY_FROM}-{TRAVEL} m of travel")
     hdr = ("depth m | rake deg | speed m/s | DEM draft N per seed (window sd, +- block se) | mean +- sd of seeds | "
@@ -587,7 +625,7 @@ def main():
               f"{m / th:.3f} | {summary[-1]['phi_p']:.1f} | {summary[-1]['theory_p']:.2f} | {summary[-1]['ratio_p']:.3f} | "
               f"{summary[-1]['delta_mob']:.1f} | {summary[-1]['theory_pd']:.2f} | {summary[-1]['ratio_pd']:.3f} | "
               f"{1000 * summary[-1]['hq']:.1f} | {summary[-1]['peak']:.2f} | {rs[0]['inertial']:.1e}")
-    with open(os.path.join(out, f"blade_summary{tag()}.csv"), "w", newline="") as f:
+    with open(os.path.join(out, f"blade_summary{tag()}{lab_tag()}.csv"), "w", newline="") as f:
         wr = csv.DictWriter(f, fieldnames=list(summary[0].keys()))
         wr.writeheader()
         wr.writerows(summary)
@@ -654,13 +692,13 @@ def plot(out, summary, curves, phi, delta):
         th = rs[0]["theory"] * (dd / rs[0]["depth"]) ** 2
         ax[1].plot(dd * 100, th, "--", color=col, label=f"Reece rake {a:.0f} deg, phi {phi:.1f} deg")
         ax[1].plot(d * 100, [r["theory_p"] for r in rs], "x", color=col, ms=8,
-                   label=f"Reece rake {a:.0f} deg, triaxial phi at the wedge's stress")
+                   label=f"Reece rake {a:.0f} deg, {ARGS.test} phi at the wedge's stress")
     ax[1].set_xlabel("depth (cm)")
     ax[1].set_ylabel("steady draft force (N)")
-    ax[1].set_title(f"phi {phi:.1f} deg (triaxial), delta {delta:.1f} deg, width {BIN_W * 100:g} cm", fontsize=9)
+    ax[1].set_title(f"phi {phi:.1f} deg ({ARGS.test}), delta {delta:.1f} deg, width {BIN_W * 100:g} cm", fontsize=9)
     ax[1].legend(fontsize=7)
     fig.tight_layout()
-    png = os.path.join(out, f"blade_validation{tag()}.png")
+    png = os.path.join(out, f"blade_validation{tag()}{lab_tag()}.png")
     fig.savefig(png, dpi=120)
     print("chart:", png)
 

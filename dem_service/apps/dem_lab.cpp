@@ -1,4 +1,4 @@
-// dem_lab triaxial|repose CONFIG.yaml [--set dotted.key=value ...] [--out DIR] [--no-plot]
+// dem_lab triaxial|biaxial|repose CONFIG.yaml [--set dotted.key=value ...] [--out DIR] [--no-plot]
 // Virtual lab tests of the DEM engine (docs/soil_lab.md): CSVs of the curves and a summary in
 // DIR (default results/lab), charts by scripts/lab_plot.py (/usr/bin/python3, matplotlib).
 #include <cmath>
@@ -26,9 +26,10 @@ namespace fs = std::filesystem;
 namespace lab = dem::lab;
 
 void usage() {
-  std::cerr << "usage: dem_lab triaxial|repose CONFIG.yaml [--set dotted.key=value ...] "
+  std::cerr << "usage: dem_lab triaxial|biaxial|repose CONFIG.yaml [--set dotted.key=value ...] "
                "[--out DIR] [--no-plot]\n"
                "  triaxial: servo-controlled true-triaxial compression at each confining pressure\n"
+               "  biaxial:  plane-strain compression (the y walls fixed) at each confining pressure\n"
                "  repose:   lifted-cylinder angle of repose\n"
                "  Writes CSVs to DIR (default results/lab) and charts them with "
                "scripts/lab_plot.py; see docs/soil_lab.md.\n";
@@ -57,9 +58,11 @@ std::string model_text(const lab::Grains& g) {
   return t.str();
 }
 
-int run_triaxial(const YAML::Node& root, const fs::path& out) {
-  const lab::TriaxialOptions o = lab::parse_triaxial(root);
-  std::cerr << "triaxial: " << o.count << " grains, r " << o.grains.radius_min << " .. "
+// The triaxial and the biaxial test: the same rig, CSVs named after the test.
+int run_compression(const YAML::Node& root, const fs::path& out, const std::string& name) {
+  const lab::TriaxialOptions o =
+      name == "biaxial" ? lab::parse_biaxial(root) : lab::parse_triaxial(root);
+  std::cerr << name << ": " << o.count << " grains, r " << o.grains.radius_min << " .. "
             << o.grains.radius_max << " m, mu " << o.grains.law.friction << ", k_T/k_N "
             << o.grains.law.tangential_stiffness_ratio << ", " << model_text(o.grains) << ", "
             << o.confining.size() << " confining pressures\n";
@@ -71,18 +74,19 @@ int run_triaxial(const YAML::Node& root, const fs::path& out) {
   std::vector<lab::TriaxialTest> tests;
   for (double p : o.confining) tests.push_back(lab::run_triaxial(o, sample, p, progress));
 
-  std::ofstream c = open_out(out / "triaxial_curves.csv");
+  std::ofstream c = open_out(out / (name + "_curves.csv"));
   c << "confining_Pa,axial_strain,volumetric_strain,sigma1_Pa,sigma3_Pa,q_Pa,sin_phi,packing,"
-       "time_s\n";
+       "time_s,sigma2_Pa,strain2,strain3\n";
   for (const auto& t : tests)
     for (const auto& r : t.curve)
       c << t.confining << "," << r.axial_strain << "," << r.volumetric_strain << "," << r.sigma1
         << "," << r.sigma3 << "," << r.q() << "," << r.sin_phi() << "," << r.packing << ","
-        << r.time << "\n";
-  std::ofstream s = open_out(out / "triaxial_summary.csv");
+        << r.time << "," << r.sigma2 << "," << r.strain2 << "," << r.strain3 << "\n";
+  std::ofstream s = open_out(out / (name + "_summary.csv"));
   s << "confining_Pa,grains,packing,packing_inner,bulk_density_kg_m3,porosity,coordination,strain_rate_1_s,"
        "inertial_number,peak_axial_strain,sigma1_peak_Pa,sigma3_peak_Pa,phi_peak_deg,phi_end_deg,"
-       "dilatancy_end,critical_state,servo_worst\n";
+       "dilatancy_end,critical_state,servo_worst,sigma2_peak_Pa,b_peak,dilatancy_max,psi_max_deg,"
+       "phi_max_deg,phi_first_peak_deg\n";
   std::vector<double> s1, s3, e1, e3;
   bool all_critical = true;
   for (const auto& t : tests) {
@@ -96,11 +100,19 @@ int run_triaxial(const YAML::Node& root, const fs::path& out) {
       << t.packing_inner * o.grains.density << "," << 1 - t.packing_inner << "," << t.coordination << ","
       << t.strain_rate << "," << t.inertial_number << "," << pk.axial_strain << "," << pk.sigma1
       << "," << pk.sigma3 << "," << t.phi_peak << "," << t.phi_end << "," << t.dilatancy_end
-      << "," << (t.critical ? 1 : 0) << "," << t.servo_worst << "\n";
+      << "," << (t.critical ? 1 : 0) << "," << t.servo_worst << "," << t.sigma2_peak << ","
+      << t.b_peak << "," << t.dilatancy_max << "," << t.psi_max << "," << t.phi_max << ","
+      << t.phi_first_peak << "\n";
     std::cout << std::fixed << std::setprecision(2) << "sigma3 " << t.confining / 1e3
               << " kPa: packing " << std::setprecision(3) << t.packing << " (inner " << t.packing_inner << "), " << std::setprecision(2)
               << t.coordination << " contacts/grain, peak phi " << t.phi_peak << " deg at "
-              << 100 * pk.axial_strain << " % axial strain, end phi " << t.phi_end
+              << 100 * pk.axial_strain << " % axial strain";
+    if (o.plane_strain)
+      std::cout << " (sigma2 " << t.sigma2_peak / 1e3 << " kPa, b " << t.b_peak << ", psi_max "
+                << t.psi_max << " deg)";
+    if (t.phi_max > t.phi_peak + 1e-9)
+      std::cout << ", largest " << t.phi_max << " deg";
+    std::cout << ", end phi " << t.phi_end
               << " deg (dilatancy " << std::setprecision(3) << t.dilatancy_end
               << (t.critical ? ", critical state" : ", not yet critical") << "), servo within "
               << std::setprecision(2) << 100 * t.servo_worst << " %, I = " << std::scientific
@@ -108,7 +120,7 @@ int run_triaxial(const YAML::Node& root, const fs::path& out) {
   }
   const lab::MohrCoulombFit peak = lab::fit_mohr_coulomb(s1, s3);
   const lab::MohrCoulombFit end = lab::fit_mohr_coulomb(e1, e3);
-  std::ofstream f = open_out(out / "triaxial_fit.csv");
+  std::ofstream f = open_out(out / (name + "_fit.csv"));
   f << "state,phi_origin_deg,phi_deg,cohesion_Pa,phi_stderr_deg\n"
     << "peak," << peak.phi_origin << "," << peak.phi << "," << peak.cohesion << ","
     << peak.phi_stderr << "\n"
@@ -153,8 +165,8 @@ int main(int argc, char** argv) {
     return 2;
   }
   const std::string test = argv[1];
-  if (test != "triaxial" && test != "repose") {
-    std::cerr << "dem_lab: unknown test '" << test << "' (allowed: triaxial, repose)\n";
+  if (test != "triaxial" && test != "biaxial" && test != "repose") {
+    std::cerr << "dem_lab: unknown test '" << test << "' (allowed: triaxial, biaxial, repose)\n";
     usage();
     return 2;
   }
@@ -187,7 +199,7 @@ int main(int argc, char** argv) {
   }
   int rc;
   try {
-    rc = test == "triaxial" ? run_triaxial(root, out) : run_repose(root, out);
+    rc = test == "repose" ? run_repose(root, out) : run_compression(root, out, test);
   } catch (const cosim::config::ConfigError& e) {
     std::cerr << "dem_lab: config refused: " << e.what() << "\n";
     return 2;

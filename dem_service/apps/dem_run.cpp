@@ -1,11 +1,13 @@
 // dem_run CONFIG.yaml [--set dotted.key=value ...] [--output FILE.h5]
 // Standalone DEM run: optional settling, prescribed tool motion, HDF5 + XDMF output, and a
-// LAMMPS-style timing table at the end.
+// LAMMPS-style timing table at the end. Under `mpirun -np N` (N > 1) the scene is decomposed
+// over the ranks (dem/mpi/decomposed.hpp, docs/mpi.md); one rank is the program as without mpirun.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
+#include <memory>
 #include <new>
 #include <optional>
 #include <string>
@@ -19,6 +21,7 @@
 #include "dem/checkpoint.hpp"
 #include "dem/config.hpp"
 #include "dem/engine.hpp"
+#include "dem/mpi/decomposed.hpp"
 #include "dem/output.hpp"
 #include "dem/packing.hpp"
 #include "dem/stability.hpp"
@@ -182,6 +185,96 @@ void prepare(dem::RunConfig& rc) {
   }
 }
 
+// The run on N > 1 ranks (docs/mpi.md): every rank loaded the same config; rank 0 writes the
+// output (the particles gathered, the wrenches summed over the ranks in rank order) and prints.
+int run_decomposed(dem::RunConfig& rc, const dem::EngineOptions& options,
+                   const dem::mpi::Options& mpi_options, int rank, int ranks) {
+  const bool lead = rank == 0;
+  dem::Scene& scene = rc.scene;
+  // The refusals first, agreed by every rank (the same config: the same answer).
+  int code = 0;
+  std::string refusal;
+  std::unique_ptr<dem::Engine> engine;
+  std::unique_ptr<dem::mpi::Decomposed> dec;
+  dem::State s;
+  try {
+    dem::mpi::check_supported(rc, options, ranks);
+    engine = std::make_unique<dem::Engine>(scene, options);
+    dec = std::make_unique<dem::mpi::Decomposed>(scene, *engine, mpi_options);
+    set_tool_poses(scene, rc.state);
+    dec->start(rc.state, s);
+  } catch (const std::invalid_argument& e) {
+    code = 2;
+    refusal = e.what();
+  }
+  if (dem::mpi::Session::max_over_ranks(code) != 0) {
+    if (lead) std::cerr << "dem_run: refused: " << refusal << "\n";
+    return 2;
+  }
+  rc.state = dem::State{};  // every rank held the whole scene until here
+  if (lead)
+    std::fprintf(stderr, "dem_run: %d ranks, slabs along %c; rank 0 owns %lld particles and %lld ghosts\n",
+                 ranks, "xyz"[dec->axis()], static_cast<long long>(dec->halo().owned),
+                 static_cast<long long>(dec->halo().ghosts));
+  std::unique_ptr<dem::RunOutput> out;
+  if (lead) out = std::make_unique<dem::RunOutput>(rc.output.file, scene, rc.config_text);
+  const long long steps = std::llround(rc.duration / scene.dt);
+  const long long wrench_every =
+      std::max(1LL, std::llround(rc.output.wrenches_every / scene.dt));
+  const long long snap_every =
+      rc.output.particles_every > 0 ? std::max(1LL, std::llround(rc.output.particles_every / scene.dt))
+                                    : 0;
+  const double t0 = s.step * scene.dt;
+  const long long rebuilds0 = s.rebuilds, early0 = s.early_rebuilds;
+  const cosim::Stopwatch loop;
+  cosim::Stopwatch since_progress;
+  cosim::Stopwatch output;
+  auto snapshot = [&](double time) {
+    const dem::State g = dec->gather(s);
+    if (lead) out->snapshot(g, time, poses_now(scene, s));
+  };
+  snapshot(t0);
+  engine->timing().lap(dem::section::output, output);
+  std::vector<dem::Wrench> tools;
+  std::vector<dem::Vec3> walls;
+  for (long long k = 1; k <= steps; ++k) {
+    set_tool_poses(scene, s);
+    const double t_force = s.step * scene.dt;
+    dec->step(s);
+    output.restart();
+    if (k % wrench_every == 0) {
+      dec->reduce_boundary(tools, walls);
+      if (lead) out->sample_wrenches(s, tools, walls, t_force);
+    }
+    if (snap_every && k % snap_every == 0 && k != steps) snapshot(s.step * scene.dt);
+    engine->timing().lap(dem::section::output, output);
+    if (lead && since_progress.seconds() >= rc.output.progress_every) {
+      since_progress.restart();
+      const double rate = k / loop.seconds();
+      std::fprintf(stderr, "t = %.4f s  step %lld/%lld  %.0f steps/s  ETA %.0f s\n",
+                   s.step * scene.dt, k, steps, rate, (steps - k) / rate);
+    }
+  }
+  output.restart();
+  snapshot(s.step * scene.dt);
+  if (!rc.output.checkpoint.empty()) {
+    const dem::State c = dec->gather_with_lists(s);
+    if (lead) dem::save_checkpoint(c, rc.output.checkpoint);
+  }
+  engine->timing().lap(dem::section::output, output);
+  const double wall = loop.seconds();
+  const std::string halo = dec->halo_summary();
+  if (!lead) return 0;
+  out->write_summary(engine->timing(), s, s.step * scene.dt - t0);
+  std::fprintf(stderr, "dem_run: wrote %s and %s\n", rc.output.file.c_str(),
+               out->xdmf_path().c_str());
+  std::printf("%s", halo.c_str());
+  std::printf("Rank 0's own share below (its owned particles and ghosts):\n");
+  print_timing(*engine, s, s.step * scene.dt - t0, steps, wall, s.rebuilds - rebuilds0,
+               s.early_rebuilds - early0, 0.0);
+  return 0;
+}
+
 int run(int argc, char** argv) {
   std::string config_path, output_override;
   std::vector<std::string> sets;
@@ -217,8 +310,16 @@ int run(int argc, char** argv) {
                          "reads it)\n");
     root.remove("service");
   }
+  // The mpi: section (docs/mpi.md), validated on any rank count; the engine's reader never sees it.
+  const dem::mpi::Options mpi_options = dem::mpi::take_options(root);
   // May execute dem_run again (once) with the OpenMP wait variables set: before any output.
   const std::string wait = dem::apply_thread_wait(dem::read_thread_wait(root), argv);
+  // Started by mpirun: MPI from here on (after the re-execution above). One rank runs the plain
+  // program below; more run run_decomposed.
+  std::optional<dem::mpi::Session> mpi;
+  if (dem::mpi::launched_by_mpirun()) mpi.emplace(&argc, &argv);
+  const int rank = mpi ? mpi->rank() : 0, ranks = mpi ? mpi->size() : 1;
+  if (rank != 0) std::freopen("/dev/null", "w", stderr);  // rank 0 speaks for all
   // The engine's performance options, once (a bad DEM_PAIR_KERNEL stops the run before any work).
   const dem::EngineOptions engine_options = dem::EngineOptions::from_environment();
   std::fprintf(stderr, "dem_run: idle threads wait %s\n", wait.c_str());
@@ -238,6 +339,16 @@ int run(int argc, char** argv) {
   std::fprintf(stderr, "dem_run: %s\n",
                dem::describe_thread_cpus(dem::thread_cpus(std::max(1, scene.threads))).c_str());
 
+  if (ranks > 1) {
+    try {
+      return run_decomposed(rc, engine_options.with_config(rc.performance), mpi_options, rank, ranks);
+    } catch (const std::exception& e) {
+      // An error on some ranks only: the others wait in a collective, so all end here.
+      std::fprintf(::stdout, "dem_run: rank %d stopped: %s\n", rank, e.what());
+      std::fflush(::stdout);
+      dem::mpi::Session::abort(dynamic_cast<const dem::SimulationError*>(&e) ? 3 : 1);
+    }
+  }
   if (rc.prepare.enabled) prepare(rc);
   dem::Engine engine(scene, engine_options.with_config(rc.performance));
   if (rc.settle.enabled) {

@@ -7,11 +7,13 @@
 #include <cstdio>
 #include <iostream>
 #include <new>
+#include <stdexcept>
 #include <string>
 
 #include "cosim/yaml_config.hpp"
 #include "dem/config.hpp"
 #include "dem/engine.hpp"
+#include "dem/mpi/decomposed.hpp"
 #include "dem/service.hpp"
 #include "dem/thread_wait.hpp"
 
@@ -30,6 +32,14 @@ int run(int argc, char** argv) {
       return 0;
     }
   auto args = cosim::parse_participant_args(argc, argv, true);
+  // Several ranks are dem_run's only so far (docs/mpi.md): N copies would join the bus as N
+  // participants. The mpi: section is validated and set aside as dem_run does.
+  dem::mpi::take_options(args.config);
+  if (const int ranks = dem::mpi::launched_ranks(); ranks > 1)
+    throw std::invalid_argument(
+        "mpi: dem_service does not run on several ranks yet (started with " +
+        std::to_string(ranks) + "; docs/mpi.md): start it without mpirun, or run the scene with "
+        "mpirun -np N dem_run");
   // May execute dem_service again (once) with the OpenMP wait variables set: before the bus.
   const std::string wait = dem::apply_thread_wait(dem::read_thread_wait(args.config), argv);
   std::cerr << "dem_service: idle threads wait " << wait << "\n";

@@ -144,7 +144,7 @@ BoundaryContacts::BoundaryContacts(const Scene& scene, int max_threads) : scene_
 }
 
 void BoundaryContacts::forces(State& s, const ToolGeometry& tools, Vec3* force, int T,
-                              double* busy, Vec3* torque) {
+                              double* busy, Vec3* torque, const std::uint8_t* ghost) {
   const ContactLaw& law = scene_.particle_wall;
   const bool per_body_laws = !scene_.boundary_laws.empty();
   const double dt = scene_.dt;
@@ -187,6 +187,8 @@ void BoundaryContacts::forces(State& s, const ToolGeometry& tools, Vec3* force, 
         const std::size_t i = static_cast<std::size_t>(s.slot_particle[k]);
         // A sleeper has no wall or mesh forces; its boundary history stays as it was.
         if (sleep_on && s.rest_steps[i] >= S) continue;
+        // Another rank's particle (dem/mpi/): its owner computes its boundary contacts.
+        if (ghost && ghost[i]) continue;
         // Nothing near and nothing remembered.
         if (s.wall_mask[i] == 0 && s.tri_offset[i] == s.tri_offset[i + 1] && s.slot_count[i] == 0)
           continue;

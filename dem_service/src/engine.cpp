@@ -127,7 +127,13 @@ void Engine::prepare(State& s) {
                    s.slot_particle.size() * kBoundarySlots != s.slot_key.size() ||
                    s.pair_work.size() != s.size() + 1;
   double moved = 0;
-  if (due) {
+  if (ghost_) {
+    // Decomposed (set_ghosts): the caller rebuilds every rank at the same step, with the
+    // guard's bound over all ranks (dem/mpi/); a broad phase here would lose the ghosts.
+    if (due || ghost_->size() != s.size())
+      throw std::logic_error("Engine::prepare: lists due under domain decomposition at step " +
+                             std::to_string(s.step) + "; the MPI driver must rebuild first");
+  } else if (due) {
     build_lists(s);
   } else if (guard_.fires(scene_, s, &moved)) {
     if (scene_.guard == GuardMode::rebuild && guard_.clear(scene_, s, broad_, tools_)) {
@@ -155,7 +161,7 @@ void Engine::step(State& s) {
     pair_forces(s);
   timing_.lap(section::pair_forces, watch);
   boundary_.forces(s, tools_, force_.data(), threads_, busy_row(section::mesh_contacts),
-                   rotating ? rotation_.torque() : nullptr);
+                   rotating ? rotation_.torque() : nullptr, ghost_ ? ghost_->data() : nullptr);
   timing_.lap(section::mesh_contacts, watch);
   sum_contact_stats();
   watch.restart();

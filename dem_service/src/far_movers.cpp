@@ -20,13 +20,18 @@ bool FarMoverGuard::fires(const Scene& scene, const State& s, double* moved) {
   // so the window is added: dt/2 (|u_a| + |u_b|) <= dt u_max for a pair, dt/2 (|u| + the
   // fastest point of the tool) for a tool.
   if (!stamp_.matches(s, kStampFields)) find(scene, s);
-  const double window = scene.dt * u_max_;
+  const double worst = bound(scene, s, u_max_);
+  *moved = worst;
+  return worst > scene.skin_distance();
+}
+
+double FarMoverGuard::bound(const Scene& scene, const State& s, double u_max) {
+  const double window = scene.dt * u_max;
   double worst = s.max_displacement + s.second_displacement + window;
   for (std::size_t m = 0; m < scene.tools.size(); ++m)
     worst = std::max(worst, s.max_displacement + tool_move(scene, s, m) + 0.5 * window +
                                 tool_window(scene, s, m));
-  *moved = worst;
-  return worst > scene.skin_distance();
+  return worst;
 }
 
 std::string FarMoverGuard::strict_message(const Scene& scene, const State& s, double moved) {

@@ -306,8 +306,13 @@ void RunOutput::write_snapshot(const State& s, double time, const std::vector<To
 }
 
 void RunOutput::sample_wrenches(const State& s, const Engine& e, double time) {
+  sample_wrenches(s, e.tool_wrenches(), e.wall_forces(), time);
+}
+
+void RunOutput::sample_wrenches(const State& s, const std::vector<Wrench>& tools,
+                                const std::vector<Vec3>& walls, double time) {
   for (std::size_t m = 0; m < scene_.tools.size(); ++m) {
-    const Wrench& w = e.tool_wrenches()[m];
+    const Wrench& w = tools[m];
     const ToolPose& p = s.tool_pose[m];
     const double row[kToolCols] = {time, w.force.x, w.force.y, w.force.z, w.torque.x, w.torque.y,
                                    w.torque.z, p.position.x, p.position.y, p.position.z,
@@ -317,7 +322,7 @@ void RunOutput::sample_wrenches(const State& s, const Engine& e, double time) {
   }
   if (wall_rows_) {
     std::vector<double> row{time};
-    for (const Vec3& f : e.wall_forces()) row.insert(row.end(), {f.x, f.y, f.z});
+    for (const Vec3& f : walls) row.insert(row.end(), {f.x, f.y, f.z});
     wall_rows_->append(row.data());
   }
   ++buffered_;

@@ -32,6 +32,15 @@ std::string triaxial_error(const std::string& body) {
   return "";
 }
 
+std::string biaxial_error(const std::string& body) {
+  try {
+    lab::parse_biaxial(cosim::config::load_string(body, "test"));
+  } catch (const std::exception& e) {
+    return e.what();
+  }
+  return "";
+}
+
 std::string repose_error(const std::string& body) {
   try {
     lab::parse_repose(cosim::config::load_string(body, "test"));
@@ -114,6 +123,52 @@ TEST(dem_LabBadInput, MissingAndUnknownKeysNamed) {
   expect_has(triaxial_error("grains: {density: 2600, radius: 0.05, contact: {normal_stiffness: 1.0e7}}\n"
                             "triaxial: {confining_pressures: [1.0e4]}\n"),
              {"grains.contact", "restitution"});
+}
+
+TEST(dem_LabBadInput, BiaxialValuesNamed) {
+  // The biaxial test reads the triaxial's keys under `biaxial`; every message names biaxial.*.
+  const std::string g = kGrains;
+  const std::string ok = g + "biaxial: {confining_pressures: [1.0e4]}\n";
+  EXPECT_EQ(biaxial_error(ok), "");
+  const lab::TriaxialOptions o = lab::parse_biaxial(cosim::config::load_string(ok, "t"));
+  EXPECT_TRUE(o.plane_strain);
+  EXPECT_TRUE(o.first_peak);  // the biaxial's default peak: the first one
+  EXPECT_FALSE(lab::parse_triaxial(cosim::config::load_string(g + "triaxial: {confining_pressures: [1.0e4]}\n", "t")).first_peak);
+  EXPECT_FALSE(lab::parse_biaxial(cosim::config::load_string(g + "biaxial: {confining_pressures: [1.0e4], peak: max}\n", "t")).first_peak);
+  expect_has(biaxial_error(g + "biaxial: {confining_pressures: [10.0e3, -5.0e3]}\n"),
+             {"biaxial.confining_pressures.1", "> 0 Pa"});
+  expect_has(biaxial_error(g + "biaxial: {confining_pressures: []}\n"),
+             {"biaxial.confining_pressures", "missing or empty"});
+  expect_has(biaxial_error(g + "biaxial: {confining_pressures: [1.0e4], inertial_number: 0.5}\n"),
+             {"biaxial.inertial_number", "quasi-static"});
+  expect_has(biaxial_error(g + "biaxial: {confining_pressures: [1.0e4], servo_gain: 1.5}\n"),
+             {"biaxial.servo_gain", "below 1"});
+  expect_has(biaxial_error(g + "biaxial: {confining_pressures: [1.0e4], max_axial_strain: 0.8}\n"),
+             {"biaxial.max_axial_strain"});
+  expect_has(biaxial_error(g + "biaxial: {confining_pressures: [1.0e4], record_every: 0.1}\n"),
+             {"biaxial.record_every"});
+  expect_has(biaxial_error(g + "biaxial: {confining_pressures: [1.0e4], strain_rate: 0}\n"),
+             {"biaxial.strain_rate", "> 0"});
+  expect_has(biaxial_error(g + "biaxial: {confining_pressures: [1.0e4], max_consolidation_steps: 10}\n"),
+             {"biaxial.max_consolidation_steps"});
+  expect_has(biaxial_error(g + "biaxial: {confining_pressures: [1.0e4], peak: highest}\n"),
+             {"biaxial.peak", "'highest'", "first", "max"});
+  expect_has(triaxial_error(g + "triaxial: {confining_pressures: [1.0e4], peak: [1]}\n"),
+             {"triaxial.peak", "first", "max"});
+  expect_has(biaxial_error(g + "biaxial: {confining_presures: [1.0e4]}\n"),
+             {"biaxial.confining_presures", "unknown key", "did you mean 'confining_pressures'"});
+  // A triaxial config is not a biaxial one (and the other way round).
+  expect_has(biaxial_error(g + "triaxial: {confining_pressures: [1.0e4]}\n"), {"triaxial", "unknown key"});
+  expect_has(biaxial_error(g), {"biaxial", "missing", "confining_pressures"});
+  expect_has(triaxial_error(g + "biaxial: {confining_pressures: [1.0e4]}\n"), {"biaxial", "unknown key"});
+  expect_has(biaxial_error(g + "sample: {count: 10}\nbiaxial: {confining_pressures: [1.0e4]}\n"),
+             {"sample.count"});
+  expect_has(biaxial_error(g + "sample: {aspect: 5}\nbiaxial: {confining_pressures: [1.0e4]}\n"),
+             {"sample.aspect", "0.5 .. 4"});
+  expect_has(biaxial_error(g + "sample: {thickness: 0}\nbiaxial: {confining_pressures: [1.0e4]}\n"),
+             {"sample.thickness", "0.1 .. 1"});
+  expect_has(biaxial_error(g + "  model: spinning\nbiaxial: {confining_pressures: [1.0e4]}\n"),
+             {"grains.model"});
 }
 
 TEST(dem_LabBadInput, ReposeValuesNamed) {
@@ -204,6 +259,16 @@ TEST(dem_LabBadInput, ProgramRefusesWithExitCodeTwo) {
                           " --set grains.model=rotating --set grains.rolling_resistance.friction=-1 --no-plot");
   EXPECT_EQ(rc, 2) << out;
   EXPECT_NE(out.find("grains.rolling_resistance.friction"), std::string::npos) << out;
+  // The biaxial test: a bad value under biaxial.*, and a triaxial config given to it.
+  const auto bcfg = dir / "b.yaml";
+  std::ofstream(bcfg) << kGrains << "biaxial: {confining_pressures: [1.0e4]}\n";
+  std::tie(rc, out) = run("biaxial " + bcfg.string() + " --set biaxial.servo_gain=2 --out " +
+                          (dir / "out").string() + " --no-plot");
+  EXPECT_EQ(rc, 2) << out;
+  EXPECT_NE(out.find("biaxial.servo_gain"), std::string::npos) << out;
+  std::tie(rc, out) = run("biaxial " + cfg.string() + " --no-plot");
+  EXPECT_EQ(rc, 2) << out;
+  EXPECT_NE(out.find("unknown key 'triaxial'"), std::string::npos) << out;
   std::tie(rc, out) = run("triaxial " + cfg.string() + " --bogus");
   EXPECT_EQ(rc, 2);
   EXPECT_NE(out.find("--bogus"), std::string::npos) << out;

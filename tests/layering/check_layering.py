@@ -112,6 +112,19 @@ engine_forbidden = lambda i: (i in BUS or is_wire(i) or i.startswith("mbs/")
 for folder in ("dem_service/src", "dem_service/include", "dem_service/apps"):
     check(folder, engine_forbidden, "the DEM engine reaches the bus or the machines", ENGINE_SKIP)
 
+# The engine knows nothing of MPI (docs/mpi.md): only the MPI driver (dem_service/src/mpi,
+# dem_service/include/dem/mpi) includes mpi.h, and its header does not; the engine's own files
+# include neither mpi.h nor the driver.
+MPI_SKIP = ("dem_service/src/mpi/", "dem_service/include/dem/mpi/")
+is_mpi = lambda i: i == "mpi.h" or i.startswith("openmpi/") or i.startswith("mpi/")
+for folder in ("dem_service/src", "dem_service/include"):
+    check(folder, lambda i: is_mpi(i) or i.startswith("dem/mpi/"),
+          "the DEM engine reaches MPI (only dem_service/src/mpi may)", MPI_SKIP)
+check("dem_service/include/dem/mpi", is_mpi,
+      "the MPI driver's header names MPI (its programs include it without mpi.h)")
+check("dem_service/apps", is_mpi, "a DEM program includes mpi.h (dem/mpi/ wraps it)")
+check("dem_service/src/mpi", lambda i: False, "")  # it exists (a move would need this file updated)
+
 check("mbs_adapters", lambda i: i.startswith("dem/"), "a machine reaches the DEM")
 
 # What participant.hpp reaches, header by header (the project's own headers resolved).

@@ -39,8 +39,9 @@ up() {
     ip -n "$p$h" link set lo up
     ip -n "$p$h" link set eth0 up
     ip -n "$p$h" route add 224.0.0.0/4 dev eth0
-    # The relay completes partial UDP checksums itself; with ethtool at hand, switch the
-    # offload off as well.
+    # The relay completes partial UDP checksums itself, not TCP's: TCP (MPI across the hosts,
+    # docs/mpi.md) crosses the relay only with the offload off, which needs ethtool
+    # (scripts/setup.sh installs it; bench/mpi/netns_run.sh refuses to run without it).
     if command -v ethtool >/dev/null; then ip netns exec "$p$h" ethtool -K eth0 tx off >/dev/null 2>&1 || true; fi
     ip -n "${p}sw" link set "$p${h}1" up
     i=$((i + 1))

@@ -27,8 +27,10 @@ class BoundaryContacts {
   // touches more than kBoundarySlots features. torque: the rotating model's torques
   // (dem/rotation.hpp), which the contacts add to and whose contacts see the spins; nullptr:
   // the translating model.
+  // ghost: nullptr, or per particle 1 for another rank's copy (dem/mpi/), which is skipped:
+  // no force, no wrench, no wall force, no stat.
   void forces(State& s, const ToolGeometry& tools, Vec3* force, int T, double* busy,
-              Vec3* torque = nullptr);
+              Vec3* torque = nullptr, const std::uint8_t* ghost = nullptr);
 
   const std::vector<Wrench>& tool_wrenches() const { return tool_wrench_; }
   const std::vector<Vec3>& wall_forces() const { return wall_force_; }

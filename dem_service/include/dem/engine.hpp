@@ -40,6 +40,13 @@ class Engine {
   void prepare(State& s);
   // Forces a broad phase now (e.g. after particles were added or moved by hand).
   void rebuild(State& s);
+  // Domain decomposition (dem/mpi/, docs/mpi.md): (*ghost)[i] != 0 marks particle i as a copy
+  // of another rank's particle, which the caller overwrites after every step. A ghost has no
+  // wall or tool contact (no wrench, wall force or boundary stat; its owner has them), and the
+  // engine builds no lists on its own: the caller rebuilds on every rank at the same step, and
+  // prepare() throws std::logic_error if lists are due. nullptr (the default): every particle
+  // is this process's own, today's engine. The vector must outlive its use and match s.
+  void set_ghosts(const std::vector<std::uint8_t>* ghost) { ghost_ = ghost; }
 
   const Scene& scene() const { return scene_; }
   const EngineOptions& options() const { return options_; }
@@ -134,6 +141,7 @@ class Engine {
   PairBlocks blocks_;
   Sleepers sleepers_;
   BoundaryContacts boundary_;
+  const std::vector<std::uint8_t>* ghost_ = nullptr;  // set_ghosts
   Rotation rotation_;  // the rotating model's torques (unused by the translating model)
   std::vector<Vec3> force_;
   // This step's awake list (Sleepers::awake) when EngineOptions::awake_list is on, else nullptr.

@@ -67,6 +67,9 @@ class FarMoverGuard {
 
   // The bound: true when it exceeds the skin (*moved: the bound, m).
   bool fires(const Scene& scene, const State& s, double* moved);
+  // The bound itself from s's two largest displacements and the largest speed |u| of any
+  // particle (fires() with its own tally; the MPI driver, dem/mpi/, with the ranks' reduced one).
+  static double bound(const Scene& scene, const State& s, double u_max);
   // The far-mover check: true when the lists still hold every contact.
   bool clear(const Scene& scene, const State& s, BroadPhase& broad, const ToolGeometry& tools);
   // The strict guard's error for a bound `moved` that fired.

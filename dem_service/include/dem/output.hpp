@@ -35,6 +35,9 @@ class RunOutput {
   void snapshot(const State& s, double time, const std::vector<ToolPose>& poses);
   // Buffers one sample of every tool's pose and wrench and every wall's force.
   void sample_wrenches(const State& s, const Engine& e, double time);
+  // The same with the wrenches and wall forces given (an MPI run's sums over the ranks).
+  void sample_wrenches(const State& s, const std::vector<Wrench>& tools,
+                       const std::vector<Vec3>& walls, double time);
   void flush();  // appends buffered samples and rewrites the XDMF file
   // flush() if the last one was longer ago than `seconds` of wall-clock time.
   void flush_if_older_than(double seconds);

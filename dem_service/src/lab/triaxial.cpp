@@ -86,7 +86,8 @@ struct Servo {
 // All six faces servoed to p until the window means of two windows in a row are within tol.
 // Returns the simulated time.
 double consolidate(BoxRig& rig, Engine& engine, State& s, double p, double gain, double vmax,
-                   double tol, long max_steps, const std::string& what, const Progress& progress) {
+                   double tol, long max_steps, const std::string& what, const std::string& section,
+                   const Progress& progress) {
   const double dt = engine.scene().dt;
   Servo servo{rig, engine, s, dt, gain};
   std::array<double, 6> target, speed;
@@ -115,8 +116,8 @@ double consolidate(BoxRig& rig, Engine& engine, State& s, double p, double gain,
       std::ostringstream msg;
       msg << what << ": the walls did not hold " << p << " Pa within " << 100 * tol << " % after "
           << steps << " steps (worst face off by " << 100 * worst
-          << " %); raise triaxial.max_consolidation_steps or triaxial.tolerance, or lower "
-             "triaxial.servo_gain if the walls oscillate";
+          << " %); raise " << section << ".max_consolidation_steps or " << section
+          << ".tolerance, or lower " << section << ".servo_gain if the walls oscillate";
       throw std::runtime_error(msg.str());
     }
   }
@@ -124,13 +125,35 @@ double consolidate(BoxRig& rig, Engine& engine, State& s, double p, double gain,
 
 }  // namespace
 
-TriaxialOptions parse_triaxial(const YAML::Node& root) {
-  cfg::check_keys(root, "", {"grains", "sample", "triaxial", "run"});
+namespace {
+
+// The triaxial and the biaxial test read the same keys, under `section`.
+TriaxialOptions parse_test(const YAML::Node& root, const std::string& section) {
+  cfg::check_keys(root, "", {"grains", "sample", section, "run"});
   TriaxialOptions o;
+  o.section = section;
+  const std::string& S = section;
   o.grains = parse_grains(root["grains"], "grains");
   const YAML::Node sm = root["sample"];
   if (sm) {
-    cfg::check_keys(sm, "sample", {"count", "seed", "initial_fraction", "preparation_friction"});
+    cfg::check_keys(sm, "sample",
+                    {"count", "seed", "initial_fraction", "preparation_friction", "aspect",
+                     "thickness"});
+    if (sm["aspect"]) {
+      o.aspect = cfg::get_double(sm, "sample", "aspect");
+      if (!(o.aspect >= 0.5 && o.aspect <= 4))
+        throw cfg::ConfigError("sample.aspect: " + sm["aspect"].Scalar() +
+                               " is outside 0.5 .. 4 (the sample's height over its width; 1 a "
+                               "cube, 2 a biaxial sample whose shear band can leave through the "
+                               "sides)");
+    }
+    if (sm["thickness"]) {
+      o.thickness = cfg::get_double(sm, "sample", "thickness");
+      if (!(o.thickness >= 0.1 && o.thickness <= 1))
+        throw cfg::ConfigError("sample.thickness: " + sm["thickness"].Scalar() +
+                               " is outside 0.1 .. 1 (the sample's extent along y over its width "
+                               "along x; below 1 a slab, as thin as a plane-strain bin)");
+    }
     if (sm["count"]) {
       o.count = cfg::get_int(sm, "sample", "count");
       if (o.count < 50 || o.count > 2000000)
@@ -155,17 +178,25 @@ TriaxialOptions parse_triaxial(const YAML::Node& root) {
                                "densest sample), got " + sm["preparation_friction"].Scalar());
     }
   }
-  const YAML::Node t = root["triaxial"];
-  if (!t) throw cfg::ConfigError("triaxial: missing (expected at least confining_pressures)");
-  cfg::check_keys(t, "triaxial",
+  const YAML::Node t = root[S];
+  if (!t) throw cfg::ConfigError(S + ": missing (expected at least confining_pressures)");
+  cfg::check_keys(t, S,
                   {"confining_pressures", "inertial_number", "strain_rate", "max_axial_strain",
-                   "record_every", "servo_gain", "tolerance", "max_consolidation_steps"});
+                   "record_every", "servo_gain", "tolerance", "max_consolidation_steps", "peak"});
+  o.first_peak = section == "biaxial";
+  if (t["peak"]) {
+    const std::string v = t["peak"].IsScalar() ? t["peak"].Scalar() : std::string("(not a word)");
+    if (v != "first" && v != "max")
+      throw cfg::ConfigError(S + ".peak: '" + v + "' is not allowed (allowed: first, the largest "
+                             "angle before the first softening; max, the largest over the test)");
+    o.first_peak = v == "first";
+  }
   const YAML::Node cp = t["confining_pressures"];
   if (!cp || !cp.IsSequence() || cp.size() == 0)
-    throw cfg::ConfigError("triaxial.confining_pressures: missing or empty (expected a list of "
+    throw cfg::ConfigError(S + ".confining_pressures: missing or empty (expected a list of "
                            "pressures in Pa, e.g. [10.0e3, 20.0e3, 40.0e3])");
   for (std::size_t i = 0; i < cp.size(); ++i) {
-    const std::string p = "triaxial.confining_pressures." + std::to_string(i);
+    const std::string p = S + ".confining_pressures." + std::to_string(i);
     double v;
     try {
       v = cp[i].as<double>();
@@ -179,31 +210,31 @@ TriaxialOptions parse_triaxial(const YAML::Node& root) {
   std::sort(o.confining.begin(), o.confining.end());
   for (std::size_t i = 1; i < o.confining.size(); ++i)
     if (o.confining[i] == o.confining[i - 1])
-      throw cfg::ConfigError("triaxial.confining_pressures: " + std::to_string(o.confining[i]) +
+      throw cfg::ConfigError(S + ".confining_pressures: " + std::to_string(o.confining[i]) +
                              " Pa is given twice; give distinct pressures");
-  o.inertial_number = positive(t, "triaxial", "inertial_number", o.inertial_number, "");
+  o.inertial_number = positive(t, S, "inertial_number", o.inertial_number, "");
   if (o.inertial_number > 0.1)
-    throw cfg::ConfigError("triaxial.inertial_number: " + std::to_string(o.inertial_number) +
+    throw cfg::ConfigError(S + ".inertial_number: " + std::to_string(o.inertial_number) +
                            " is far from quasi-static (I < 1e-3 is, 1e-2 is the most a test may use)");
-  if (t["strain_rate"]) o.strain_rate = positive(t, "triaxial", "strain_rate", 0, "1/s");
-  o.max_axial_strain = positive(t, "triaxial", "max_axial_strain", o.max_axial_strain, "");
+  if (t["strain_rate"]) o.strain_rate = positive(t, S, "strain_rate", 0, "1/s");
+  o.max_axial_strain = positive(t, S, "max_axial_strain", o.max_axial_strain, "");
   if (o.max_axial_strain > 0.5)
-    throw cfg::ConfigError("triaxial.max_axial_strain: " + std::to_string(o.max_axial_strain) +
+    throw cfg::ConfigError(S + ".max_axial_strain: " + std::to_string(o.max_axial_strain) +
                            " is more than half the sample's height; give at most 0.5");
-  o.record_every = positive(t, "triaxial", "record_every", o.record_every, "");
+  o.record_every = positive(t, S, "record_every", o.record_every, "");
   if (o.record_every > o.max_axial_strain / 5)
-    throw cfg::ConfigError("triaxial.record_every: " + std::to_string(o.record_every) +
+    throw cfg::ConfigError(S + ".record_every: " + std::to_string(o.record_every) +
                            " leaves fewer than 5 records up to max_axial_strain; lower it");
-  o.servo_gain = positive(t, "triaxial", "servo_gain", o.servo_gain, "");
+  o.servo_gain = positive(t, S, "servo_gain", o.servo_gain, "");
   if (o.servo_gain >= 1)
-    throw cfg::ConfigError("triaxial.servo_gain: " + std::to_string(o.servo_gain) +
+    throw cfg::ConfigError(S + ".servo_gain: " + std::to_string(o.servo_gain) +
                            " is not below 1, where the wall overshoots every step; 0.05-0.3 works");
-  o.tolerance = positive(t, "triaxial", "tolerance", o.tolerance, "");
-  if (o.tolerance >= 0.5) throw cfg::ConfigError("triaxial.tolerance: must be below 0.5 (a fraction)");
+  o.tolerance = positive(t, S, "tolerance", o.tolerance, "");
+  if (o.tolerance >= 0.5) throw cfg::ConfigError(S + ".tolerance: must be below 0.5 (a fraction)");
   if (t["max_consolidation_steps"]) {
-    o.max_consolidation_steps = cfg::get_int(t, "triaxial", "max_consolidation_steps");
+    o.max_consolidation_steps = cfg::get_int(t, S, "max_consolidation_steps");
     if (o.max_consolidation_steps < 1000)
-      throw cfg::ConfigError("triaxial.max_consolidation_steps: must be at least 1000");
+      throw cfg::ConfigError(S + ".max_consolidation_steps: must be at least 1000");
   }
   const YAML::Node r = root["run"];
   if (r) {
@@ -214,6 +245,16 @@ TriaxialOptions parse_triaxial(const YAML::Node& root) {
         throw cfg::ConfigError("run.threads: must be 1 .. 256");
     }
   }
+  return o;
+}
+
+}  // namespace
+
+TriaxialOptions parse_triaxial(const YAML::Node& root) { return parse_test(root, "triaxial"); }
+
+TriaxialOptions parse_biaxial(const YAML::Node& root) {
+  TriaxialOptions o = parse_test(root, "biaxial");
+  o.plane_strain = true;
   return o;
 }
 
@@ -256,8 +297,14 @@ MohrCoulombFit fit_mohr_coulomb(const std::vector<double>& s1, const std::vector
 Sample prepare_sample(const TriaxialOptions& o, double pressure, const Progress& progress) {
   Scene scene = make_scene(o.grains, {0, 0, 0}, o.threads);
   scene.particle_particle.friction = o.preparation_friction;
-  const double L = std::cbrt(static_cast<double>(o.count) * o.grains.mean_volume() / o.initial_fraction);
-  const Vec3 lo{0, 0, 0}, hi{L, L, L};
+  // A box L x thickness L x aspect L holding the grains at the initial fraction.
+  const double L = std::cbrt(static_cast<double>(o.count) * o.grains.mean_volume() /
+                             (o.initial_fraction * o.aspect * o.thickness));
+  const Vec3 lo{0, 0, 0}, hi{L, o.thickness * L, o.aspect * L};
+  if (o.thickness * L < 2.5 * 2 * o.grains.radius_max)
+    throw cfg::ConfigError("sample.thickness: the sample would be " +
+                           std::to_string(o.thickness * L) + " m thick, less than 2.5 grains " +
+                           "after compaction; raise sample.count or sample.thickness");
   Sample out;
   const double r = o.grains.radius_max;
   insert_random(scene, out.state, lo + Vec3{r, r, r}, hi - Vec3{r, r, r}, o.count, o.seed,
@@ -269,7 +316,7 @@ Sample prepare_sample(const TriaxialOptions& o, double pressure, const Progress&
   // pressure (ten times the test's default), slower when the servo says so.
   const double vmax = rate_for(o.grains, 1e-2, pressure) * L / 2;
   consolidate(rig, engine, out.state, pressure, o.servo_gain, vmax, o.tolerance,
-              o.max_consolidation_steps, "preparation", progress);
+              o.max_consolidation_steps, "preparation", o.section, progress);
   out.lo = rig.lo();
   out.hi = rig.hi();
   out.dt = scene.dt;
@@ -294,7 +341,8 @@ TriaxialTest run_triaxial(const TriaxialOptions& o, const Sample& sample, double
   // Consolidation with the test's friction: walls at most at the shearing rate x 5.
   const double vcons = 5 * t.strain_rate * L0 / 2;
   t.consolidation_time = consolidate(rig, engine, s, confining, o.servo_gain, vcons, o.tolerance,
-                                     o.max_consolidation_steps, "consolidation", progress);
+                                     o.max_consolidation_steps, "consolidation", o.section,
+                                     progress);
   t.packing = packing_fraction(s, rig.lo(), rig.hi());
   {
     const double m = 2 * o.grains.radius_max;
@@ -302,14 +350,17 @@ TriaxialTest run_triaxial(const TriaxialOptions& o, const Sample& sample, double
   }
   t.coordination = coordination(engine, s);
 
-  // Shearing: z walls at constant speed, lateral walls servoed.
+  // Shearing: z walls at constant speed, lateral walls servoed; in plane strain the y walls
+  // stay where they are (speed 0, not servoed).
   const double H0 = rig.size().z, V0 = rig.volume();
+  const double X0 = rig.size().x, Y0 = rig.size().y;
   const double va = t.strain_rate * H0 / 2;
+  const bool ps = o.plane_strain;
   std::array<double, 6> target{}, speed{};
-  std::array<bool, 6> servo{true, true, true, true, false, false};
+  std::array<bool, 6> servo{true, true, !ps, !ps, false, false};
   for (int f = 0; f < 4; ++f) {
     target[static_cast<std::size_t>(f)] = confining;
-    speed[static_cast<std::size_t>(f)] = 10 * va;
+    speed[static_cast<std::size_t>(f)] = servo[static_cast<std::size_t>(f)] ? 10 * va : 0.0;
   }
   speed[4] = speed[5] = va;
   Servo sv{rig, engine, s, dt, o.servo_gain};
@@ -317,7 +368,7 @@ TriaxialTest run_triaxial(const TriaxialOptions& o, const Sample& sample, double
   TriaxialRecord start;
   t.curve.push_back(start);
   t.curve.back().packing = t.packing;
-  t.curve.back().sigma1 = t.curve.back().sigma3 = confining;
+  t.curve.back().sigma1 = t.curve.back().sigma2 = t.curve.back().sigma3 = confining;
   while (strain < o.max_axial_strain - 1e-12) {
     sv.step(target, servo, speed);
     time += dt;
@@ -328,10 +379,14 @@ TriaxialTest run_triaxial(const TriaxialOptions& o, const Sample& sample, double
       r.axial_strain = strain;
       r.volumetric_strain = (V0 - rig.volume()) / V0;
       r.sigma1 = 0.5 * (m[4] + m[5]);
-      r.sigma3 = 0.25 * (m[0] + m[1] + m[2] + m[3]);
+      r.sigma2 = 0.5 * (m[2] + m[3]);
+      r.sigma3 = ps ? 0.5 * (m[0] + m[1]) : 0.25 * (m[0] + m[1] + m[2] + m[3]);
       for (int f = 0; f < 4; ++f)
-        if (std::abs(m[static_cast<std::size_t>(f)] - confining) > std::abs(r.sigma3_worst))
+        if (servo[static_cast<std::size_t>(f)] &&
+            std::abs(m[static_cast<std::size_t>(f)] - confining) > std::abs(r.sigma3_worst))
           r.sigma3_worst = m[static_cast<std::size_t>(f)] - confining;
+      r.strain2 = (Y0 - rig.size().y) / Y0;
+      r.strain3 = (X0 - rig.size().x) / X0;
       r.packing = packing_fraction(s, rig.lo(), rig.hi());
       r.time = time;
       t.curve.push_back(r);
@@ -345,20 +400,55 @@ TriaxialTest run_triaxial(const TriaxialOptions& o, const Sample& sample, double
       }
     }
   }
-  // Peak, end, servo.
-  double best = -1;
+  // Peak, end, servo. The largest mobilised angle over the test, and the first peak: the
+  // largest before the angle first falls more than kFirstPeakDrop below its running maximum
+  // (after a softening, a small sample between rigid walls can harden again as its shear band
+  // runs into them: the biaxial rig's; docs/soil_lab.md).
+  constexpr double kFirstPeakDrop = 3.0;  // deg
+  double best = -1, first = -1;
+  std::size_t imax = 0, ifirst = 0;
+  bool softened = false;
   for (std::size_t i = 1; i < t.curve.size(); ++i) {
     const TriaxialRecord& r = t.curve[i];
     if (r.sin_phi() > best) {
       best = r.sin_phi();
-      t.peak = i;
+      imax = i;
+    }
+    if (!softened) {
+      if (r.sin_phi() > first) {
+        first = r.sin_phi();
+        ifirst = i;
+      } else if (std::asin(std::clamp(r.sin_phi(), -1.0, 1.0)) * kDeg <
+                 std::asin(std::clamp(first, -1.0, 1.0)) * kDeg - kFirstPeakDrop) {
+        softened = true;
+      }
     }
     // The first records hold the jump from the isotropic state; the servo is judged after 0.5 %.
     if (r.axial_strain > 0.005)
       t.servo_worst = std::max(t.servo_worst, std::abs(r.sigma3_worst) / confining);
   }
-  t.phi_peak = std::asin(std::clamp(best, -1.0, 1.0)) * kDeg;
+  t.phi_max = std::asin(std::clamp(best, -1.0, 1.0)) * kDeg;
+  t.phi_first_peak = std::asin(std::clamp(first, -1.0, 1.0)) * kDeg;
+  t.peak = o.first_peak ? ifirst : imax;
+  t.phi_peak = o.first_peak ? t.phi_first_peak : t.phi_max;
+  {
+    const TriaxialRecord& pk = t.curve[t.peak];
+    t.sigma2_peak = pk.sigma2;
+    t.b_peak = pk.sigma1 > pk.sigma3 ? (pk.sigma2 - pk.sigma3) / (pk.sigma1 - pk.sigma3) : 0;
+  }
+  // Peak dilatancy up to the peak: centred differences over 4 records (0.8 % of axial strain by
+  // default), so that one record's jump as a band forms does not set the maximum.
   const std::size_t n = t.curve.size();
+  for (std::size_t i = 2; i + 2 < n && i <= t.peak; ++i) {
+    const TriaxialRecord &a = t.curve[i - 2], &b = t.curve[i + 2];
+    const double de1 = b.axial_strain - a.axial_strain;
+    const double dev = b.volumetric_strain - a.volumetric_strain;
+    const double de3 = b.strain3 - a.strain3;
+    if (!(de1 > 0)) continue;
+    t.dilatancy_max = std::max(t.dilatancy_max, -dev / de1);
+    if (de1 - de3 > 0)
+      t.psi_max = std::max(t.psi_max, std::asin(std::clamp(-dev / (de1 - de3), -1.0, 1.0)) * kDeg);
+  }
   const std::size_t from = std::max<std::size_t>(1, n - std::max<std::size_t>(2, (n - 1) / 4));
   double sp = 0, sx = 0, sy = 0, sxx = 0, sxy = 0;
   for (std::size_t i = from; i < n; ++i) {

@@ -1,0 +1,867 @@
+#include "dem/mpi/decomposed.hpp"
+
+#include <mpi.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <limits>
+#include <numeric>
+#include <sstream>
+#include <stdexcept>
+#include <type_traits>
+
+#include "cosim/yaml_config.hpp"
+#include "dem/far_movers.hpp"
+#include "dem/sleepers.hpp"
+
+namespace dem::mpi {
+
+namespace cfg = cosim::config;
+
+// --- Options, launch, session.
+
+Options take_options(YAML::Node& root) {
+  Options o;
+  if (!root.IsMap() || !root["mpi"]) return o;
+  const YAML::Node node = root["mpi"];
+  cfg::check_keys(node, "mpi", {"decomposition", "rebalance"});
+  const std::string d = node["decomposition"] ? node["decomposition"].as<std::string>("") : "slabs";
+  if (d == "grid")
+    throw cfg::ConfigError(
+        "mpi.decomposition: 'grid' is not supported yet (only slabs: cuts along the longest axis "
+        "of the particles); set mpi.decomposition: slabs");
+  if (d != "slabs")
+    throw cfg::ConfigError("mpi.decomposition: unknown decomposition '" + d +
+                           "' (allowed: slabs); set mpi.decomposition: slabs");
+  o.decomposition = d;
+  o.rebalance = cfg::get_double_or(node, "mpi", "rebalance", o.rebalance);
+  if (!(o.rebalance >= 1.0) || !std::isfinite(o.rebalance))
+    throw cfg::ConfigError("mpi.rebalance: " + std::to_string(o.rebalance) +
+                           " is below 1 (the largest rank's particle count over the mean, which "
+                           "is at least 1); use e.g. 1.2");
+  root.remove("mpi");
+  return o;
+}
+
+bool launched_by_mpirun() {
+  for (const char* v : {"OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMIX_RANK", "MPI_LOCALNRANKS"})
+    if (std::getenv(v)) return true;
+  return false;
+}
+
+int launched_ranks() {
+  for (const char* v : {"OMPI_COMM_WORLD_SIZE", "PMI_SIZE"})
+    if (const char* s = std::getenv(v)) return std::max(1, std::atoi(s));
+  return 1;
+}
+
+Session::Session(int* argc, char*** argv) {
+  int provided = 0;
+  MPI_Init_thread(argc, argv, MPI_THREAD_FUNNELED, &provided);
+  MPI_Comm_rank(MPI_COMM_WORLD, &rank_);
+  MPI_Comm_size(MPI_COMM_WORLD, &size_);
+}
+
+Session::~Session() { MPI_Finalize(); }
+
+void Session::abort(int code) {
+  MPI_Abort(MPI_COMM_WORLD, code);
+  std::exit(code);
+}
+
+int Session::max_over_ranks(int code) {
+  int out = code;
+  MPI_Allreduce(&code, &out, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
+  return out;
+}
+
+void check_supported(const RunConfig& rc, const EngineOptions& options, int ranks) {
+  if (ranks <= 1) return;
+  const std::string n = std::to_string(ranks) + " ranks";
+  auto refuse = [&](const std::string& what) {
+    throw std::invalid_argument("mpi: " + what + " (docs/mpi.md lists what runs on several ranks)");
+  };
+  const Scene& sc = rc.scene;
+  if (sc.sleep.enabled)
+    refuse("scene.sleep is not supported on " + n +
+           ": a sleeper's rest and wake tests read its neighbours' state, which a rank boundary "
+           "splits; set scene.sleep.enabled: false or run on one rank");
+  if (sc.region.enabled)
+    refuse("scene.region is not supported on " + n +
+           ": removing particles would change the ranks' counts between broad phases; disable "
+           "scene.region or run on one rank");
+  if (options.close_margin > 0)
+    refuse("performance.close_margin is not supported on " + n +
+           ": close pairs are re-listed by each rank's own tally, which the ghosts' copies do not "
+           "keep; set performance.close_margin: 0 or run on one rank");
+  if (rc.prepare.enabled)
+    refuse("prepare: (deposition and freeze) is not supported on " + n +
+           ": prepare the bed on one rank (dem_run without mpirun) and start from its checkpoint");
+  if (rc.settle.enabled)
+    refuse("settle: is not supported on " + n +
+           ": settle the bed on one rank (dem_run without mpirun) and start from its checkpoint "
+           "(particles.checkpoint)");
+}
+
+// --- Wire formats.
+
+namespace {
+
+constexpr int B = kBoundarySlots;
+constexpr int kTagGhost = 11;
+
+// A ghost's or a gathered particle's data, also what migration sends first.
+struct Core {
+  Vec3 x, v, u, w, wu;
+  double radius, mass;
+  std::int64_t id;
+  std::int32_t species;
+  std::int32_t nslot;  // migration: boundary slots that follow
+  std::int32_t nrec;   // migration: pair records that follow
+  std::int32_t pad = 0;
+};
+static_assert(std::is_trivially_copyable_v<Core>);
+struct Slot {
+  std::uint64_t key;
+  Vec3 spring, roll;
+};
+struct Record {  // one touching pair as its particle feels it
+  std::int64_t partner;
+  Vec3 spring, roll;
+};
+
+struct Writer {
+  std::vector<char> buf;
+  template <class T>
+  void put(const T& v) {
+    const std::size_t o = buf.size();
+    buf.resize(o + sizeof(T));
+    std::memcpy(buf.data() + o, &v, sizeof(T));
+  }
+};
+struct Reader {
+  const char* p;
+  const char* end;
+  template <class T>
+  T get() {
+    if (p + sizeof(T) > end) throw std::logic_error("dem::mpi: truncated message");
+    T v;
+    std::memcpy(&v, p, sizeof(T));
+    p += sizeof(T);
+    return v;
+  }
+};
+
+// Particles with their boundary slots and pair records (owned), or without (ghosts, gathers).
+struct Particles {
+  std::vector<Core> core;
+  std::vector<std::int32_t> slot_offset{0};  // CSR: each particle's nslot slots
+  std::vector<Slot> slot;
+  std::vector<std::int32_t> rec_offset{0};
+  std::vector<Record> rec;
+  std::size_t size() const { return core.size(); }
+  void clear() {
+    core.clear();
+    slot_offset.assign(1, 0);
+    slot.clear();
+    rec_offset.assign(1, 0);
+    rec.clear();
+  }
+};
+
+// Each particle's touching pairs (a non-zero spring or rolling spring) as it feels them, for the
+// particles with own[i] (own empty: all), in CSR (offset n + 1).
+void pair_records(const State& s, const std::vector<std::uint8_t>& ghost,
+                  std::vector<std::int32_t>& offset, std::vector<Record>& rec) {
+  const std::size_t n = s.size();
+  offset.assign(n + 1, 0);
+  rec.clear();
+  if (!s.lists_valid || s.pair_offset.size() != n + 1) return;
+  const bool rolls = s.pair_roll.size() == s.pair_j.size() && !s.pair_roll.empty();
+  auto owned = [&](std::size_t i) { return ghost.empty() || !ghost[i]; };
+  auto live = [&](std::int32_t k) {
+    return nonzero(s.pair_spring[k]) || (rolls && nonzero(s.pair_roll[k]));
+  };
+  for (std::size_t a = 0; a < n; ++a)
+    for (std::int32_t k = s.pair_offset[a]; k < s.pair_offset[a + 1]; ++k) {
+      if (!live(k)) continue;
+      const std::size_t b = static_cast<std::size_t>(s.pair_j[k]);
+      if (owned(a)) ++offset[a + 1];
+      if (owned(b)) ++offset[b + 1];
+    }
+  for (std::size_t i = 0; i < n; ++i) offset[i + 1] += offset[i];
+  rec.resize(static_cast<std::size_t>(offset[n]));
+  std::vector<std::int32_t> fill(offset.begin(), offset.end() - 1);
+  for (std::size_t a = 0; a < n; ++a)
+    for (std::int32_t k = s.pair_offset[a]; k < s.pair_offset[a + 1]; ++k) {
+      if (!live(k)) continue;
+      const std::size_t b = static_cast<std::size_t>(s.pair_j[k]);
+      const Vec3 sp = s.pair_spring[k], ro = rolls ? s.pair_roll[k] : Vec3{};
+      if (owned(a)) rec[static_cast<std::size_t>(fill[a]++)] = {s.id[b], sp, ro};
+      if (owned(b)) rec[static_cast<std::size_t>(fill[b]++)] = {s.id[a], -sp, -ro};
+    }
+}
+
+Core core_of(const State& s, std::size_t i) {
+  Core c{};
+  c.x = s.x[i];
+  c.v = s.v[i];
+  c.u = s.u[i];
+  if (s.w.size() == s.size()) {
+    c.w = s.w[i];
+    c.wu = s.wu[i];
+  }
+  c.radius = s.radius[i];
+  c.mass = s.mass[i];
+  c.id = s.id[i];
+  c.species = s.species[i];
+  return c;
+}
+
+// Particle i of s with its slots and records onto w.
+void pack_owned(const State& s, std::size_t i, const std::vector<std::int32_t>& rec_offset,
+                const std::vector<Record>& rec, Writer& w) {
+  Core c = core_of(s, i);
+  // As the broad phase keeps them: a block's slots whatever the lists (a checkpoint loaded
+  // with new tools has invalid lists but keeps its boundary history); the pair records only
+  // with valid lists (pair_records), as the broad phase carries pair springs.
+  const bool slots = s.slot_count.size() == s.size() && s.slot_block.size() == s.size() &&
+                     s.slot_block[i] >= 0 &&
+                     (static_cast<std::size_t>(s.slot_block[i]) + 1) * B <= s.slot_key.size();
+  c.nslot = slots ? s.slot_count[i] : 0;
+  c.nrec = rec_offset[i + 1] - rec_offset[i];
+  w.put(c);
+  const bool rolls = s.slot_roll.size() == s.slot_key.size() && !s.slot_roll.empty();
+  for (int k = 0; k < c.nslot; ++k) {
+    const std::size_t q = static_cast<std::size_t>(s.slot_block[i]) * B + k;
+    w.put(Slot{s.slot_key[q], s.slot_spring[q], rolls ? s.slot_roll[q] : Vec3{}});
+  }
+  for (std::int32_t k = rec_offset[i]; k < rec_offset[i + 1]; ++k) w.put(rec[k]);
+}
+
+void unpack_owned(Reader& r, Particles& out) {
+  while (r.p < r.end) {
+    const Core c = r.get<Core>();
+    out.core.push_back(c);
+    for (int k = 0; k < c.nslot; ++k) out.slot.push_back(r.get<Slot>());
+    out.slot_offset.push_back(static_cast<std::int32_t>(out.slot.size()));
+    for (int k = 0; k < c.nrec; ++k) out.rec.push_back(r.get<Record>());
+    out.rec_offset.push_back(static_cast<std::int32_t>(out.rec.size()));
+  }
+}
+
+// Sorted by id (the canonical order of a rank's particles before its broad phase: the cell sort
+// is stable, so the lists then depend on the particles alone, not on where they came from).
+void sort_by_id(Particles& p) {
+  const std::size_t n = p.size();
+  std::vector<std::size_t> order(n);
+  std::iota(order.begin(), order.end(), 0);
+  std::sort(order.begin(), order.end(),
+            [&](std::size_t a, std::size_t b) { return p.core[a].id < p.core[b].id; });
+  Particles q;
+  q.core.reserve(n);
+  q.slot.reserve(p.slot.size());
+  q.rec.reserve(p.rec.size());
+  const bool slots = p.slot_offset.size() == n + 1;
+  for (const std::size_t i : order) {
+    q.core.push_back(p.core[i]);
+    if (slots) {
+      q.slot.insert(q.slot.end(), p.slot.begin() + p.slot_offset[i], p.slot.begin() + p.slot_offset[i + 1]);
+      q.slot_offset.push_back(static_cast<std::int32_t>(q.slot.size()));
+    }
+    if (p.rec_offset.size() == n + 1) {
+      q.rec.insert(q.rec.end(), p.rec.begin() + p.rec_offset[i], p.rec.begin() + p.rec_offset[i + 1]);
+      q.rec_offset.push_back(static_cast<std::int32_t>(q.rec.size()));
+    }
+  }
+  p = std::move(q);
+}
+
+// Byte buffers to every rank (MPI_Alltoallv after the counts). Returns the bytes this rank sent.
+std::int64_t exchange(MPI_Comm comm, const std::vector<Writer>& out, std::vector<char>& in,
+                      std::vector<int>& in_count, std::vector<int>& in_start) {
+  int P = 1;
+  MPI_Comm_size(comm, &P);
+  std::vector<int> out_count(P), out_start(P + 1, 0);
+  for (int r = 0; r < P; ++r) {
+    if (out[r].buf.size() > static_cast<std::size_t>(std::numeric_limits<int>::max()))
+      throw std::runtime_error("dem::mpi: a migration message over 2 GB; run on more ranks");
+    out_count[r] = static_cast<int>(out[r].buf.size());
+    out_start[r + 1] = out_start[r] + out_count[r];
+  }
+  std::vector<char> send(static_cast<std::size_t>(out_start[P]));
+  for (int r = 0; r < P; ++r)
+    if (out_count[r]) std::memcpy(send.data() + out_start[r], out[r].buf.data(), out[r].buf.size());
+  in_count.assign(P, 0);
+  MPI_Alltoall(out_count.data(), 1, MPI_INT, in_count.data(), 1, MPI_INT, comm);
+  in_start.assign(P + 1, 0);
+  for (int r = 0; r < P; ++r) in_start[r + 1] = in_start[r] + in_count[r];
+  in.resize(static_cast<std::size_t>(in_start[P]));
+  MPI_Alltoallv(send.data(), out_count.data(), out_start.data(), MPI_BYTE, in.data(),
+                in_count.data(), in_start.data(), MPI_BYTE, comm);
+  int me = 0;
+  MPI_Comm_rank(comm, &me);
+  std::int64_t sent = 0;  // to the other ranks (a rank's own share is a copy)
+  for (int r = 0; r < P; ++r)
+    if (r != me) sent += out_count[r];
+  return sent;
+}
+
+// Ranks - 1 cuts putting about the same count of the (unsorted) coordinates c on each side.
+std::vector<double> cuts_by_count(std::vector<double> c, int P) {
+  std::sort(c.begin(), c.end());
+  const std::size_t n = c.size();
+  std::vector<double> cuts(static_cast<std::size_t>(std::max(0, P - 1)), 0.0);
+  for (int k = 1; k < P; ++k) {
+    const std::size_t q = n * static_cast<std::size_t>(k) / static_cast<std::size_t>(P);
+    if (n == 0)
+      cuts[k - 1] = 0;
+    else if (q == 0)
+      cuts[k - 1] = c[0];
+    else
+      cuts[k - 1] = 0.5 * (c[q - 1] + c[q]);
+  }
+  return cuts;
+}
+
+double axis_of(const Vec3& p, int a) { return a == 0 ? p.x : a == 1 ? p.y : p.z; }
+
+}  // namespace
+
+// --- The decomposed run.
+
+struct Decomposed::Impl {
+  MPI_Comm comm = MPI_COMM_WORLD;
+  int rank = 0, P = 1;
+  std::vector<std::uint8_t> ghost;  // per particle of s: 1 = another rank's copy
+  // The forward exchange: local indices sent to / received from each rank, in message order.
+  std::vector<std::vector<std::int32_t>> send_idx, recv_idx;
+  std::vector<std::vector<double>> send_buf, recv_buf;
+  bool rotating = false;
+  // The guard's tally over all ranks after the last step.
+  double d1 = 0, d2 = 0, u2 = 0;
+  Particles start_own;  // start(): this rank's share of the initial state
+
+  int owner(const std::vector<double>& cuts, double c) const {
+    return static_cast<int>(std::upper_bound(cuts.begin(), cuts.end(), c) - cuts.begin());
+  }
+};
+
+Decomposed::Decomposed(const Scene& scene, Engine& engine, const Options& options)
+    : impl_(std::make_unique<Impl>()), scene_(scene), engine_(engine), options_(options) {
+  MPI_Comm_rank(impl_->comm, &impl_->rank);
+  MPI_Comm_size(impl_->comm, &impl_->P);
+  impl_->rotating = scene.rotation.rotating();
+}
+
+Decomposed::~Decomposed() { engine_.set_ghosts(nullptr); }
+
+int Decomposed::rank() const { return impl_->rank; }
+int Decomposed::ranks() const { return impl_->P; }
+
+namespace {
+
+// s := owned (sorted by id) then ghosts (sorted by id), their lists built by `engine` (a broad
+// phase), the springs from the owned particles' records; ghost: the mask. Keeps s's step, tool
+// poses and counters.
+void assemble(const Scene& scene, Particles& own, Particles& gh, State& s, Engine& engine,
+              std::vector<std::uint8_t>& ghost) {
+  sort_by_id(own);
+  sort_by_id(gh);
+  const bool rotating = scene.rotation.rotating();
+  State t;
+  t.step = s.step;
+  t.tool_pose = s.tool_pose;
+  t.tool_pose_at_rebuild = s.tool_pose_at_rebuild;
+  t.rebuilds = s.rebuilds;
+  t.early_rebuilds = s.early_rebuilds;
+  t.removed_count = s.removed_count;
+  t.removed_mass = s.removed_mass;
+  const std::size_t no = own.size(), n = no + gh.size();
+  t.x.reserve(n);
+  auto add = [&](const Core& c) {
+    t.x.push_back(c.x);
+    t.v.push_back(c.v);
+    t.u.push_back(c.u);
+    t.radius.push_back(c.radius);
+    t.mass.push_back(c.mass);
+    t.species.push_back(c.species);
+    t.id.push_back(c.id);
+    if (rotating) {
+      t.w.push_back(c.w);
+      t.wu.push_back(c.wu);
+    }
+  };
+  for (const Core& c : own.core) add(c);
+  for (const Core& c : gh.core) add(c);
+  // Boundary slot blocks of the owned particles that remember a contact: the broad phase copies
+  // them into its new pool (as it does a block it handed out before).
+  t.slot_count.assign(n, 0);
+  t.slot_block.assign(n, -1);
+  for (std::size_t i = 0; i < no; ++i) {
+    const int ns = own.core[i].nslot;
+    if (ns <= 0) continue;
+    const std::int32_t blk = static_cast<std::int32_t>(t.slot_particle.size());
+    t.slot_block[i] = blk;
+    t.slot_count[i] = static_cast<std::uint8_t>(ns);
+    t.slot_particle.push_back(static_cast<std::int32_t>(i));
+    for (int k = 0; k < B; ++k) {
+      const Slot sl = k < ns ? own.slot[static_cast<std::size_t>(own.slot_offset[i] + k)]
+                             : Slot{0, Vec3{}, Vec3{}};
+      t.slot_key.push_back(sl.key);
+      t.slot_spring.push_back(sl.spring);
+      if (rotating) t.slot_roll.push_back(sl.roll);
+    }
+  }
+  t.lists_valid = false;
+  s = std::move(t);
+  engine.set_ghosts(nullptr);
+  engine.rebuild(s);  // the broad phase sorts owned and ghosts together by cell
+  // The mask and each owned particle's records, by id.
+  std::unordered_map<std::int64_t, std::int32_t> own_at;  // id -> index in own
+  own_at.reserve(no * 2);
+  for (std::size_t p = 0; p < no; ++p) own_at.emplace(own.core[p].id, static_cast<std::int32_t>(p));
+  ghost.assign(s.size(), 1);
+  std::vector<std::int32_t> rec_of(s.size(), -1);
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    const auto it = own_at.find(s.id[i]);
+    if (it != own_at.end()) {
+      ghost[i] = 0;
+      rec_of[i] = it->second;
+    }
+  }
+  // Springs: a pair with an owned side takes the owned side's record (negated when that side is
+  // the pair's second particle: the list's spring acts on its first).
+  if (rotating) s.pair_roll.assign(s.pair_j.size(), Vec3{});
+  auto find = [&](std::int32_t p, std::int64_t partner) -> const Record* {
+    for (std::int32_t k = own.rec_offset[p]; k < own.rec_offset[p + 1]; ++k)
+      if (own.rec[k].partner == partner) return &own.rec[k];
+    return nullptr;
+  };
+  for (std::size_t a = 0; a + 1 < s.pair_offset.size(); ++a)
+    for (std::int32_t k = s.pair_offset[a]; k < s.pair_offset[a + 1]; ++k) {
+      const std::size_t b = static_cast<std::size_t>(s.pair_j[k]);
+      if (rec_of[a] >= 0) {
+        if (const Record* r = find(rec_of[a], s.id[b])) {
+          s.pair_spring[k] = r->spring;
+          if (rotating) s.pair_roll[k] = r->roll;
+        }
+      } else if (rec_of[b] >= 0) {
+        if (const Record* r = find(rec_of[b], s.id[a])) {
+          s.pair_spring[k] = -r->spring;
+          if (rotating) s.pair_roll[k] = -r->roll;
+        }
+      }
+    }
+}
+
+}  // namespace
+
+void Decomposed::start(const State& all, State& s) {
+  Impl& m = *impl_;
+  const int P = m.P;
+  // The axis: the longest of the particles' box (every rank holds every particle here).
+  Vec3 lo{1e300, 1e300, 1e300}, hi{-1e300, -1e300, -1e300};
+  for (const Vec3& p : all.x) {
+    lo = {std::min(lo.x, p.x), std::min(lo.y, p.y), std::min(lo.z, p.z)};
+    hi = {std::max(hi.x, p.x), std::max(hi.y, p.y), std::max(hi.z, p.z)};
+  }
+  if (all.x.empty()) lo = hi = Vec3{};
+  const double ext[3] = {hi.x - lo.x, hi.y - lo.y, hi.z - lo.z};
+  axis_ = 0;
+  for (int a = 1; a < 3; ++a)
+    if (ext[a] > ext[axis_]) axis_ = a;
+  const double h = 2 * scene_.r_max() + scene_.skin_distance();
+  const long cells = static_cast<long>(ext[axis_] / h) + 1;
+  if (P > cells) {
+    std::ostringstream msg;
+    const char* names[3] = {"x", "y", "z"};
+    msg << "mpi: " << P << " ranks, but the particles span only " << cells
+        << " broad-phase cell(s) along their longest axis " << names[axis_] << " ("
+        << ext[axis_] << " m; a cell is 2 r_max + skin = " << h
+        << " m): a rank's slab would be thinner than the interaction range. Run on at most "
+        << cells << " rank(s) (mpirun -np " << cells << ") or a larger scene";
+    throw std::invalid_argument(msg.str());
+  }
+  std::vector<double> c(all.size());
+  for (std::size_t i = 0; i < all.size(); ++i) c[i] = axis_of(all.x[i], axis_);
+  cuts_ = cuts_by_count(std::move(c), P);
+  // This rank's particles with their records from the whole state's lists.
+  std::vector<std::int32_t> rec_offset;
+  std::vector<Record> rec;
+  pair_records(all, {}, rec_offset, rec);
+  Writer w;
+  for (std::size_t i = 0; i < all.size(); ++i)
+    if (m.owner(cuts_, axis_of(all.x[i], axis_)) == m.rank) pack_owned(all, i, rec_offset, rec, w);
+  m.start_own.clear();
+  Reader r{w.buf.data(), w.buf.data() + w.buf.size()};
+  unpack_owned(r, m.start_own);
+  s = State{};
+  s.step = all.step;
+  s.tool_pose = all.tool_pose;
+  s.tool_pose_at_rebuild = all.tool_pose_at_rebuild;
+  s.rebuilds = all.rebuilds;
+  s.early_rebuilds = all.early_rebuilds;
+  rebuild(s, true);
+  tally(s);
+}
+
+void Decomposed::rebuild(State& s, bool first) {
+  Impl& m = *impl_;
+  const int P = m.P;
+  Particles own;
+  std::vector<char> in;
+  std::vector<int> in_count, in_start;
+  if (first) {
+    own = std::move(m.start_own);
+    m.start_own.clear();
+  } else {
+    // Rebalance by count when the largest rank holds too many.
+    std::int64_t mine = 0;
+    for (const std::uint8_t g : m.ghost) mine += g == 0;
+    std::vector<std::int64_t> counts(static_cast<std::size_t>(P));
+    MPI_Allgather(&mine, 1, MPI_INT64_T, counts.data(), 1, MPI_INT64_T, m.comm);
+    const std::int64_t total = std::accumulate(counts.begin(), counts.end(), std::int64_t{0});
+    const std::int64_t most = *std::max_element(counts.begin(), counts.end());
+    if (total > 0 && static_cast<double>(most) * P > options_.rebalance * static_cast<double>(total)) {
+      std::vector<double> mine_c;
+      mine_c.reserve(static_cast<std::size_t>(mine));
+      for (std::size_t i = 0; i < s.size(); ++i)
+        if (!m.ghost[i]) mine_c.push_back(axis_of(s.x[i], axis_));
+      std::vector<int> cnt(P), at(P + 1, 0);
+      for (int q = 0; q < P; ++q) {
+        cnt[q] = static_cast<int>(counts[q]);
+        at[q + 1] = at[q] + cnt[q];
+      }
+      std::vector<double> every(static_cast<std::size_t>(at[P]));
+      MPI_Allgatherv(mine_c.data(), static_cast<int>(mine_c.size()), MPI_DOUBLE, every.data(),
+                     cnt.data(), at.data(), MPI_DOUBLE, m.comm);
+      cuts_ = cuts_by_count(std::move(every), P);
+      ++halo_.rebalances;
+    }
+    // Migration: every owned particle to the rank of its slab, with its slots and records.
+    std::vector<std::int32_t> rec_offset;
+    std::vector<Record> rec;
+    pair_records(s, m.ghost, rec_offset, rec);
+    std::vector<Writer> out(static_cast<std::size_t>(P));
+    for (std::size_t i = 0; i < s.size(); ++i) {
+      if (m.ghost[i]) continue;
+      const int to = m.owner(cuts_, axis_of(s.x[i], axis_));
+      if (to != m.rank) ++halo_.migrated;
+      pack_owned(s, i, rec_offset, rec, out[static_cast<std::size_t>(to)]);
+    }
+    halo_.migration_bytes += exchange(m.comm, out, in, in_count, in_start);
+    for (int q = 0; q < P; ++q) {
+      Reader r{in.data() + in_start[q], in.data() + in_start[q] + in_count[q]};
+      unpack_owned(r, own);
+    }
+  }
+  // Ghosts: every owned particle within the interaction range (2 r_max + skin) of another
+  // rank's slab goes there as a copy.
+  const double range = 2 * scene_.r_max() + scene_.skin_distance();
+  std::vector<Writer> gout(static_cast<std::size_t>(P));
+  for (const Core& c0 : own.core) {
+    const double a = axis_of(c0.x, axis_);
+    Core c = c0;
+    c.nslot = c.nrec = 0;
+    for (int q = 0; q < P; ++q) {
+      if (q == m.rank) continue;
+      const double lo = q == 0 ? -std::numeric_limits<double>::infinity() : cuts_[q - 1];
+      const double hi = q == P - 1 ? std::numeric_limits<double>::infinity() : cuts_[q];
+      if (a > lo - range && a < hi + range) gout[static_cast<std::size_t>(q)].put(c);
+    }
+  }
+  halo_.migration_bytes += exchange(m.comm, gout, in, in_count, in_start);
+  Particles gh;
+  std::vector<std::vector<std::int64_t>> recv_ids(static_cast<std::size_t>(P));
+  for (int q = 0; q < P; ++q) {
+    Reader r{in.data() + in_start[q], in.data() + in_start[q] + in_count[q]};
+    while (r.p < r.end) {
+      const Core c = r.get<Core>();
+      gh.core.push_back(c);
+      recv_ids[static_cast<std::size_t>(q)].push_back(c.id);
+    }
+  }
+  gh.rec_offset.clear();
+  std::vector<std::vector<std::int64_t>> send_ids(static_cast<std::size_t>(P));
+  for (int q = 0; q < P; ++q) {
+    const std::vector<char>& b = gout[static_cast<std::size_t>(q)].buf;
+    for (std::size_t o = 0; o < b.size(); o += sizeof(Core)) {
+      Core c;
+      std::memcpy(&c, b.data() + o, sizeof c);
+      send_ids[static_cast<std::size_t>(q)].push_back(c.id);
+    }
+  }
+  assemble(scene_, own, gh, s, engine_, m.ghost);
+  // The forward exchange's index lists (after the broad phase's sort).
+  std::unordered_map<std::int64_t, std::int32_t> at;
+  at.reserve(s.size() * 2);
+  for (std::size_t i = 0; i < s.size(); ++i) at.emplace(s.id[i], static_cast<std::int32_t>(i));
+  m.send_idx.assign(static_cast<std::size_t>(P), {});
+  m.recv_idx.assign(static_cast<std::size_t>(P), {});
+  for (int q = 0; q < P; ++q) {
+    for (const std::int64_t id : send_ids[static_cast<std::size_t>(q)])
+      m.send_idx[static_cast<std::size_t>(q)].push_back(at.at(id));
+    for (const std::int64_t id : recv_ids[static_cast<std::size_t>(q)])
+      m.recv_idx[static_cast<std::size_t>(q)].push_back(at.at(id));
+  }
+  engine_.set_ghosts(&m.ghost);
+  halo_.owned = static_cast<std::int64_t>(own.size());
+  halo_.ghosts = static_cast<std::int64_t>(gh.size());
+  ++halo_.migrations;
+}
+
+void Decomposed::tally(State& s) {
+  Impl& m = *impl_;
+  double t[3] = {0, 0, 0};
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    if (m.ghost[i]) continue;
+    keep_two_largest(t[0], t[1], norm2(s.x[i] - s.x_at_rebuild[i]));
+    t[2] = std::max(t[2], norm2(s.u[i]));
+  }
+  std::vector<double> all(static_cast<std::size_t>(3 * m.P));
+  MPI_Allgather(t, 3, MPI_DOUBLE, all.data(), 3, MPI_DOUBLE, m.comm);
+  m.d1 = m.d2 = m.u2 = 0;
+  for (int q = 0; q < m.P; ++q) {
+    keep_two_largest(m.d1, m.d2, all[3 * q]);
+    keep_two_largest(m.d1, m.d2, all[3 * q + 1]);
+    m.u2 = std::max(m.u2, all[3 * q + 2]);
+  }
+  // The state's displacements are the whole scene's (what the guard's bound reads).
+  s.max_displacement = std::sqrt(m.d1);
+  s.second_displacement = std::sqrt(m.d2);
+}
+
+void Decomposed::step(State& s) {
+  Impl& m = *impl_;
+  bool due = !s.lists_valid || s.steps_since_rebuild >= scene_.broad_phase_interval ||
+             m.ghost.size() != s.size();
+  if (!due) {
+    // The guard's bound over every rank's particles (FarMoverGuard::bound, the same on every
+    // rank); when it fires every rank rebuilds (no far-mover check: it would need the other
+    // ranks' lists).
+    s.max_displacement = std::sqrt(m.d1);
+    s.second_displacement = std::sqrt(m.d2);
+    const double moved = FarMoverGuard::bound(scene_, s, std::sqrt(m.u2));
+    if (moved > scene_.skin_distance()) {
+      if (scene_.guard == GuardMode::strict)
+        throw SimulationError(FarMoverGuard::strict_message(scene_, s, moved));
+      ++s.early_rebuilds;
+      due = true;
+    }
+  }
+  if (due) {
+    const cosim::Stopwatch watch;
+    rebuild(s, false);  // the engine's broad_phase row holds its broad phase; the rest is "other"
+    halo_.seconds_rebuild += watch.seconds();
+  }
+  engine_.step(s);
+  const cosim::Stopwatch exchange_watch;
+  // Forward: the owners' x, v, u (w, wu) onto their ghosts.
+  const int P = m.P;
+  const int per = m.rotating ? 15 : 9;
+  m.send_buf.resize(static_cast<std::size_t>(P));
+  m.recv_buf.resize(static_cast<std::size_t>(P));
+  std::vector<MPI_Request> req;
+  req.reserve(static_cast<std::size_t>(2 * P));
+  for (int q = 0; q < P; ++q) {
+    const auto& idx = m.recv_idx[static_cast<std::size_t>(q)];
+    if (idx.empty()) continue;
+    auto& b = m.recv_buf[static_cast<std::size_t>(q)];
+    b.resize(idx.size() * per);
+    req.emplace_back();
+    MPI_Irecv(b.data(), static_cast<int>(b.size()), MPI_DOUBLE, q, kTagGhost, m.comm, &req.back());
+  }
+  for (int q = 0; q < P; ++q) {
+    const auto& idx = m.send_idx[static_cast<std::size_t>(q)];
+    if (idx.empty()) continue;
+    auto& b = m.send_buf[static_cast<std::size_t>(q)];
+    b.resize(idx.size() * per);
+    double* o = b.data();
+    for (const std::int32_t i : idx) {
+      for (const Vec3* v : {&s.x[i], &s.v[i], &s.u[i]}) {
+        *o++ = v->x;
+        *o++ = v->y;
+        *o++ = v->z;
+      }
+      if (m.rotating)
+        for (const Vec3* v : {&s.w[i], &s.wu[i]}) {
+          *o++ = v->x;
+          *o++ = v->y;
+          *o++ = v->z;
+        }
+    }
+    req.emplace_back();
+    MPI_Isend(b.data(), static_cast<int>(b.size()), MPI_DOUBLE, q, kTagGhost, m.comm, &req.back());
+    halo_.bytes_sent += static_cast<std::int64_t>(b.size() * sizeof(double));
+    ++halo_.messages_sent;
+  }
+  MPI_Waitall(static_cast<int>(req.size()), req.data(), MPI_STATUSES_IGNORE);
+  for (int q = 0; q < P; ++q) {
+    const auto& idx = m.recv_idx[static_cast<std::size_t>(q)];
+    const double* o = m.recv_buf[static_cast<std::size_t>(q)].data();
+    for (const std::int32_t i : idx) {
+      for (Vec3* v : {&s.x[i], &s.v[i], &s.u[i]}) {
+        v->x = *o++;
+        v->y = *o++;
+        v->z = *o++;
+      }
+      if (m.rotating)
+        for (Vec3* v : {&s.w[i], &s.wu[i]}) {
+          v->x = *o++;
+          v->y = *o++;
+          v->z = *o++;
+        }
+    }
+  }
+  ++halo_.steps;
+  tally(s);
+  halo_.seconds_exchange += exchange_watch.seconds();
+}
+
+void Decomposed::reduce_boundary(std::vector<Wrench>& tools, std::vector<Vec3>& walls) const {
+  const Impl& m = *impl_;
+  const std::vector<Wrench>& tw = engine_.tool_wrenches();
+  const std::vector<Vec3>& wf = engine_.wall_forces();
+  std::vector<double> mine;
+  for (const Wrench& w : tw) mine.insert(mine.end(), {w.force.x, w.force.y, w.force.z, w.torque.x, w.torque.y, w.torque.z});
+  for (const Vec3& f : wf) mine.insert(mine.end(), {f.x, f.y, f.z});
+  const int L = static_cast<int>(mine.size());
+  std::vector<double> all(m.rank == 0 ? static_cast<std::size_t>(L) * m.P : 0);
+  MPI_Gather(mine.data(), L, MPI_DOUBLE, all.data(), L, MPI_DOUBLE, 0, m.comm);
+  std::vector<double> sum(static_cast<std::size_t>(L), 0.0);
+  if (m.rank == 0)  // in rank order: the same sum on every run
+    for (int q = 0; q < m.P; ++q)
+      for (int k = 0; k < L; ++k) sum[k] += all[static_cast<std::size_t>(q) * L + k];
+  MPI_Bcast(sum.data(), L, MPI_DOUBLE, 0, m.comm);
+  tools.resize(tw.size());
+  walls.resize(wf.size());
+  std::size_t k = 0;
+  for (Wrench& w : tools) {
+    w.force = {sum[k], sum[k + 1], sum[k + 2]};
+    w.torque = {sum[k + 3], sum[k + 4], sum[k + 5]};
+    k += 6;
+  }
+  for (Vec3& f : walls) {
+    f = {sum[k], sum[k + 1], sum[k + 2]};
+    k += 3;
+  }
+}
+
+namespace {
+// Every rank's bytes to rank 0, in rank order (rank 0's: `in`, others: empty).
+void gather_bytes(MPI_Comm comm, const std::vector<char>& mine, std::vector<char>& in,
+                  std::vector<int>& count, std::vector<int>& start) {
+  int P = 1, rank = 0;
+  MPI_Comm_size(comm, &P);
+  MPI_Comm_rank(comm, &rank);
+  const int n = static_cast<int>(mine.size());
+  count.assign(static_cast<std::size_t>(P), 0);
+  MPI_Gather(&n, 1, MPI_INT, count.data(), 1, MPI_INT, 0, comm);
+  start.assign(static_cast<std::size_t>(P) + 1, 0);
+  for (int q = 0; q < P; ++q) start[q + 1] = start[q] + count[q];
+  in.resize(rank == 0 ? static_cast<std::size_t>(start[P]) : 0);
+  MPI_Gatherv(mine.data(), n, MPI_BYTE, in.data(), count.data(), start.data(), MPI_BYTE, 0, comm);
+}
+}  // namespace
+
+State Decomposed::gather(const State& s) const {
+  const Impl& m = *impl_;
+  Writer w;
+  for (std::size_t i = 0; i < s.size(); ++i)
+    if (!m.ghost[i]) w.put(core_of(s, i));
+  std::vector<char> in;
+  std::vector<int> count, start;
+  gather_bytes(m.comm, w.buf, in, count, start);
+  State g;
+  g.step = s.step;
+  g.tool_pose = s.tool_pose;
+  g.rebuilds = s.rebuilds;
+  g.early_rebuilds = s.early_rebuilds;
+  if (m.rank != 0) return g;
+  std::vector<Core> cs(in.size() / sizeof(Core));
+  if (!cs.empty()) std::memcpy(cs.data(), in.data(), cs.size() * sizeof(Core));
+  std::sort(cs.begin(), cs.end(), [](const Core& a, const Core& b) { return a.id < b.id; });
+  for (const Core& c : cs) {
+    g.x.push_back(c.x);
+    g.v.push_back(c.v);
+    g.u.push_back(c.u);
+    g.radius.push_back(c.radius);
+    g.mass.push_back(c.mass);
+    g.species.push_back(c.species);
+    g.id.push_back(c.id);
+    if (m.rotating) {
+      g.w.push_back(c.w);
+      g.wu.push_back(c.wu);
+    }
+  }
+  return g;
+}
+
+State Decomposed::gather_with_lists(const State& s) const {
+  const Impl& m = *impl_;
+  std::vector<std::int32_t> rec_offset;
+  std::vector<Record> rec;
+  pair_records(s, m.ghost, rec_offset, rec);
+  Writer w;
+  for (std::size_t i = 0; i < s.size(); ++i)
+    if (!m.ghost[i]) pack_owned(s, i, rec_offset, rec, w);
+  std::vector<char> in;
+  std::vector<int> count, start;
+  gather_bytes(m.comm, w.buf, in, count, start);
+  State g;
+  g.step = s.step;
+  g.tool_pose = s.tool_pose;
+  g.tool_pose_at_rebuild = s.tool_pose;
+  g.rebuilds = s.rebuilds;
+  g.early_rebuilds = s.early_rebuilds;
+  if (m.rank != 0) return g;
+  Particles own, none;
+  Reader r{in.data(), in.data() + in.size()};
+  unpack_owned(r, own);
+  Engine e(scene_, engine_.options());
+  std::vector<std::uint8_t> mask;
+  assemble(scene_, own, none, g, e, mask);
+  g.rebuilds = s.rebuilds;  // the broad phase of the gathering is not the run's
+  return g;
+}
+
+std::string Decomposed::halo_summary() const {
+  const Impl& m = *impl_;
+  const std::int64_t mine[11] = {halo_.owned,         halo_.ghosts,    halo_.steps,
+                                 halo_.bytes_sent,    halo_.messages_sent, halo_.migrations,
+                                 halo_.migrated,      halo_.rebalances, halo_.migration_bytes,
+                                 std::llround(1e6 * halo_.seconds_rebuild),
+                                 std::llround(1e6 * halo_.seconds_exchange)};
+  std::vector<std::int64_t> all(static_cast<std::size_t>(11 * m.P));
+  MPI_Gather(mine, 11, MPI_INT64_T, all.data(), 11, MPI_INT64_T, 0, m.comm);
+  if (m.rank != 0) return {};
+  std::ostringstream o;
+  const char* names[3] = {"x", "y", "z"};
+  o << "MPI: " << m.P << " ranks, slabs along " << names[axis_] << ", cuts at";
+  for (const double c : cuts_) o << ' ' << c;
+  o << " m\n";
+  for (int q = 0; q < m.P; ++q) {
+    const std::int64_t* h = &all[static_cast<std::size_t>(11 * q)];
+    const double steps = std::max<double>(1.0, static_cast<double>(h[2]));
+    char line[400];
+    std::snprintf(line, sizeof line,
+                  "  rank %d: %lld owned, %lld ghosts (%.3g per owned); per step %.4g messages, "
+                  "%.4g bytes sent; %lld broad phases with migration (%lld particles moved, "
+                  "%lld rebalances, %.4g bytes); wall s: migration and broad phases %.3f, "
+                  "forward exchange and tally %.3f\n",
+                  q, static_cast<long long>(h[0]), static_cast<long long>(h[1]),
+                  h[0] > 0 ? static_cast<double>(h[1]) / static_cast<double>(h[0]) : 0.0,
+                  static_cast<double>(h[4]) / steps, static_cast<double>(h[3]) / steps,
+                  static_cast<long long>(h[5]), static_cast<long long>(h[6]),
+                  static_cast<long long>(h[7]), static_cast<double>(h[8]),
+                  1e-6 * static_cast<double>(h[9]), 1e-6 * static_cast<double>(h[10]));
+    o << line;
+  }
+  return o.str();
+}
+
+}  // namespace dem::mpi

@@ -1,0 +1,437 @@
+#!/usr/bin/python3
+"""dem_run on several MPI ranks against one rank (docs/mpi.md, "Running the DEM on several ranks").
+
+  mpi_check.py CASE BIN_DIR WORK_DIR
+
+CASE is one of:
+  one_rank  dem_run under `mpirun -np 1` writes the same file as dem_run alone, bit for bit
+  repeat    2 and 3 ranks, each run twice, write the same bits
+  bed       a bed settling in a box on 2 and 3 ranks equals 1 rank to round-off (500 steps)
+  tool      a blade pressed into the bed: particles and the blade's wrench, 2 and 3 ranks
+            against 1 rank to round-off
+  incline   grains stuck on an incline (singles on the floor, pairs stacked) migrate to the other
+            rank when the slabs are re-cut (movers in a third lane shift the counts): they stay
+            stuck as on 1 rank (their wall and pair springs travel with them), and the movers
+            stop where Coulomb friction puts them (closed form)
+  restart   a 2-rank run writes one checkpoint (rank 0, the whole scene with every spring); 2
+            ranks and 1 rank continue from it and equal the uninterrupted 2-rank run to round-off
+  rotating  the bed with the rotating particle model (spins, rolling springs): 2 and 3 ranks equal
+            1 rank to round-off, spins included
+  refused   bad MPI settings refused by name: an unknown decomposition, more ranks than cells,
+            sleeping on 2 ranks, dem_service on 2 ranks
+Exit 0 when the case holds, 1 with the reasons, 77 (skipped) when mpirun is not installed.
+"""
+import os
+import re
+import shutil
+import subprocess
+import sys
+
+import h5py
+import numpy as np
+
+CASE, BIN, WORK = sys.argv[1], sys.argv[2], sys.argv[3]
+DEM_RUN = os.path.join(BIN, "dem_run")
+HERE = os.path.dirname(os.path.abspath(__file__))
+COMPARE = os.path.join(HERE, "..", "..", "scripts", "compare_h5.py")
+MPIRUN = shutil.which("mpirun")
+if MPIRUN is None:
+    print("mpi_check: mpirun not found (scripts/setup.sh installs openmpi-bin): skipped")
+    sys.exit(77)
+os.makedirs(WORK, exist_ok=True)
+os.chdir(WORK)
+ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
+           OMP_WAIT_POLICY="PASSIVE", OMPI_MCA_btl="self,vader,tcp",
+           # containers without ptrace rights (CI) fail vader's cross-memory copies
+           OMPI_MCA_btl_vader_single_copy_mechanism="none")
+problems = []
+
+
+def check(ok, what):
+    print(("ok:   " if ok else "FAIL: ") + what)
+    if not ok:
+        problems.append(what)
+
+
+def run(config, out, ranks=None, sets=(), expect_ok=True):
+    cmd = [DEM_RUN, config, "--output", out]
+    for s in sets:
+        cmd += ["--set", s]
+    if ranks is not None:
+        cmd = [MPIRUN, "--oversubscribe", "--allow-run-as-root", "-np", str(ranks)] + cmd
+    p = subprocess.run(cmd, env=ENV, capture_output=True, text=True, timeout=600)
+    text = p.stdout + p.stderr
+    if expect_ok and p.returncode != 0:
+        print(text[-3000:])
+        raise SystemExit("mpi_check: %s failed (exit %d)" % (" ".join(cmd), p.returncode))
+    return p.returncode, text
+
+
+def snapshots(path):
+    with h5py.File(path, "r") as f:
+        out = []
+        for k in sorted(f["particles"]):
+            g = f["particles"][k]
+            out.append((g["id"][:], g["position"][:], g["velocity"][:]))
+        tools = {n: f["tools"][n]["samples"][:] for n in f["tools"]} if "tools" in f else {}
+        walls = f["walls"][:] if "walls" in f else None
+    return out, tools, walls
+
+
+def max_differences(a, b):
+    """Largest position and velocity difference over every snapshot of two runs (same ids)."""
+    sa, ta, wa = snapshots(a)
+    sb, tb, wb = snapshots(b)
+    if len(sa) != len(sb):
+        return None
+    dx = dv = 0.0
+    for (ia, xa, va), (ib, xb, vb) in zip(sa, sb):
+        if not np.array_equal(ia, ib):
+            return None
+        dx = max(dx, float(np.abs(xa - xb).max()))
+        dv = max(dv, float(np.abs(va - vb).max()))
+    return dx, dv, ta, tb, wa, wb
+
+
+def identical(a, b):
+    p = subprocess.run(["/usr/bin/python3", COMPARE, a, b, "--quiet"], capture_output=True, text=True)
+    return p.returncode == 0, (p.stdout + p.stderr).strip()
+
+
+BED_SCENE = """scene:
+  dt: 1.0e-5
+  gravity: [0, 0, -9.81]
+  broad_phase_interval: 5
+  skin: 0.5
+  threads: 1
+materials:
+  sand: {density: 2600}
+species:
+  - name: grain
+    material: sand
+    radius: {distribution: uniform, min: 0.004, max: 0.006}
+contact:
+  particle_particle:
+    normal_stiffness: 4.0e7
+    stiffness_unit: Pa
+    restitution: 0.3
+    tangential_stiffness_ratio: 0.5
+    tangential_damping_ratio: 0.5
+    friction: 0.5
+walls:
+  - {name: bin, type: box, min: [0, 0, 0], max: [0.2, 0.1, 0.5], open_top: true}
+"""
+
+
+BED_MADE = False
+
+
+def bed_checkpoint():
+    """A bed of 700 grains 0.08 s after they were released from a lattice: falling into place,
+    full of contacts (made by dem_run alone)."""
+    global BED_MADE
+    if BED_MADE:  # once per case (never a file left by an earlier build)
+        return
+    BED_MADE = True
+    with open("prep.yaml", "w") as f:
+        f.write(BED_SCENE + """particles:
+  fill:
+    - {species: grain, min: [0, 0, 0], max: [0.2, 0.1, 0.14], count: 700, seed: 1}
+run:
+  duration: 0.08
+output:
+  file: prep.h5
+  checkpoint: bed_ckpt.h5
+""")
+    run("prep.yaml", "prep.h5")
+
+
+def bed_config(name, extra="", duration=0.005):
+    bed_checkpoint()
+    with open(name, "w") as f:
+        f.write(BED_SCENE + extra + """particles:
+  checkpoint: bed_ckpt.h5
+run:
+  duration: %g
+output:
+  file: out.h5
+  particles_every: 0.001
+  wrenches_every: 1.0e-5
+""" % duration)
+    return name
+
+
+def halo_lines(text):
+    return [l for l in text.splitlines() if re.match(r"\s+rank \d+: ", l)]
+
+
+if CASE == "one_rank":
+    cfg = bed_config("bed.yaml")
+    run(cfg, "alone.h5")
+    code, text = run(cfg, "mpi1.h5", ranks=1)
+    same, note = identical("alone.h5", "mpi1.h5")
+    check(same, "mpirun -np 1 dem_run writes the same bits as dem_run alone (%s)" % note)
+    check("ranks, slabs" not in text, "one rank runs the plain engine (no decomposition)")
+
+elif CASE == "repeat":
+    cfg = bed_config("bed.yaml")
+    for n in (2, 3):
+        _, t1 = run(cfg, "r%d_a.h5" % n, ranks=n)
+        _, t2 = run(cfg, "r%d_b.h5" % n, ranks=n)
+        same, note = identical("r%d_a.h5" % n, "r%d_b.h5" % n)
+        check(same, "%d ranks run twice: the same bits (%s)" % (n, note))
+        check(len(halo_lines(t1)) == n, "%d ranks report their halo" % n)
+
+elif CASE == "bed":
+    cfg = bed_config("bed.yaml")
+    run(cfg, "one.h5")
+    for n in (2, 3):
+        _, text = run(cfg, "n%d.h5" % n, ranks=n)
+        d = max_differences("one.h5", "n%d.h5" % n)
+        check(d is not None, "%d ranks: the same particles in the same snapshots" % n)
+        if d is None:
+            continue
+        dx, dv, _, _, wa, wb = d
+        # 500 steps of a bed in motion: round-off (1e-16 m relative) grows, but far below a
+        # contact force computed once too often or missed (dt^2 F/m ~ 1e-7 m in one step).
+        check(dx < 1e-10, "%d ranks: positions equal 1 rank's to %.2g m (< 1e-10 m)" % (n, dx))
+        check(dv < 1e-7, "%d ranks: velocities equal 1 rank's to %.2g m/s (< 1e-7 m/s)" % (n, dv))
+        scale = float(np.abs(wa[:, 1:]).max())
+        dw = float(np.abs(wa - wb).max())
+        check(scale > 1.0 and dw < 1e-9 * scale,
+              "%d ranks: the walls' forces (largest %.3g N) equal 1 rank's to %.2g N" % (n, scale, dw))
+        ghosts = [int(re.search(r"(\d+) ghosts", l).group(1)) for l in halo_lines(text)]
+        check(len(ghosts) == n and min(ghosts) > 10, "%d ranks: each has ghosts (%s)" % (n, ghosts))
+
+elif CASE == "tool":
+    bed_checkpoint()
+    with h5py.File("bed_ckpt.h5", "r") as f:
+        top = float(np.max(f["x"][:, 2]))
+    # A plate (the blade mesh's face, 0.2 x 0.2 m) over the whole bed, pressed 4 mm into it
+    # from just above its highest grain centre: every rank's grains push on it.
+    mesh = os.path.join(HERE, "..", "..", "configs", "dem", "meshes", "blade.obj")
+    wall_law = """  particle_wall:
+    normal_stiffness: 4.0e7
+    stiffness_unit: Pa
+    restitution: 0.3
+    tangential_stiffness_ratio: 0.5
+    tangential_damping_ratio: 0.5
+    friction: 0.3
+"""
+    with open("tool.yaml", "w") as f:
+        f.write(BED_SCENE.replace("walls:\n", wall_law + "walls:\n", 1) + """tools:
+  - name: plate
+    mesh: %s
+    reference_point: [0, 0, 0]
+    motion:
+      interpolation: linear
+      keyframes:
+        - {time: 0.0, position: [0.0, 0.05, %.5f], orientation: [1, 0, 0, 0]}
+        - {time: 0.02, position: [0.01, 0.05, %.5f], orientation: [1, 0, 0, 0]}
+particles:
+  checkpoint: bed_ckpt.h5
+run:
+  duration: 0.005
+output:
+  file: out.h5
+  particles_every: 0.001
+  wrenches_every: 1.0e-5
+""" % (mesh, top + 0.002, top - 0.018))
+    run("tool.yaml", "one.h5")
+    for n in (2, 3):
+        run("tool.yaml", "n%d.h5" % n, ranks=n)
+        d = max_differences("one.h5", "n%d.h5" % n)
+        check(d is not None, "%d ranks: the same particles in the same snapshots" % n)
+        if d is None:
+            continue
+        dx, dv, ta, tb, _, _ = d
+        check(dx < 1e-10, "%d ranks: positions equal 1 rank's to %.2g m (< 1e-10 m)" % (n, dx))
+        wa, wb = ta["plate"], tb["plate"]
+        check(wa.shape == wb.shape and np.array_equal(wa[:, 0], wb[:, 0]),
+              "%d ranks: the wrench series has the same samples" % n)
+        scale = float(np.abs(wa[:, 1:7]).max())
+        dw = float(np.abs(wa[:, 1:7] - wb[:, 1:7]).max())
+        check(scale > 0.5, "the plate is pressed into the bed (largest wrench component %.3g)" % scale)
+        check(dw < 1e-9 * scale,
+              "%d ranks: the plate's wrench equals 1 rank's to %.2g (relative %.2g, < 1e-9)"
+              % (n, dw, dw / max(scale, 1e-300)))
+
+elif CASE == "incline":
+    theta = np.radians(15.0)
+    g = 9.81
+    mu = 0.5
+    r = 0.005
+    v0 = 0.6
+    lines = []
+    # Lane y = 0.02: single grains on the floor; lane y = 0.05: pairs (one on another); lane
+    # y = 0.08: movers sliding down the incline (+x) from the left end.
+    for k in range(19):
+        lines.append("    - {species: g, position: [%.4f, 0.02, %.4f]}" % (0.02 + 0.02 * k, r))
+    for k in range(4):
+        x = 0.05 + 0.1 * k
+        lines.append("    - {species: g, position: [%.4f, 0.05, %.4f]}" % (x, r))
+        lines.append("    - {species: g, position: [%.4f, 0.05, %.4f]}" % (x, 3 * r))
+    movers = []
+    for k in range(8):
+        x = 0.01 + 0.012 * k
+        movers.append(x)
+        lines.append("    - {species: g, position: [%.4f, 0.08, %.4f], velocity: [%.3f, 0, 0]}"
+                     % (x, r, v0))
+    with open("incline.yaml", "w") as f:
+        f.write("""scene:
+  dt: 2.5e-5
+  gravity: [%.9f, 0, %.9f]
+  broad_phase_interval: 50
+  skin: 0.5
+  threads: 1
+materials:
+  m: {density: 2600}
+species:
+  - {name: g, material: m, radius: %g}
+contact:
+  particle_particle: &law
+    normal_stiffness: 2.0e4
+    stiffness_unit: N/m
+    restitution: 0.3
+    tangential_stiffness_ratio: 0.5
+    tangential_damping_ratio: 0.5
+    friction: %g
+  particle_wall: *law
+walls:
+  - {name: floor, type: plane, point: [0, 0, 0], normal: [0, 0, 1]}
+mpi:
+  rebalance: 1.05
+particles:
+  list:
+%s
+run:
+  duration: 0.3
+output:
+  file: out.h5
+  particles_every: 0.02
+""" % (g * np.sin(theta), -g * np.cos(theta), r, mu, "\n".join(lines)))
+    run("incline.yaml", "one.h5")
+    a = mu * g * np.cos(theta) - g * np.sin(theta)
+    stop = v0 * v0 / (2 * a)
+    for n in (2, 3):
+        _, text = run("incline.yaml", "n%d.h5" % n, ranks=n)
+        halo = halo_lines(text)
+        moved = sum(int(re.search(r"\((\d+) particles moved", l).group(1)) for l in halo)
+        rebal = max(int(re.search(r"(\d+) rebalances", l).group(1)) for l in halo)
+        check(rebal >= 1 and moved >= 10,
+              "%d ranks: the slabs were re-cut (%d times) and %d grains changed rank" % (n, rebal, moved))
+        d = max_differences("one.h5", "n%d.h5" % n)
+        check(d is not None, "%d ranks: the same particles in the same snapshots" % n)
+        if d is None:
+            continue
+        dx, dv = d[0], d[1]
+        # A spring lost at a migration lets a stuck grain slip m g sin(theta) / k_t = 3.5e-7 m.
+        check(dx < 1e-10, "%d ranks: every grain where it is on 1 rank to %.2g m (< 1e-10 m; a "
+              "lost spring slips 3.5e-7 m)" % (n, dx))
+        sn, _, _ = snapshots("n%d.h5" % n)
+        ids, x, v = sn[-1]
+        stuck = ids < 35 - 8
+        check(float(np.abs(v[stuck]).max()) < 1e-6,
+              "%d ranks: the grains of the resting lanes are at rest (|v| < %.2g m/s)"
+              % (n, float(np.abs(v[stuck]).max())))
+        cuts = [float(c) for c in re.search(r"cuts at ([-0-9.e ]+) m", text).group(1).split()]
+        crossed = sum(1 for x0, x1 in zip(movers, x[ids >= 27, 0]) for c in cuts if x0 < c <= x1)
+        check(crossed >= 1, "%d ranks: movers slid across the final cut(s) %s and stuck there "
+              "(%d crossings)" % (n, cuts, crossed))
+        travelled = x[ids >= 27, 0] - np.array(movers)
+        err = float(np.abs(travelled / stop - 1).max())
+        check(err < 0.01, "%d ranks: the movers slid %.4f .. %.4f m, Coulomb's v0^2 / (2 (mu g cos "
+              "- g sin)) = %.4f m (within %.2g %%)" % (n, travelled.min(), travelled.max(), stop,
+                                                       100 * err))
+
+elif CASE == "restart":
+    cfg = bed_config("bed.yaml", duration=0.005)
+    run(cfg, "whole.h5", ranks=2)
+    run(cfg, "first.h5", ranks=2, sets=["run.duration=0.0025", "output.checkpoint=half.h5"])
+    with open("rest.yaml", "w") as f:
+        f.write(open(cfg).read().replace("checkpoint: bed_ckpt.h5", "checkpoint: half.h5\n  keep_time: true")
+                .replace("duration: 0.005", "duration: 0.0025"))
+    with h5py.File("half.h5", "r") as f:
+        springs = int(np.count_nonzero(np.abs(f["pair_spring"][:]).sum(axis=1)))
+        slots = int(np.count_nonzero(f["slot_count"][:]))
+    check(springs > 100 and slots > 50, "the 2-rank checkpoint holds the pair springs (%d) and "
+          "boundary slots (%d) of the whole scene" % (springs, slots))
+    for n in (2, 1):
+        run("rest.yaml", "rest%d.h5" % n, ranks=n)
+        sw, _, _ = snapshots("whole.h5")
+        sr, _, _ = snapshots("rest%d.h5" % n)
+        ids_w, xw, vw = sw[-1]
+        ids_r, xr, vr = sr[-1]
+        ok = np.array_equal(ids_w, ids_r)
+        dx = float(np.abs(xw - xr).max()) if ok else float("inf")
+        dv = float(np.abs(vw - vr).max()) if ok else float("inf")
+        check(ok and dx < 1e-10 and dv < 1e-7,
+              "restarted on %d rank(s): the end equals the uninterrupted 2-rank run to %.2g m, "
+              "%.2g m/s (< 1e-10 m, 1e-7 m/s)" % (n, dx, dv))
+        if n == 2:
+            # Step 250 is a broad phase of the uninterrupted run too (interval 5) and no grain
+            # changes rank: the restart's broad phase makes the same lists (docs/mpi.md).
+            check(ok and np.array_equal(xw, xr) and np.array_equal(vw, vr),
+                  "restarted on 2 ranks at a broad-phase step: the same bits as the "
+                  "uninterrupted 2-rank run")
+
+elif CASE == "rotating":
+    cfg = bed_config("bed.yaml")
+    with open("rot.yaml", "w") as f:
+        f.write(open(cfg).read().replace("particles:\n", "particles:\n  model: rotating\n  rolling_resistance: "
+                         "{model: epsd, friction: 0.1, damping: 0.3}\n")
+                .replace("dt: 1.0e-5", "dt: 7.5e-6"))  # the rotating model's faster period
+    run("rot.yaml", "one.h5")
+    for n in (2, 3):
+        run("rot.yaml", "n%d.h5" % n, ranks=n)
+        d = max_differences("one.h5", "n%d.h5" % n)
+        check(d is not None, "%d ranks: the same particles in the same snapshots" % n)
+        if d is None:
+            continue
+        check(d[0] < 1e-10 and d[1] < 1e-7,
+              "%d ranks: positions and velocities equal 1 rank's to %.2g m, %.2g m/s" % (n, d[0], d[1]))
+        with h5py.File("one.h5", "r") as fa, h5py.File("n%d.h5" % n, "r") as fb:
+            k = sorted(fa["particles"])[-1]
+            wa = fa["particles"][k]["angular_velocity"][:]
+            wb = fb["particles"][k]["angular_velocity"][:]
+        spin = float(np.abs(wa).max())
+        dw = float(np.abs(wa - wb).max())
+        check(spin > 1.0 and dw < 1e-9 * spin,
+              "%d ranks: spins (largest %.3g rad/s) equal 1 rank's to %.2g rad/s" % (n, spin, dw))
+
+elif CASE == "refused":
+    bed_config("bed.yaml")
+    code, text = run("bed.yaml", "x.h5", ranks=2, sets=["mpi.decomposition=cubes"], expect_ok=False)
+    check(code != 0 and "mpi.decomposition: unknown decomposition 'cubes'" in text,
+          "an unknown decomposition is refused naming mpi.decomposition")
+    code, text = run("bed.yaml", "x.h5", ranks=2, sets=["mpi.rebalance=0.5"], expect_ok=False)
+    check(code != 0 and "mpi.rebalance:" in text, "mpi.rebalance below 1 is refused by name")
+    with open("two.yaml", "w") as f:
+        f.write(BED_SCENE + """particles:
+  list:
+    - {species: grain, position: [0.05, 0.05, 0.006]}
+    - {species: grain, position: [0.062, 0.05, 0.006]}
+run:
+  duration: 0.001
+output:
+  file: out.h5
+""")
+    code, text = run("two.yaml", "x.h5", ranks=3, expect_ok=False)
+    check(code == 2 and "3 ranks, but the particles span only 1 broad-phase cell" in text
+          and "mpirun -np 1" in text, "more ranks than broad-phase cells is refused with the fix")
+    code, text = run("bed.yaml", "x.h5", ranks=2,
+                     sets=["scene.sleep.enabled=true"], expect_ok=False)
+    check(code == 2 and "scene.sleep is not supported on 2 ranks" in text,
+          "sleeping on 2 ranks is refused by name with the reason")
+    p = subprocess.run([MPIRUN, "--oversubscribe", "--allow-run-as-root", "-np", "2",
+                        os.path.join(BIN, "dem_service"), "bed.yaml"], env=ENV,
+                       capture_output=True, text=True, timeout=120)
+    check(p.returncode != 0 and "dem_service does not run on several ranks yet" in p.stdout + p.stderr,
+          "dem_service under mpirun -np 2 is refused (not two participants on the bus)")
+else:
+    raise SystemExit("mpi_check: unknown case " + CASE)
+
+if problems:
+    print("mpi_check %s: %d problem(s)" % (CASE, len(problems)))
+    sys.exit(1)
+print("mpi_check %s: every check holds" % CASE)
