@@ -62,6 +62,18 @@ std::string extent(const dem::State& s) {
   return buf;
 }
 
+// The run's length in steps and the output's cadences in steps (particle frames: 0 = none).
+struct Cadence {
+  long long steps, wrench_every, snap_every;
+};
+Cadence cadence(const dem::RunConfig& rc, const dem::Scene& scene) {
+  const long long snap_every =
+      rc.output.particles_every > 0 ? std::max(1LL, std::llround(rc.output.particles_every / scene.dt))
+                                    : 0;
+  return {std::llround(rc.duration / scene.dt),
+          std::max(1LL, std::llround(rc.output.wrenches_every / scene.dt)), snap_every};
+}
+
 // Per thread, the seconds each of the three parallel sections kept it working, and the share
 // of the cores the section used (sum of the busy times over threads x its wall time): where a
 // share is well below 1 the work was not split evenly, or the machine took a core away.
@@ -218,12 +230,8 @@ int run_decomposed(dem::RunConfig& rc, const dem::EngineOptions& options,
                  static_cast<long long>(dec->halo().ghosts));
   std::unique_ptr<dem::RunOutput> out;
   if (lead) out = std::make_unique<dem::RunOutput>(rc.output.file, scene, rc.config_text);
-  const long long steps = std::llround(rc.duration / scene.dt);
-  const long long wrench_every =
-      std::max(1LL, std::llround(rc.output.wrenches_every / scene.dt));
-  const long long snap_every =
-      rc.output.particles_every > 0 ? std::max(1LL, std::llround(rc.output.particles_every / scene.dt))
-                                    : 0;
+  const Cadence run = cadence(rc, scene);
+  const long long steps = run.steps, wrench_every = run.wrench_every, snap_every = run.snap_every;
   const double t0 = s.step * scene.dt;
   const long long rebuilds0 = s.rebuilds, early0 = s.early_rebuilds;
   const cosim::Stopwatch loop;
@@ -376,12 +384,8 @@ int run(int argc, char** argv) {
   }
 
   dem::RunOutput out(rc.output.file, scene, rc.config_text);
-  const long long steps = std::llround(rc.duration / scene.dt);
-  const long long wrench_every =
-      std::max(1LL, std::llround(rc.output.wrenches_every / scene.dt));
-  const long long snap_every =
-      rc.output.particles_every > 0 ? std::max(1LL, std::llround(rc.output.particles_every / scene.dt))
-                                    : 0;
+  const Cadence run = cadence(rc, scene);
+  const long long steps = run.steps, wrench_every = run.wrench_every, snap_every = run.snap_every;
   const double t0 = s.step * scene.dt;
   const long long rebuilds0 = s.rebuilds, early0 = s.early_rebuilds;
   const cosim::Stopwatch loop;

@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <cstring>
+#include <iostream>
 #include <regex>
 
 #include "harness.hpp"
@@ -144,28 +145,38 @@ TEST(MultiProcess, KilledParticipantIsNamedAndCompletedStepsAreKept) {
 // names what it last heard from it, its last answered step (not "no heartbeat ever" as though
 // it had never been there, nor only an older heartbeat's step).
 TEST(MultiProcess, ParticipantKilledBeforeItsFirstHeartbeatIsNamedWithItsLastReply) {
-  const std::string url = harness::bus_url();
-  const std::string h5 = harness::temp_path(".h5");
-  auto m1 = harness::spawn({harness::bin("oscillator_adapter"), "--side", "mass1", "--bus", url, "--wait", "60"},
-                           h5 + ".mass1.log");
-  auto m2 = harness::spawn({harness::bin("oscillator_adapter"), "--side", "mass2", "--bus", url, "--wait", "60"},
-                           h5 + ".mass2.log");
-  auto master = harness::spawn(
-      {harness::bin("cosim_master"), harness::source("configs/oscillator.yaml"), "--output", h5, "--set",
-       "bus.url=" + url, "--set", "participants.mass1.launch=null", "--set", "participants.mass2.launch=null",
-       "--set", "bus.authenticate=false", "--set", "participants.mass2.timeout=0.3", "--set",
-       "participants.mass2.retries=2", "--set", "time.end=200", "--set", "output.csv=", "--set",
-       "output.progress=off"},
-      h5 + ".log");
-  const cosim::Stopwatch waited;
-  while (harness::read_text(h5 + ".mass2.log").find("joined session") == std::string::npos && waited.seconds() < 60)
-    std::this_thread::sleep_for(std::chrono::milliseconds(1));
-  std::this_thread::sleep_for(std::chrono::milliseconds(20));  // a few steps, well before 0.25 s
-  kill(m2.pid, SIGKILL);
-  const int code = harness::wait_for(master, 30);
-  harness::wait_for(m2, 5);
-  harness::wait_for(m1, 10);
-  const std::string log = harness::read_text(h5 + ".log");
+  // mass2 is killed 20 ms after it answered its configure. If that one ready is lost on the bus
+  // (a loaded host drops loopback datagrams), the master never saw mass2 join, and the run
+  // ends at connect_timeout naming mass2 as never answering: the case under test did not
+  // happen, so it is tried again on a fresh bus (at most 3 times).
+  std::string h5, log;
+  int code = 0;
+  for (int attempt = 0; attempt < 3; ++attempt) {
+    const std::string url = harness::bus_url();
+    h5 = harness::temp_path(".h5");
+    auto m1 = harness::spawn({harness::bin("oscillator_adapter"), "--side", "mass1", "--bus", url, "--wait", "60"},
+                             h5 + ".mass1.log");
+    auto m2 = harness::spawn({harness::bin("oscillator_adapter"), "--side", "mass2", "--bus", url, "--wait", "60"},
+                             h5 + ".mass2.log");
+    auto master = harness::spawn(
+        {harness::bin("cosim_master"), harness::source("configs/oscillator.yaml"), "--output", h5, "--set",
+         "bus.url=" + url, "--set", "participants.mass1.launch=null", "--set", "participants.mass2.launch=null",
+         "--set", "bus.authenticate=false", "--set", "participants.mass2.timeout=0.3", "--set",
+         "participants.mass2.retries=2", "--set", "time.end=200", "--set", "output.csv=", "--set",
+         "output.progress=off", "--set", "connect_timeout=10"},
+        h5 + ".log");
+    const cosim::Stopwatch waited;
+    while (harness::read_text(h5 + ".mass2.log").find("joined session") == std::string::npos && waited.seconds() < 60)
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));  // a few steps, well before 0.25 s
+    kill(m2.pid, SIGKILL);
+    code = harness::wait_for(master, 30);
+    harness::wait_for(m2, 5);
+    harness::wait_for(m1, 10);
+    log = harness::read_text(h5 + ".log");
+    if (log.find("no answer from participant(s) mass2") == std::string::npos) break;
+    std::cerr << "mass2's ready was lost before the kill (attempt " << attempt + 1 << "), trying again\n";
+  }
   EXPECT_EQ(code, 1) << log;
   const auto at = log.find("participant 'mass2' stopped answering");
   ASSERT_NE(at, std::string::npos) << log;
@@ -176,8 +187,14 @@ TEST(MultiProcess, ParticipantKilledBeforeItsFirstHeartbeatIsNamedWithItsLastRep
   const std::size_t rows = harness::read_dataset(h5, "time").size();
   std::smatch m;
   if (std::regex_search(message, m, std::regex("last reply [0-9.e-]+ s ago \\(step ([0-9]+)\\)"))) {
-    ASSERT_GT(rows, 0u) << message;
-    EXPECT_EQ(std::stoul(m[1]), rows - 2) << message;  // rows: the initial row and one per step
+    const unsigned long step = std::stoul(m[1]);
+    if (step > 0) {
+      EXPECT_EQ(step + 2, rows) << message;  // rows: the initial row and one per step
+    } else {
+      // Step 0's reply may be a start-up iteration's, before the initial row is recorded: the
+      // file then holds no row, the initial row, or the initial row and step 0's.
+      EXPECT_LE(rows, 2u) << message;
+    }
   } else {
     EXPECT_NE(message.find("no reply to any step"), std::string::npos) << message;
     EXPECT_LE(rows, 1u) << message;
