@@ -82,7 +82,15 @@ int run(int argc, char** argv) {
     return all;
   }
   if (rank != 0) {
-    dem::mpi::follow(*model);
+    try {
+      dem::mpi::follow(*model);
+    } catch (const std::exception& e) {
+      // Outside an agreed command (a broken command from rank 0): rank 0 would wait for this
+      // rank in the next collective, so all end here, as dem_run's ranks do.
+      std::fprintf(stdout, "dem_service: rank %d stopped: %s\n", rank, e.what());
+      std::fflush(stdout);
+      dem::mpi::Session::abort(1);
+    }
     model->finish(std::cerr);
     return 0;
   }
