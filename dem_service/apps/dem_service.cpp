@@ -6,7 +6,9 @@
 #include <algorithm>
 #include <cstdio>
 #include <iostream>
+#include <memory>
 #include <new>
+#include <optional>
 #include <stdexcept>
 #include <string>
 
@@ -14,6 +16,7 @@
 #include "dem/config.hpp"
 #include "dem/engine.hpp"
 #include "dem/mpi/decomposed.hpp"
+#include "dem/mpi/service_ranks.hpp"
 #include "dem/service.hpp"
 #include "dem/thread_wait.hpp"
 
@@ -32,28 +35,77 @@ int run(int argc, char** argv) {
       return 0;
     }
   auto args = cosim::parse_participant_args(argc, argv, true);
-  // Several ranks are dem_run's only so far (docs/mpi.md): N copies would join the bus as N
-  // participants. The mpi: section is validated and set aside as dem_run does.
-  dem::mpi::take_options(args.config);
-  if (const int ranks = dem::mpi::launched_ranks(); ranks > 1)
-    throw std::invalid_argument(
-        "mpi: dem_service does not run on several ranks yet (started with " +
-        std::to_string(ranks) + "; docs/mpi.md): start it without mpirun, or run the scene with "
-        "mpirun -np N dem_run");
+  // The mpi: section (docs/mpi.md), validated on any rank count and set aside as dem_run does.
+  const dem::mpi::Options mpi_options = dem::mpi::take_options(args.config);
   // May execute dem_service again (once) with the OpenMP wait variables set: before the bus.
   const std::string wait = dem::apply_thread_wait(dem::read_thread_wait(args.config), argv);
+  // Started by mpirun: MPI from here on (after the re-execution above). One rank is today's
+  // program; on N > 1 rank 0 alone is the participant and the others follow it (docs/mpi.md).
+  std::optional<dem::mpi::Session> mpi;
+  if (dem::mpi::launched_by_mpirun()) mpi.emplace(&argc, &argv);
+  const int rank = mpi ? mpi->rank() : 0, ranks = mpi ? mpi->size() : 1;
+  if (rank != 0) std::freopen("/dev/null", "w", stderr);  // rank 0 speaks for all
   std::cerr << "dem_service: idle threads wait " << wait << "\n";
   // The engine's performance options, once (a bad DEM_PAIR_KERNEL stops it before the bus).
   const dem::EngineOptions engine = dem::EngineOptions::from_environment();
-  dem::ServiceModel model(args.config, args.config_dir, args.config_path, engine);
-  // Where the OpenMP threads may run (their affinity masks): every core they were given.
-  int threads = 1;
-  if (const YAML::Node t = args.config["scene"]["threads"]) threads = std::max(1, t.as<int>());
-  std::cerr << "dem_service: " << dem::describe_thread_cpus(dem::thread_cpus(threads)) << "\n";
-  const int code =
-      cosim::run_participant(model, "dem", static_cast<int>(args.rest.size()), args.rest.data());
-  model.finish(std::cerr);
-  return code;
+  if (ranks == 1) {
+    dem::ServiceModel model(args.config, args.config_dir, args.config_path, engine);
+    // Where the OpenMP threads may run (their affinity masks): every core they were given.
+    int threads = 1;
+    if (const YAML::Node t = args.config["scene"]["threads"]) threads = std::max(1, t.as<int>());
+    std::cerr << "dem_service: " << dem::describe_thread_cpus(dem::thread_cpus(threads)) << "\n";
+    const int code =
+        cosim::run_participant(model, "dem", static_cast<int>(args.rest.size()), args.rest.data());
+    model.finish(std::cerr);
+    return code;
+  }
+  // N > 1: the start-up checks agreed by every rank (the same config: the same answer), so
+  // that a refusal ends every rank before rank 0 joins the bus.
+  std::unique_ptr<dem::RankDriver> driver = dem::mpi::make_rank_driver(mpi_options);
+  std::unique_ptr<dem::ServiceModel> model;
+  int code = 0;
+  std::string refusal;
+  try {
+    model = std::make_unique<dem::ServiceModel>(args.config, args.config_dir, args.config_path, engine);
+    model->set_ranks(driver.get());
+  } catch (const std::exception& e) {
+    code = dynamic_cast<const std::invalid_argument*>(&e) || dynamic_cast<const cosim::config::ConfigError*>(&e) ? 2 : 1;
+    refusal = e.what();
+  }
+  if (const int all = dem::mpi::Session::max_over_ranks(code); all != 0) {
+    if (rank == 0) {
+      if (code != 0)
+        std::cerr << "dem_service: refused: " << refusal << "\n";
+      else
+        std::cerr << "dem_service: refused: another rank could not load the config\n";
+    }
+    return all;
+  }
+  if (rank != 0) {
+    try {
+      dem::mpi::follow(*model);
+    } catch (const std::exception& e) {
+      // Outside an agreed command (a broken command from rank 0): rank 0 would wait for this
+      // rank in the next collective, so all end here, as dem_run's ranks do.
+      std::fprintf(stdout, "dem_service: rank %d stopped: %s\n", rank, e.what());
+      std::fflush(stdout);
+      dem::mpi::Session::abort(1);
+    }
+    model->finish(std::cerr);
+    return 0;
+  }
+  std::cerr << "dem_service: " << ranks << " ranks; rank 0 is the participant on the bus\n";
+  dem::mpi::LeadModel lead(*model);
+  int result = 1;
+  try {
+    result = cosim::run_participant(lead, "dem", static_cast<int>(args.rest.size()), args.rest.data());
+  } catch (...) {
+    dem::mpi::end_followers();
+    throw;
+  }
+  dem::mpi::end_followers();
+  model->finish(std::cerr);
+  return result;
 }
 
 }  // namespace

@@ -111,6 +111,7 @@ void ServiceModel::configure(const YAML::Node& parameters, const cosim::RunInfo&
     // The config file's own paths are final: now their folders must exist.
     check_files(*rc_, config_path_, "output.file", {{"service.checkpoint", options_.checkpoint}});
   }
+  check_ranks();  // the master's parameters may have changed what N > 1 refuses
   pristine_ = false;
   run_ = run;
   const Scene& scene = rc_->scene;
@@ -132,6 +133,8 @@ void ServiceModel::configure(const YAML::Node& parameters, const cosim::RunInfo&
   for (std::size_t m = 0; m < scene.tools.size(); ++m)
     rc_->state.tool_pose[m] = scene.tools[m].motion.evaluate(cosim::to_seconds(run.t_start));
   end_poses_ = rc_->state.tool_pose;
+  // Several ranks: every rank keeps its share of the scene from here on (collective).
+  if (ranks_) ranks_->start(scene, *engine_, rc_->state);
   std::string output_file = o.file;
   if (!output_file.empty() && run.resume_steps_done > 0) {
     // The interrupted session's file keeps the steps before; this one holds the rest.
@@ -191,15 +194,47 @@ std::vector<ToolPose> ServiceModel::tool_poses(const cosim::StepInputs& in, Time
   return poses;
 }
 
-void ServiceModel::set_tool_poses(const cosim::StepInputs& in, TimePoint t) {
-  const std::vector<ToolPose> poses = tool_poses(in, t);
-  for (std::size_t m = 0; m < poses.size(); ++m) rc_->state.tool_pose[m] = poses[m];
+std::vector<std::vector<ToolPose>> ServiceModel::step_poses(const cosim::StepInputs& in) const {
+  const std::int64_t n = in.length() / inner_step_;
+  std::vector<std::vector<ToolPose>> poses;
+  poses.reserve(static_cast<std::size_t>(n) + 1);
+  for (std::int64_t k = 0; k < n; ++k) poses.push_back(tool_poses(in, in.t_start() + k * inner_step_));
+  poses.push_back(tool_poses(in, in.t_end()));
+  return poses;
+}
+
+void ServiceModel::set_ranks(RankDriver* ranks) {
+  ranks_ = ranks && ranks->ranks() > 1 ? ranks : nullptr;
+  check_ranks();
+}
+
+void ServiceModel::check_ranks() const {
+  if (!ranks_) return;
+  ranks_->check_supported(*rc_, engine_options_.with_config(rc_->performance));
+  const std::string n = std::to_string(ranks_->ranks()) + " ranks";
+  auto refuse = [&](const std::string& what) {
+    throw std::invalid_argument("mpi: " + what + " (docs/mpi.md lists what dem_service runs on several ranks)");
+  };
+  if (!rc_->output.file.empty())
+    refuse("output.file is not supported by dem_service on " + n +
+           ": its particle snapshots and wrench samples would need the particles gathered on rank "
+           "0 inside the bus's steps, which is not built yet; set output.file: \"\" (the master "
+           "records the tool wrenches) or run dem_service on one rank");
+  if (!rc_->output.checkpoint.empty())
+    refuse("output.checkpoint is not supported by dem_service on " + n +
+           ": the end-of-session checkpoint is not gathered from the ranks yet; set "
+           "output.checkpoint: \"\" or run dem_service on one rank");
+  if (options_.checkpoint_every > 0)
+    refuse("service.checkpoint_every is not supported by dem_service on " + n +
+           ": the service's periodic checkpoints are not gathered from the ranks yet; set "
+           "service.checkpoint_every: 0 or run dem_service on one rank");
 }
 
 void ServiceModel::save_snapshot() {
   const cosim::Stopwatch watch;
   if (out_) out_->flush_if_older_than(2.0);  // the previous step is accepted: its rows may go
   snapshot_ = rc_->state;  // copy-assignment reuses the snapshot's capacity
+  if (ranks_) ranks_->save_snapshot();
   snapshot_rows_ = out_ ? out_->buffered_rows() : 0;
   snapshot_seconds_ += watch.seconds();
 }
@@ -208,11 +243,15 @@ void ServiceModel::restore_snapshot() {
   if (!snapshot_) throw std::logic_error("dem_service: restore_snapshot without a snapshot");
   const cosim::Stopwatch watch;
   rc_->state = *snapshot_;
+  if (ranks_) ranks_->restore_snapshot();
   if (out_) out_->discard_rows_after(snapshot_rows_);  // samples of the abandoned attempt
   snapshot_seconds_ += watch.seconds();
 }
 
 void ServiceModel::save_checkpoint(const std::string& path) {
+  if (ranks_)
+    throw std::runtime_error("dem_service on several ranks does not save the master's checkpoints "
+                             "yet (docs/mpi.md); run it on one rank to checkpoint");
   const cosim::Stopwatch w;
   if (out_) out_->flush_if_older_than(2.0);  // the step is accepted: its rows may go
   dem::save_checkpoint(rc_->state, path);
@@ -220,6 +259,9 @@ void ServiceModel::save_checkpoint(const std::string& path) {
 }
 
 void ServiceModel::load_checkpoint(const std::string& path) {
+  if (ranks_)
+    throw std::runtime_error("dem_service on several ranks does not resume from checkpoints yet "
+                             "(docs/mpi.md); resume on one rank");
   State s = dem::load_checkpoint(path);
   if (s.tool_pose.size() != rc_->scene.tools.size())
     throw std::runtime_error("it holds " + std::to_string(s.tool_pose.size()) + " tool(s), the scene has " +
@@ -240,6 +282,12 @@ void ServiceModel::load_checkpoint(const std::string& path) {
 }
 
 cosim::StepResult ServiceModel::step(const cosim::StepInputs& in, bool want_average) {
+  return step_with_poses(in.t_start(), in.t_end(), step_poses(in), want_average);
+}
+
+cosim::StepResult ServiceModel::step_with_poses(TimePoint t_start, TimePoint t_end,
+                                                const std::vector<std::vector<ToolPose>>& poses,
+                                                bool want_average) {
   const Scene& scene = rc_->scene;
   State& s = rc_->state;
   Engine& engine = *engine_;
@@ -253,30 +301,45 @@ cosim::StepResult ServiceModel::step(const cosim::StepInputs& in, bool want_aver
   std::vector<Vec3> r0(ntools);
   for (std::size_t m = 0; m < ntools; ++m) r0[m] = s.tool_pose[m].position;
   std::vector<Vec3> at_force(ntools);  // the reference points of the current DEM step
-  const std::int64_t n = in.length() / inner_step_;
+  const std::int64_t n = (t_end - t_start) / inner_step_;
+  if (poses.size() != static_cast<std::size_t>(n) + 1)
+    throw std::logic_error("dem_service: a step's poses do not match its length");
+  std::vector<Wrench> reduced;  // several ranks: the tools' wrenches summed over the ranks
+  auto tool_wrenches = [&]() -> const std::vector<Wrench>& {
+    if (!ranks_) return engine.tool_wrenches();
+    reduced = ranks_->tool_wrenches();
+    return reduced;
+  };
   double max_overlap = 0, max_ratio = 0;
   // Particle snapshots only at a step's start: that state is accepted (a repeat starts from it).
-  if (out_ && particles_every_ > Duration::zero() && in.t_start() >= next_particles_ && in.t_start() != last_particles_) {
+  if (out_ && particles_every_ > Duration::zero() && t_start >= next_particles_ && t_start != last_particles_) {
     const cosim::Stopwatch w;
     // The tools where this step's inputs put them at its start (the state holds the poses of
     // the last DEM step's force time, one inner step earlier).
-    out_->snapshot(s, cosim::to_seconds(in.t_start()), tool_poses(in, in.t_start()));  // flushes the accepted rows too
+    out_->snapshot(s, cosim::to_seconds(t_start), poses.front());  // flushes the accepted rows too
     snapshot_rows_ = out_->buffered_rows();
-    last_particles_ = in.t_start();
-    next_particles_ += particles_every_ * ((in.t_start() - next_particles_) / particles_every_ + 1);
+    last_particles_ = t_start;
+    next_particles_ += particles_every_ * ((t_start - next_particles_) / particles_every_ + 1);
     engine.timing().add(section::output, w.seconds());
   }
   for (std::int64_t k = 0; k < n; ++k) {
-    const TimePoint t = in.t_start() + k * inner_step_;
-    set_tool_poses(in, t);
+    const TimePoint t = t_start + k * inner_step_;
+    for (std::size_t m = 0; m < ntools; ++m) s.tool_pose[m] = poses[static_cast<std::size_t>(k)][m];
     for (std::size_t m = 0; m < ntools; ++m) at_force[m] = s.tool_pose[m].position;
-    engine.step(s);  // forces at t with the poses at t, then positions to t + dt
+    if (ranks_)
+      ranks_->step(s);  // the whole scene over the ranks
+    else
+      engine.step(s);  // forces at t with the poses at t, then positions to t + dt
     asleep_steps_ += static_cast<double>(engine.sleeping());
     particle_steps_ += static_cast<double>(s.size());
-    for (std::size_t m = 0; m < ntools; ++m) {
-      const Wrench& w = engine.tool_wrenches()[m];
-      sum[m].force += w.force;
-      sum[m].torque += w.torque + cross(at_force[m] - r0[m], w.force);
+    // Several ranks: the reduction only where a sum needs it (want_average is every rank's).
+    if (want_average || !ranks_) {
+      const std::vector<Wrench>& tw = tool_wrenches();
+      for (std::size_t m = 0; m < ntools; ++m) {
+        const Wrench& w = tw[m];
+        sum[m].force += w.force;
+        sum[m].torque += w.torque + cross(at_force[m] - r0[m], w.force);
+      }
     }
     const ContactStats& c = engine.contact_stats();
     max_overlap = std::max(max_overlap, c.max_overlap);
@@ -288,14 +351,16 @@ cosim::StepResult ServiceModel::step(const cosim::StepInputs& in, bool want_aver
       engine.timing().add(section::output, w.seconds());
     }
   }
-  t_now_ = in.t_end();
-  end_poses_ = tool_poses(in, in.t_end());  // for the session's last snapshot
+  t_now_ = t_end;
+  end_poses_ = poses.back();  // for the session's last snapshot
   ++steps_done_;
+  if (ranks_ && !want_average) tool_wrenches();  // the last DEM step's, summed over the ranks
 
   cosim::StepResult r;
   const double inv_n = 1.0 / static_cast<double>(n);
   for (std::size_t m = 0; m < ntools; ++m) {
-    const cosim::Wrench w = to_wrench(engine.tool_wrenches()[m], s.tool_pose[m].position);
+    const cosim::Wrench w =
+        to_wrench(ranks_ ? reduced[m] : engine.tool_wrenches()[m], s.tool_pose[m].position);
     r.outputs[scene.tools[m].name] = {cosim::SignalKind::Wrench, w.to_value()};
   }
   if (want_average) {
@@ -316,22 +381,35 @@ cosim::StepResult ServiceModel::step(const cosim::StepInputs& in, bool want_aver
     engine.timing().add(section::output, w.seconds());
   }
   const ContactStats& c = engine.contact_stats();
-  r.diagnostics = {
-      {"particle_contacts", static_cast<double>(c.particle_contacts)},
-      {"boundary_contacts", static_cast<double>(c.boundary_contacts)},
-      {"kinetic_energy", kinetic_energy(s)},
-      {"max_overlap", max_overlap},
-      {"max_overlap_ratio", max_ratio},
-      {"broad_phases", static_cast<double>(s.rebuilds - rebuilds0)},
-      {"early_rebuilds", static_cast<double>(s.early_rebuilds - early0)},
-      {"sleeping", static_cast<double>(engine.sleeping())},
-      {"particles", static_cast<double>(s.size())},
-      {"removed", static_cast<double>(s.removed_count)},
-      {"removed_mass", s.removed_mass},
-  };
-  for (std::size_t m = 0; m < ntools; ++m)
-    r.diagnostics.emplace_back("payload_" + scene.tools[m].name,
-                               payload_mass(s, scene.tools[m].mesh, s.tool_pose[m]));
+  if (ranks_) {
+    // Several ranks: the whole scene's sums; the per-contact figures and the payload are each
+    // rank's own (a ghost's pairs count on two ranks) and are not reported (docs/mpi.md).
+    double particles = 0, energy = 0;
+    ranks_->totals(s, particles, energy);
+    r.diagnostics = {
+        {"kinetic_energy", energy},
+        {"broad_phases", static_cast<double>(s.rebuilds - rebuilds0)},
+        {"early_rebuilds", static_cast<double>(s.early_rebuilds - early0)},
+        {"particles", particles},
+    };
+  } else {
+    r.diagnostics = {
+        {"particle_contacts", static_cast<double>(c.particle_contacts)},
+        {"boundary_contacts", static_cast<double>(c.boundary_contacts)},
+        {"kinetic_energy", kinetic_energy(s)},
+        {"max_overlap", max_overlap},
+        {"max_overlap_ratio", max_ratio},
+        {"broad_phases", static_cast<double>(s.rebuilds - rebuilds0)},
+        {"early_rebuilds", static_cast<double>(s.early_rebuilds - early0)},
+        {"sleeping", static_cast<double>(engine.sleeping())},
+        {"particles", static_cast<double>(s.size())},
+        {"removed", static_cast<double>(s.removed_count)},
+        {"removed_mass", s.removed_mass},
+    };
+    for (std::size_t m = 0; m < ntools; ++m)
+      r.diagnostics.emplace_back("payload_" + scene.tools[m].name,
+                                 payload_mass(s, scene.tools[m].mesh, s.tool_pose[m]));
+  }
   for (const cosim::TimingRow& row : engine.timing().rows_since(before))
     r.diagnostics.emplace_back("seconds_" + row.section, row.seconds);
   r.diagnostics.emplace_back("seconds_step", wall_step.seconds());

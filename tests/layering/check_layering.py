@@ -106,7 +106,8 @@ check("protocol/src", lambda i: bool(HIGHER.match(i)), "the bus reaches a higher
 check("protocol/include", lambda i: bool(HIGHER.match(i)), "the bus reaches a higher layer")
 
 ENGINE_SKIP = ("dem_service/src/service.cpp", "dem_service/include/dem/service.hpp",
-               "dem_service/apps/dem_service.cpp")
+               "dem_service/apps/dem_service.cpp", "dem_service/src/mpi/service_ranks.cpp",
+               "dem_service/include/dem/mpi/service_ranks.hpp")
 engine_forbidden = lambda i: (i in BUS or is_wire(i) or i.startswith("mbs/")
                               or i.startswith("master/") or "simbody" in i.lower())
 for folder in ("dem_service/src", "dem_service/include", "dem_service/apps"):

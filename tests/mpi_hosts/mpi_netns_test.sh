@@ -52,15 +52,17 @@ probe_over_rig() {
 probe_over_rig clean 0 4 2
 probe_over_rig loss3 0.03 2 2
 
-# The DEM as the MPI job in host a (one rank: today's dem_service under mpirun) and the
-# co-simulation master with the prescribed blade in host c (netns_run.sh --beside), a keyed bus
-# with ttl=1 through the relay: it finishes (the blade in the bed, above 100 N) and records the
-# blade's wrench bit for bit as the same co-simulation with every process on this host does.
+# The DEM as the MPI job on 2 ranks in hosts a and b (dem_service under mpirun: rank 0 on the
+# bus, rank 1 following it over MPI/TCP through the relay) and the co-simulation master with the
+# prescribed blade in host c (netns_run.sh --beside), a keyed bus with ttl=1 through the relay:
+# it finishes (the blade in the bed, above 100 N) and records the blade's wrench equal to the same
+# co-simulation with one DEM rank on this host to round-off (1e-9 of the peak over these 15 ms,
+# before the bed's chaos amplifies it; docs/mpi.md).
 url='udpm://239.255.76.67:7667?ttl=1'
 "$bin/cosim_master" --new-key "$work/key" >/dev/null 2>&1 || fail "cosim_master --new-key"
 (
   cd "$src" || exit 1
-  COSIM_KEY_FILE="$work/key" timeout 150 bash "$run" --hosts 2 --np 1 --prefix "mt$(($$ % 100000))" --bin "$bin" \
+  COSIM_KEY_FILE="$work/key" timeout 200 bash "$run" --hosts 2 --np 2 --prefix "mt$(($$ % 100000))" --bin "$bin" \
     --beside "'$bin/cosim_master' tests/dem_service/cosim.yaml --set 'bus.url=$url' --set participants.dem.launch=null \
               --set time.end=0.015 --set time.macro_step=2e-5 --output '$work/rig.h5'" \
     -- dem_service tests/dem_service/scene.yaml --name dem --bus "$url" --wait 60
@@ -73,17 +75,22 @@ a, b = (h5py.File(f, "r") for f in sys.argv[1:3])
 status = a["status"][()]
 status = status.decode() if isinstance(status, bytes) else str(status)
 wa, wb = (f["participants/dem/outputs/blade"][:] for f in (a, b))
-same = wa.shape == wb.shape and wa.tobytes() == wb.tobytes()
+peak = np.abs(wb[:, :3]).max()
+diff = np.abs(wa - wb).max() if wa.shape == wb.shape else float("inf")
+same = diff <= 1e-9 * peak
 print(f"status {status}, {len(wa)} wrenches, max |F| {np.abs(wa[:, :3]).max():.3g} N, "
-      f"{'bit-identical' if same else 'DIFFERENT'} to one host")
+      f"{'round-off' if same else 'DIFFERENT'} to one rank on one host "
+      f"(max |difference| {diff:.3g} N, {diff / peak:.3g} of the peak)")
 PY
 )
 echo "cosim over the rig: $verdict"
 # 750 macro steps; the blade meets the bed at 8.7 ms (peak above 1 kN)
-[[ $verdict == "status finished, 751 wrenches, max |F| "*" N, bit-identical to one host" ]] &&
+[[ $verdict == "status finished, 751 wrenches, max |F| "*" N, round-off to one rank on one host"* ]] &&
   /usr/bin/python3 -c "import sys; sys.exit(not float(sys.argv[1]) > 100)" "$(sed 's/.*max |F| \([^ ]*\) N.*/\1/' <<<"$verdict")" ||
   { fail "cosim over the rig: $verdict"; tail -40 "$work/cosim.log"; }
 grep -q "netns_run: mpirun exited 0, the command in host c 0" "$work/cosim.log" || fail "cosim over the rig: exit lines"
+grep -q "dem_service: 2 ranks; rank 0 is the participant on the bus" "$work/cosim.log" || fail "cosim over the rig: not 2 DEM ranks"
+grep -q "netns_run: 2 ranks on 2 hosts" "$work/cosim.log" || fail "cosim over the rig: the DEM's ranks not on 2 hosts"
 
 [ "$fails" -eq 0 ] || { echo "mpi_netns_test: $fails check(s) failed"; exit 1; }
 echo "mpi_netns_test: all checks passed"

@@ -30,6 +30,30 @@ struct ServiceOptions {
 // compares); refuses a `settle` section. Raises config::ConfigError.
 ServiceOptions read_service_options(YAML::Node& root);
 
+// The scene on several MPI ranks (dem_service under mpirun -np N, docs/mpi.md): what the
+// service calls instead of the engine. Every member is collective (every rank calls it in the
+// same order). Implemented with MPI in dem_service/src/mpi/service_ranks.cpp; this header names
+// no MPI type.
+class RankDriver {
+ public:
+  virtual ~RankDriver() = default;
+  virtual int ranks() const = 0;
+  // What N > 1 does not run (std::invalid_argument naming the key, the reason and the fix).
+  virtual void check_supported(const RunConfig& rc, const EngineOptions& options) const = 0;
+  // A session's start: `s`, the whole scene (the same on every rank), becomes this rank's share.
+  virtual void start(const Scene& scene, Engine& engine, State& s) = 0;
+  // One DEM step of the whole scene.
+  virtual void step(State& s) = 0;
+  // The tools' wrenches of the last step, summed over the ranks in rank order.
+  virtual std::vector<Wrench> tool_wrenches() = 0;
+  // The whole scene's particle count and kinetic energy (sums in rank order).
+  virtual void totals(const State& s, double& particles, double& kinetic_energy) = 0;
+  // Everything besides the State that a repeated step needs to start bit for bit where the
+  // snapshot was taken (the ghost mask, the exchange lists, the cuts, the guard's tally).
+  virtual void save_snapshot() = 0;
+  virtual void restore_snapshot() = 0;
+};
+
 class ServiceModel final : public cosim::Model {
  public:
   // root: the DEM config (the dem_run schema plus `service`), after --set; base_dir resolves its
@@ -46,6 +70,16 @@ class ServiceModel final : public cosim::Model {
   cosim::Duration inner_step() const override { return inner_step_; }
   cosim::Signals initial_outputs() override;
   cosim::StepResult step(const cosim::StepInputs& in, bool want_average) override;
+  // The tools' poses of a step at each DEM step's start and at its end (length / inner step + 1
+  // entries), validated (cosim::InputError for NaN or infinity).
+  std::vector<std::vector<ToolPose>> step_poses(const cosim::StepInputs& in) const;
+  // The step with its poses (step() is step_poses() then this): what every rank runs.
+  cosim::StepResult step_with_poses(cosim::TimePoint t_start, cosim::TimePoint t_end,
+                                    const std::vector<std::vector<ToolPose>>& poses,
+                                    bool want_average);
+  // The scene on several ranks (dem_service under mpirun): the driver (kept by the caller)
+  // steps it from now on. Refuses (std::invalid_argument) what N > 1 does not run.
+  void set_ranks(RankDriver* ranks);
   bool can_repeat() const override { return options_.snapshot; }
   void save_snapshot() override;
   void restore_snapshot() override;
@@ -71,12 +105,14 @@ class ServiceModel final : public cosim::Model {
   void build(YAML::Node root, const std::string& what, bool startup = false);
   // Every tool's pose from the step's input polynomials at t (refuses NaN or infinity).
   std::vector<ToolPose> tool_poses(const cosim::StepInputs& in, cosim::TimePoint t) const;
-  void set_tool_poses(const cosim::StepInputs& in, cosim::TimePoint t);
+  // N > 1: refusals of what the service does not run on several ranks.
+  void check_ranks() const;
 
   YAML::Node root_;  // as loaded, before the master's parameters
   std::string base_dir_, config_path_;
   std::unique_ptr<RunConfig> rc_;
   std::unique_ptr<Engine> engine_;
+  RankDriver* ranks_ = nullptr;  // several ranks: steps the engine; null: one process
   EngineOptions engine_options_;
   std::unique_ptr<RunOutput> out_;
   ServiceOptions options_;

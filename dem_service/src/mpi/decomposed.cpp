@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <exception>
 #include <limits>
 #include <numeric>
 #include <sstream>
@@ -15,6 +16,7 @@
 
 #include "cosim/yaml_config.hpp"
 #include "dem/far_movers.hpp"
+#include "dem/rotation.hpp"
 #include "dem/sleepers.hpp"
 
 namespace dem::mpi {
@@ -359,6 +361,43 @@ Decomposed::Decomposed(const Scene& scene, Engine& engine, const Options& option
 
 Decomposed::~Decomposed() { engine_.set_ghosts(nullptr); }
 
+void Decomposed::save_snapshot() {
+  if (saved_)
+    *saved_ = *impl_;  // reuses the vectors' capacity
+  else
+    saved_ = std::make_unique<Impl>(*impl_);
+  saved_cuts_ = cuts_;
+  saved_due_ = due_;
+}
+
+void Decomposed::restore_snapshot() {
+  if (!saved_) throw std::logic_error("dem::mpi: restore_snapshot without a snapshot");
+  *impl_ = *saved_;
+  cuts_ = saved_cuts_;
+  due_ = saved_due_;
+  engine_.set_ghosts(&impl_->ghost);
+}
+
+void Decomposed::totals(const State& s, double& particles, double& kinetic_energy) const {
+  const Impl& m = *impl_;
+  double mine[2] = {0, 0};
+  const bool spins = !s.w.empty();
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    if (i < m.ghost.size() && m.ghost[i]) continue;
+    mine[0] += 1;
+    mine[1] += 0.5 * s.mass[i] * norm2(s.v[i]);
+    if (spins && i < s.w.size())
+      mine[1] += 0.5 * moment_of_inertia(s.mass[i], s.radius[i]) * norm2(s.w[i]);
+  }
+  std::vector<double> all(static_cast<std::size_t>(2 * m.P));
+  MPI_Allgather(mine, 2, MPI_DOUBLE, all.data(), 2, MPI_DOUBLE, m.comm);
+  particles = kinetic_energy = 0;
+  for (int q = 0; q < m.P; ++q) {  // in rank order: the same sums on every rank and run
+    particles += all[2 * static_cast<std::size_t>(q)];
+    kinetic_energy += all[2 * static_cast<std::size_t>(q) + 1];
+  }
+}
+
 int Decomposed::rank() const { return impl_->rank; }
 int Decomposed::ranks() const { return impl_->P; }
 
@@ -614,25 +653,28 @@ void Decomposed::rebuild(State& s, bool first) {
   ++halo_.migrations;
 }
 
-void Decomposed::tally(State& s) {
+int Decomposed::tally(State& s, bool failed) {
   Impl& m = *impl_;
-  double t[3] = {0, 0, 0};
+  double t[4] = {0, 0, 0, failed ? 1.0 : 0.0};
   for (std::size_t i = 0; i < s.size(); ++i) {
     if (m.ghost[i]) continue;
     keep_two_largest(t[0], t[1], norm2(s.x[i] - s.x_at_rebuild[i]));
     t[2] = std::max(t[2], norm2(s.u[i]));
   }
-  std::vector<double> all(static_cast<std::size_t>(3 * m.P));
-  MPI_Allgather(t, 3, MPI_DOUBLE, all.data(), 3, MPI_DOUBLE, m.comm);
+  std::vector<double> all(static_cast<std::size_t>(4 * m.P));
+  MPI_Allgather(t, 4, MPI_DOUBLE, all.data(), 4, MPI_DOUBLE, m.comm);
   m.d1 = m.d2 = m.u2 = 0;
+  int first_failed = -1;
   for (int q = 0; q < m.P; ++q) {
-    keep_two_largest(m.d1, m.d2, all[3 * q]);
-    keep_two_largest(m.d1, m.d2, all[3 * q + 1]);
-    m.u2 = std::max(m.u2, all[3 * q + 2]);
+    keep_two_largest(m.d1, m.d2, all[4 * q]);
+    keep_two_largest(m.d1, m.d2, all[4 * q + 1]);
+    m.u2 = std::max(m.u2, all[4 * q + 2]);
+    if (all[4 * q + 3] != 0 && first_failed < 0) first_failed = q;
   }
   // The state's displacements are the whole scene's (what the guard's bound reads).
   s.max_displacement = std::sqrt(m.d1);
   s.second_displacement = std::sqrt(m.d2);
+  return first_failed;
 }
 
 void Decomposed::step(State& s) {
@@ -658,7 +700,14 @@ void Decomposed::step(State& s) {
     rebuild(s, false);  // the engine's broad_phase row holds its broad phase; the rest is "other"
     halo_.seconds_rebuild += watch.seconds();
   }
-  engine_.step(s);
+  // A throw here on one rank would leave the others waiting in the exchange: it is held until
+  // every rank has heard of it (the tally below).
+  std::exception_ptr failed;
+  try {
+    engine_.step(s);
+  } catch (...) {
+    failed = std::current_exception();
+  }
   const cosim::Stopwatch exchange_watch;
   // Forward: the owners' x, v, u (w, wu) onto their ghosts.
   const int P = m.P;
@@ -718,8 +767,12 @@ void Decomposed::step(State& s) {
     }
   }
   ++halo_.steps;
-  tally(s);
+  const int first_failed = tally(s, failed != nullptr);
   halo_.seconds_exchange += exchange_watch.seconds();
+  if (failed) std::rethrow_exception(failed);
+  if (first_failed >= 0)
+    throw OtherRankFailed(first_failed, "the step failed on rank " + std::to_string(first_failed) +
+                                            " (its message names the problem)");
 }
 
 void Decomposed::reduce_boundary(std::vector<Wrench>& tools, std::vector<Vec3>& walls) const {

@@ -82,6 +82,14 @@ struct HaloStats {
                                 // (waits for the other ranks included)
 };
 
+// Thrown by Decomposed::step on the ranks whose own step went well when another rank's step
+// threw (that rank rethrows its own exception, which names the problem): every rank leaves the
+// step together, none waits for the others in a later exchange.
+struct OtherRankFailed : SimulationError {
+  OtherRankFailed(int rank_, const std::string& what) : SimulationError(what), rank(rank_) {}
+  int rank;  // the lowest rank whose step failed
+};
+
 // One rank's part of a decomposed run. Every rank calls every member in the same order with the
 // same arguments except the state (they are collective).
 class Decomposed {
@@ -97,7 +105,9 @@ class Decomposed {
   // built. Throws std::invalid_argument for more ranks than broad-phase cells along the axis.
   void start(const State& all, State& s);
   // One step of the whole scene: a broad phase on every rank when one is due (interval, or the
-  // guard's bound over all ranks), the engine's step, the ghosts sent forward.
+  // guard's bound over all ranks), the engine's step, the ghosts sent forward. When the engine's
+  // step throws on some rank (a blow-up), that rank rethrows it after the exchange and the
+  // others throw OtherRankFailed: all leave together.
   void step(State& s);
 
   // The tools' wrenches and the walls' forces of the last step: each rank's sums of its owned
@@ -111,6 +121,15 @@ class Decomposed {
   // gathered particles, the springs from their owners' records): what a checkpoint holds.
   // The others: an empty state. Collective.
   State gather_with_lists(const State& s) const;
+
+  // Repeated steps (dem_service's snapshots): everything besides the State that the next steps
+  // read (the ghost mask, the exchange lists, the cuts, the guard's tally over the ranks), kept
+  // and put back so that a step repeated from the snapshot gives the same bits. Not collective.
+  void save_snapshot();
+  void restore_snapshot();
+  // The owned particles' count and kinetic energy (translational and, with the rotating model,
+  // rotational), summed over the ranks in rank order (collective; every rank gets the sums).
+  void totals(const State& s, double& particles, double& kinetic_energy) const;
 
   int rank() const;
   int ranks() const;
@@ -130,9 +149,14 @@ class Decomposed {
   std::vector<double> cuts_;  // ranks - 1 cut positions along axis_, ascending
   HaloStats halo_;
   bool due_ = true;
+  std::unique_ptr<Impl> saved_;  // save_snapshot()
+  std::vector<double> saved_cuts_;
+  bool saved_due_ = true;
 
   void rebuild(State& s, bool first);
-  void tally(State& s);
+  // The guard's tally over all ranks; failed: this rank's step threw. Returns the lowest rank
+  // whose step threw, -1 for none (the same on every rank).
+  int tally(State& s, bool failed = false);
 };
 
 }  // namespace dem::mpi
