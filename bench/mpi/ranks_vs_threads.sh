@@ -1,15 +1,15 @@
 #!/usr/bin/env bash
-# 2 MPI ranks x 1 thread against 1 rank x 2 threads on the 20k or 150k bed (issue 48's goal: 0.9x
+# 2 MPI ranks x 1 thread against 1 rank x 2 threads on the 20k, 150k or 600k bed (issue 48's goal: 0.9x
 # or better), interleaved, per broad-phase policy (every 5 steps at skin 0.5; when needed at skin
 # 0.3), REPEATS rounds. Prints each run's loop time, the ratio of the medians (1x2 / 2x1: above
 # 1 means the ranks are faster) and rank 0's halo line. Not a test: a benchmark (docs/mpi.md).
 #
-#   bash bench/mpi/ranks_vs_threads.sh [--size 20k|150k] [REPEATS]   (default 20k, 3; from anywhere)
+#   bash bench/mpi/ranks_vs_threads.sh [--size 20k|150k|600k] [REPEATS]   (default 20k, 3; from anywhere)
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 size=20k
 if [ "${1:-}" = --size ]; then size=${2:-}; shift 2 || true; fi
-case "$size" in 20k|150k) ;; *) echo "ranks_vs_threads.sh: --size must be 20k or 150k, got '$size'" >&2; exit 2;; esac
+case "$size" in 20k|150k|600k) ;; *) echo "ranks_vs_threads.sh: --size must be 20k, 150k or 600k, got '$size'" >&2; exit 2;; esac
 repeats=${1:-3}
 case "$repeats" in ''|*[!0-9]*) echo "ranks_vs_threads.sh: REPEATS must be a whole number, got '$repeats'" >&2; exit 2;; esac
 [ "$repeats" -ge 1 ] || { echo "ranks_vs_threads.sh: REPEATS must be at least 1" >&2; exit 2; }
