@@ -819,6 +819,16 @@ void gather_bytes(MPI_Comm comm, const std::vector<char>& mine, std::vector<char
   in.resize(rank == 0 ? static_cast<std::size_t>(start[P]) : 0);
   MPI_Gatherv(mine.data(), n, MPI_BYTE, in.data(), count.data(), start.data(), MPI_BYTE, 0, comm);
 }
+// A gathered state's clock, tools and broad-phase counters (the particles are added by the caller).
+State counters_of(const State& s) {
+  State g;
+  g.step = s.step;
+  g.tool_pose = s.tool_pose;
+  g.rebuilds = s.rebuilds;
+  g.early_rebuilds = s.early_rebuilds;
+  return g;
+}
+
 }  // namespace
 
 State Decomposed::gather(const State& s) const {
@@ -829,11 +839,7 @@ State Decomposed::gather(const State& s) const {
   std::vector<char> in;
   std::vector<int> count, start;
   gather_bytes(m.comm, w.buf, in, count, start);
-  State g;
-  g.step = s.step;
-  g.tool_pose = s.tool_pose;
-  g.rebuilds = s.rebuilds;
-  g.early_rebuilds = s.early_rebuilds;
+  State g = counters_of(s);
   if (m.rank != 0) return g;
   std::vector<Core> cs(in.size() / sizeof(Core));
   if (!cs.empty()) std::memcpy(cs.data(), in.data(), cs.size() * sizeof(Core));
@@ -865,12 +871,8 @@ State Decomposed::gather_with_lists(const State& s) const {
   std::vector<char> in;
   std::vector<int> count, start;
   gather_bytes(m.comm, w.buf, in, count, start);
-  State g;
-  g.step = s.step;
-  g.tool_pose = s.tool_pose;
+  State g = counters_of(s);
   g.tool_pose_at_rebuild = s.tool_pose;
-  g.rebuilds = s.rebuilds;
-  g.early_rebuilds = s.early_rebuilds;
   if (m.rank != 0) return g;
   Particles own, none;
   Reader r{in.data(), in.data() + in.size()};
