@@ -91,6 +91,41 @@ void parse_run_options(const YAML::Node& root, Config& c) {
   c.connect_timeout = cfg::get_positive_or(root, "", "connect_timeout", c.connect_timeout);
 }
 
+// participants.<name>.mpi: the launched program as an MPI job (docs/mpi.md, "Launched by the
+// master"). `launch` names the program every rank runs; mpirun itself is not in it.
+MpiLaunchSpec parse_mpi(const YAML::Node& node, const std::string& path, const std::vector<std::string>& launch) {
+  MpiLaunchSpec m;
+  if (!node || node.IsNull()) return m;
+  if (!node.IsMap())
+    throw ConfigError(path + ": expected a map {ranks: N, mpirun: PROGRAM, args: [OPTION, ...]}");
+  cfg::check_keys(node, path, {"ranks", "mpirun", "args"});
+  if (!node["ranks"])
+    throw ConfigError(path + ".ranks: missing (the number of MPI ranks, e.g. mpi: {ranks: 2})");
+  const long long ranks = cfg::get_int(node, path, "ranks");
+  if (ranks < 1 || ranks > 65536)
+    throw ConfigError(path + ".ranks: " + std::to_string(ranks) +
+                      " is not allowed (allowed: 1 to 65536; 1 runs the program under mpirun as one process)");
+  m.ranks = static_cast<int>(ranks);
+  m.mpirun = cfg::get_string_or(node, path, "mpirun", m.mpirun);
+  if (m.mpirun.empty()) throw ConfigError(path + ".mpirun: empty (the MPI launcher, default mpirun)");
+  if (YAML::Node a = node["args"]; a && !a.IsNull()) {
+    if (!a.IsSequence()) throw ConfigError(path + ".args: expected a list of mpirun options, e.g. [--oversubscribe]");
+    for (const auto& v : a) {
+      if (!v.IsScalar()) throw ConfigError(path + ".args: every entry must be a string");
+      const std::string o = v.Scalar();
+      for (const char* n : {"-np", "-n", "--np", "--n", "-c"})
+        if (o == n)
+          throw ConfigError(path + ".args: '" + o + "' sets the rank count, which is mpi.ranks (" +
+                            std::to_string(m.ranks) + "); remove it from args");
+      m.args.push_back(o);
+    }
+  }
+  if (launch.empty())
+    throw ConfigError(path + ": needs launch, the program every rank runs (e.g. launch: [dem_service, "
+                      "scene.yaml] with mpi: {ranks: 2}); a job started by hand has neither");
+  return m;
+}
+
 ParticipantSpec parse_participant(const std::string& name, const YAML::Node& value) {
   ParticipantSpec p;
   p.name = name;
@@ -98,7 +133,7 @@ ParticipantSpec parse_participant(const std::string& name, const YAML::Node& val
   if (!cosim::valid_name(p.name) || p.name == "master")
     throw ConfigError(path + ": '" + p.name + "' is not a valid participant name (1 to 32 characters of A-Z, a-z, 0-9, _; not 'master')");
   const YAML::Node node = value.IsNull() ? YAML::Node(YAML::NodeType::Map) : value;
-  cfg::check_keys(node, path, {"launch", "timeout", "retries", "parameters"});
+  cfg::check_keys(node, path, {"launch", "mpi", "timeout", "retries", "parameters"});
   if (node["launch"] && !node["launch"].IsNull()) {  // null: started by the user
     if (!node["launch"].IsSequence() || node["launch"].size() == 0)
       throw ConfigError(path + ".launch: expected a non-empty list [program, arg, ...]");
@@ -106,7 +141,17 @@ ParticipantSpec parse_participant(const std::string& name, const YAML::Node& val
       if (!a.IsScalar()) throw ConfigError(path + ".launch: every entry must be a string");
       p.launch.push_back(a.Scalar());
     }
+    // mpirun in launch would get the run's key as an inherited descriptor, which it does not
+    // pass on to its ranks: the job is declared with mpi: instead, and the master hands it the key.
+    const std::string prog = p.launch[0].substr(p.launch[0].rfind('/') + 1);
+    for (const char* l : {"mpirun", "mpiexec", "orterun", "srun", "mpirun.openmpi", "mpiexec.openmpi",
+                          "mpiexec.hydra", "mpirun.mpich", "mpiexec.mpich"})
+      if (prog == l)
+        throw ConfigError(path + ".launch: starts '" + prog + "', which would not pass the run's bus key on "
+                          "to its ranks: give the program itself in launch and the ranks in mpi, e.g. launch: "
+                          "[dem_service, scene.yaml] with mpi: {ranks: 2, args: [--oversubscribe]} (docs/mpi.md)");
   }
+  p.mpi = parse_mpi(node["mpi"], path + ".mpi", p.launch);
   p.link.timeout_s = cfg::get_positive_or(node, path, "timeout", p.link.timeout_s);
   const long long retries = cfg::get_int_or(node, path, "retries", p.link.retries);
   if (retries < 0 || retries > 100)
@@ -124,7 +169,7 @@ ParticipantSpec parse_participant(const std::string& name, const YAML::Node& val
 
 std::vector<ParticipantSpec> parse_participants(const YAML::Node& parts) {
   if (!parts || !parts.IsMap() || parts.size() == 0)
-    throw ConfigError("participants: missing (expected a map: name -> {launch, timeout, retries, parameters})");
+    throw ConfigError("participants: missing (expected a map: name -> {launch, mpi, timeout, retries, parameters})");
   std::vector<ParticipantSpec> out;
   for (const auto& kv : parts) out.push_back(parse_participant(kv.first.as<std::string>(), kv.second));
   return out;
@@ -489,6 +534,7 @@ Config load_config(const std::string& path, const std::vector<std::string>& over
     for (auto it = parts.begin(); it != parts.end(); ++it)
       if (it->second.IsMap()) {
         if (YAML::Node l = it->second["launch"]) substitute_config_dir(l, dir);
+        if (YAML::Node m = it->second["mpi"]) substitute_config_dir(m, dir);
         if (YAML::Node p = it->second["parameters"]) substitute_config_dir(p, dir);
       }
   }

@@ -47,9 +47,18 @@ struct PowerSpec {
   Endpoint force, velocity;
 };
 
+// A launched participant that runs as an MPI job (participants.<name>.mpi, docs/mpi.md): the
+// master starts `mpirun -np ranks [-x COSIM_KEY_FILE] args... program launch-args...`.
+struct MpiLaunchSpec {
+  int ranks = 0;                    // 0: not an MPI job
+  std::string mpirun = "mpirun";    // looked up on PATH (or a path)
+  std::vector<std::string> args;    // more options for mpirun (--oversubscribe, --hostfile F, ...)
+};
+
 struct ParticipantSpec {
   std::string name;
   std::vector<std::string> launch;  // empty: started by the user
+  MpiLaunchSpec mpi;                // launch under mpirun (needs launch)
   cosim::LinkSettings link;
   std::string parameters_yaml;
 };

@@ -18,6 +18,7 @@
 
 #include "cosim/bus.hpp"
 #include "cosim/stopwatch.hpp"
+#include "run_key.hpp"
 
 namespace master {
 
@@ -35,17 +36,24 @@ std::string own_dir() {
   return p.substr(0, p.rfind('/'));
 }
 
-// The master's environment for a child; with a shared key, COSIM_KEY_FILE names the inherited
-// descriptor and no other key variable is passed on.
-std::vector<std::string> child_environment(int key_fd) {
+// The master's environment for a child; with a shared key (key_file not empty), COSIM_KEY_FILE
+// names it (the inherited descriptor, or an MPI job's key file) and no other key variable is
+// passed on.
+std::vector<std::string> child_environment(const std::string& key_file) {
   std::vector<std::string> env;
   for (char** e = environ; e && *e; ++e) {
     const std::string v = *e;
-    if (key_fd >= 0 && (v.rfind("COSIM_KEY=", 0) == 0 || v.rfind("COSIM_KEY_FILE=", 0) == 0)) continue;
+    if (!key_file.empty() && (v.rfind("COSIM_KEY=", 0) == 0 || v.rfind("COSIM_KEY_FILE=", 0) == 0)) continue;
     env.push_back(v);
   }
-  if (key_fd >= 0) env.push_back("COSIM_KEY_FILE=/proc/self/fd/" + std::to_string(key_fd));
+  if (!key_file.empty()) env.push_back("COSIM_KEY_FILE=" + key_file);
   return env;
+}
+
+bool has_variable(const std::vector<std::string>& env, const std::string& name) {
+  for (const auto& v : env)
+    if (v.rfind(name + "=", 0) == 0) return true;
+  return false;
 }
 
 // A process of its own (forked, no allocation) that copies what a participant writes to its
@@ -144,22 +152,55 @@ std::string find_program(const std::string& program) {
 
 Launcher::~Launcher() { stop(0.5, 2.0); }
 
-void Launcher::start(const ParticipantSpec& spec, const std::string& bus_url, int64_t session) {
-  const std::string program = find_program(spec.launch[0]);
-  if (program.empty())
+void Launcher::check_startable(const ParticipantSpec& spec) {
+  if (spec.launch.empty()) return;
+  if (find_program(spec.launch[0]).empty())
     throw cosim::config::ConfigError("participants." + spec.name + ".launch: program '" + spec.launch[0] +
                                      "' not found beside cosim_master or on PATH; build it or give its path");
-  std::vector<std::string> args = spec.launch;
-  args[0] = program;
+  if (spec.mpi.ranks > 0 && find_program(spec.mpi.mpirun).empty())
+    throw cosim::config::ConfigError(
+        "participants." + spec.name + ".mpi: '" + spec.mpi.mpirun + "' not found on PATH, so the " +
+        std::to_string(spec.mpi.ranks) + "-rank job cannot be started: install an MPI (Debian: openmpi-bin "
+        "libopenmpi-dev, scripts/setup.sh), name its launcher in mpi.mpirun, or drop mpi: to run the program "
+        "as one process");
+}
+
+void Launcher::remove_key_files() {
+  if (key_folder_.empty()) return;
+  if (!remove_private_key_folder(key_folder_))
+    std::cerr << "cosim_master: could not remove the MPI jobs' key folder " << key_folder_ << ": remove it by hand\n";
+  key_folder_.clear();
+}
+
+void Launcher::start(const ParticipantSpec& spec, const std::string& bus_url, int64_t session) {
+  check_startable(spec);
+  const bool mpi = spec.mpi.ranks > 0;
+  std::string key_file;  // what the participant finds in COSIM_KEY_FILE
+  if (key_fd_ >= 0 && !mpi) key_file = "/proc/self/fd/" + std::to_string(key_fd_);
+  if (key_fd_ >= 0 && mpi) {
+    if (key_folder_.empty()) key_folder_ = key_to_private_folder(key_fd_);
+    key_file = key_folder_ + "/key";
+  }
+  std::vector<std::string> env = child_environment(key_file);
+  std::vector<std::string> args;
+  if (mpi) {
+    // mpirun passes its environment to the ranks on its own host; -x passes the key's variable
+    // to ranks on other hosts too (rank 0, the one on the bus, needs it; docs/mpi.md).
+    args = {find_program(spec.mpi.mpirun), "-np", std::to_string(spec.mpi.ranks)};
+    for (const char* v : {"COSIM_KEY_FILE", "COSIM_KEY"})
+      if (has_variable(env, v)) args.insert(args.end(), {"-x", v});
+    args.insert(args.end(), spec.mpi.args.begin(), spec.mpi.args.end());
+  }
+  args.push_back(find_program(spec.launch[0]));
+  args.insert(args.end(), spec.launch.begin() + 1, spec.launch.end());
   args.insert(args.end(), {"--name", spec.name, "--bus", bus_url, "--session", cosim::id_hex(session)});
   std::vector<char*> argv;
   for (auto& a : args) argv.push_back(a.data());
   argv.push_back(nullptr);
-  std::vector<std::string> env = child_environment(key_fd_);
   std::vector<char*> envp;
   for (auto& e : env) envp.push_back(e.data());
   envp.push_back(nullptr);
-  const int key_fd = key_fd_;
+  const int key_fd = mpi ? -1 : key_fd_;  // an MPI job reads the key file instead
   // The participant's stdout and stderr through a line relay (see relay_lines), unless the
   // master writes to a terminal (where a participant's own progress line stays live).
   int out_pipe[2] = {-1, -1}, err_pipe[2] = {-1, -1};
@@ -210,6 +251,7 @@ void Launcher::check() {
 }
 
 void Launcher::stop(double grace, double term_grace) {
+  remove_key_files();  // read by now, or never needed: the run is over
   // Reaps every child that has exited; true when none is left.
   auto reap = [&] {
     bool all = true;

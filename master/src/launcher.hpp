@@ -17,12 +17,24 @@ class Launcher {
  public:
   ~Launcher();
   // Starts `spec.launch` with --name, --bus and --session appended (it joins only that
-  // session); raises ConfigError if the program is not found.
+  // session); raises ConfigError if the program is not found. With spec.mpi.ranks > 0 it starts
+  // `mpirun -np RANKS [-x COSIM_KEY_FILE] [-x COSIM_KEY] ARGS... PROGRAM ...` instead (the
+  // program's full path), and the run's key reaches the ranks as a named file (share_key).
   void start(const ParticipantSpec& spec, const std::string& bus_url, int64_t session);
+  // Raises ConfigError naming what start() would not find (the program, mpirun), so a config
+  // is refused before anything is started.
+  static void check_startable(const ParticipantSpec& spec);
   // The participants started from now on inherit `fd` (an open key file, run_key.hpp) and find
   // it as COSIM_KEY_FILE=/proc/self/fd/<fd> in their environment ($COSIM_KEY is removed there).
-  // -1: they inherit the master's environment as it is.
+  // -1: they inherit the master's environment as it is. An MPI job (spec.mpi) cannot inherit a
+  // descriptor through mpirun: it finds COSIM_KEY_FILE=<folder>/key, a copy of the key in a
+  // folder of its own (mode 0700, the file 0600; run_key.hpp), which remove_key_files() removes.
   void share_key(int fd) { key_fd_ = fd; }
+  // Removes the key file made for MPI jobs (if any): once every participant has joined (they
+  // read the key as they open the bus), and at the latest when the launcher stops.
+  void remove_key_files();
+  // The folder of that key file while it exists, else "".
+  const std::string& key_folder() const { return key_folder_; }
   // Whether the participants started from now on write through a line relay: every line they
   // write reaches the master's stdout or stderr whole, in one write(), so lines of several
   // processes sharing one log never interleave mid-line. Default: when stderr is not a terminal.
@@ -45,6 +57,7 @@ class Launcher {
   std::vector<pid_t> relays_;  // the line relays of the participants' output
   bool relay_lines_ = !isatty(STDERR_FILENO);
   int key_fd_ = -1;
+  std::string key_folder_;  // the MPI jobs' copy of the key (key_to_private_folder)
 };
 
 std::string find_program(const std::string& program);

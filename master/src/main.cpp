@@ -379,6 +379,8 @@ void Application::print_replay_banner() const {
 }
 
 void Application::start_participants() {
+  for (const auto& p : config_.participants)  // every program found before any is started
+    if (!p.launch.empty() && !played(p.name)) master::Launcher::check_startable(p);
   for (const auto& p : config_.participants)
     if (!p.launch.empty() && !played(p.name)) launcher_.start(p, url_, transport_->session());
 }
@@ -413,6 +415,7 @@ std::optional<int> Application::connect(master::CoSimulation& sim) {
     transport_->terminate(true, e.what());  // participants that joined leave at once
     throw;
   }
+  launcher_.remove_key_files();  // every participant has joined: an MPI job's key file is read
   for (const auto& [name, sends] : transport_->stats().configure_sends)
     if (sends > 1)
       std::cerr << "cosim_master: the configuration of '" << name << "' went out " << sends

@@ -108,6 +108,42 @@ int key_as_unnamed_file(const cosim::auth::Key& key) {
   return fd;
 }
 
+std::string key_to_private_folder(int key_fd) {
+  std::string text(256, '\0');
+  std::size_t got = 0;
+  while (got < text.size()) {
+    const ssize_t n = ::pread(key_fd, text.data() + got, text.size() - got, static_cast<off_t>(got));
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) throw std::runtime_error(std::string("cannot read the run's key file: ") + std::strerror(errno));
+    if (n == 0) break;
+    got += static_cast<std::size_t>(n);
+  }
+  text.resize(got);
+  if (text.empty()) throw std::runtime_error("cannot read the run's key file: it is empty");
+  std::string folder = folder_for_unnamed_files() + "/cosim_key_XXXXXX";
+  if (!::mkdtemp(folder.data()))  // mode 0700
+    throw std::runtime_error("cannot create a private folder for the run's key in " + folder_for_unnamed_files() +
+                             ": " + std::strerror(errno));
+  const std::string path = folder + "/key";
+  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
+  const bool ok = fd >= 0 && ::fchmod(fd, 0600) == 0 && write_all(fd, text);
+  const int err = errno;
+  if (fd >= 0) ::close(fd);
+  if (!ok) {
+    remove_private_key_folder(folder);
+    throw std::runtime_error("cannot write the run's key to " + path + ": " + std::strerror(err));
+  }
+  return folder;
+}
+
+bool remove_private_key_folder(const std::string& folder) {
+  if (folder.empty()) return true;
+  const std::string path = folder + "/key";
+  const bool file_gone = ::unlink(path.c_str()) == 0 || errno == ENOENT;
+  const bool folder_gone = ::rmdir(folder.c_str()) == 0 || errno == ENOENT;
+  return file_gone && folder_gone;
+}
+
 void save_key_file(const cosim::auth::Key& key, const std::string& path) {
   const std::string tmp = path + ".tmp" + std::to_string(::getpid());
   const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0600);

@@ -46,6 +46,14 @@ std::vector<std::string> hand_started(const Config& config, const Played& played
 // launcher hands to the participants it starts (Launcher::share_key). Raises std::runtime_error.
 int key_as_unnamed_file(const cosim::auth::Key& key);
 
+// The key held by `key_fd` (key_as_unnamed_file) copied to a named file for an MPI job, whose
+// launcher does not pass descriptors on to its ranks: a new folder of its own (mode 0700, in
+// $XDG_RUNTIME_DIR, $TMPDIR or /tmp) holding the file `key` (mode 0600). Returns the folder;
+// the caller removes it (remove_private_key_folder). Raises std::runtime_error.
+std::string key_to_private_folder(int key_fd);
+// Removes the file `key` and the folder that key_to_private_folder made; false if it could not.
+bool remove_private_key_folder(const std::string& folder);
+
 // Writes the key to `path` (mode 0600; an existing file is replaced). Raises std::runtime_error.
 void save_key_file(const cosim::auth::Key& key, const std::string& path);
 
