@@ -34,7 +34,7 @@ CASE is one of:
             (participants.soil.mpi, the run's fresh key through a private key file); every run
             finishes, the bucket is in contact all along (|F| > 0 at every sample after 10 ms),
             two 2-rank runs record the same bits and the 2-rank wrench equals the 1-rank one to
-            1e-9 of each component's peak over the whole 0.1 s
+            1e-7 of each component's peak over the whole 0.1 s (round-off: 6e-12)
   launch    participants.<name>.mpi refused by name (ranks 0, -np in args, mpi without launch,
             mpirun in launch, mpirun not found), and what the master hands a launched MPI job:
             a stand-in mpirun records its command line and environment: -np, -x COSIM_KEY_FILE,
@@ -647,12 +647,14 @@ elif CASE == "wheel_loader":
             for T in (0.01, 0.02, 0.04, 0.06, 0.08, 0.1):
                 print("wrench: 2 ranks against 1 up to t = %.2f s: max |difference| / component peak %.3g"
                       % (T, rel[t <= T + 1e-12].max()))
-            # Measured 4e-16 over the 0.1 s (round-off of the force sums' order, which this
-            # lattice pile does not amplify); a contact missed at a rank boundary moves the
-            # wrench by 1e-3 of its peak or more (docs/mpi.md).
-            check(rel.max() <= 1e-9,
+            # Round-off of the force sums' order, amplified as the bucket ploughs: measured 5e-17
+            # up to 10 ms, 5e-16 up to 60 ms, 3e-13 at 80 ms, 6e-12 at 0.1 s (4e-16 at 0.1 s from
+            # a start 5 mm further in). Faults injected on purpose (docs/mpi.md): no ghosts 0.11,
+            # ghosts that keep their own u 1.6e-4 by 40 ms and 1e-3 by 80 ms. The limit sits
+            # 4 decades above the round-off and 3 below the smallest fault.
+            check(rel.max() <= 1e-7,
                   "2 ranks equal 1 rank to round-off over the whole 0.1 s: %.3g of each component's peak "
-                  "(<= 1e-9)" % rel.max())
+                  "(<= 1e-7)" % rel.max())
 
 elif CASE == "launch":
     master = os.path.join(BIN, "cosim_master")
