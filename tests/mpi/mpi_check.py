@@ -649,7 +649,7 @@ elif CASE == "wheel_loader":
                       % (T, rel[t <= T + 1e-12].max()))
             # Round-off of the force sums' order, amplified as the bucket ploughs: measured 5e-17
             # up to 10 ms, 5e-16 up to 60 ms, 3e-13 at 80 ms, 6e-12 at 0.1 s (4e-16 at 0.1 s from
-            # a start 5 mm further in). Faults injected on purpose (docs/mpi.md): no ghosts 0.11,
+            # a start 0.2 mm further back). Faults injected on purpose (docs/mpi.md): no ghosts 0.11,
             # ghosts that keep their own u 1.6e-4 by 40 ms and 1e-3 by 80 ms. The limit sits
             # 4 decades above the round-off and 3 below the smallest fault.
             check(rel.max() <= 1e-7,
