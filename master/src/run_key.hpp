@@ -1,8 +1,9 @@
 // The bus key of a run (docs/security.md#the-default-a-key-per-run): from the environment
 // ($COSIM_KEY_FILE, $COSIM_KEY); for a replay without one, the key saved beside the log; else
 // a fresh key for the run when the master launches every participant, which they inherit as an
-// unnamed file (never on a command line, never in a named file); an unauthenticated bus only
-// when the config says bus.authenticate: false.
+// unnamed file (never on a command line, never in a named file, except for an MPI job: a file
+// of mode 600 in a private folder, removed once every participant has joined); an
+// unauthenticated bus only when the config says bus.authenticate: false.
 #pragma once
 
 #include <cosim/auth.hpp>
