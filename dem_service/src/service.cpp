@@ -3,6 +3,7 @@
 #include <cmath>
 #include <filesystem>
 #include <cstdio>
+#include <exception>
 #include <iostream>
 #include <sstream>
 
@@ -146,7 +147,9 @@ void ServiceModel::configure(const YAML::Node& parameters, const cosim::RunInfo&
                  static_cast<long long>(run.resume_steps_done), cosim::to_seconds(run.resume_time),
                  output_file.c_str(), o.file.c_str());
   }
-  if (!output_file.empty()) out_ = std::make_unique<RunOutput>(output_file, scene, rc_->config_text);
+  // Several ranks: rank 0 writes the file; every rank takes part in its gathers.
+  if (!output_file.empty() && (!ranks_ || ranks_->lead()))
+    out_ = std::make_unique<RunOutput>(output_file, scene, rc_->config_text);
   session_wall_.restart();
   since_report_.restart();
   std::fprintf(stderr,
@@ -211,23 +214,8 @@ void ServiceModel::set_ranks(RankDriver* ranks) {
 void ServiceModel::check_ranks() const {
   if (!ranks_) return;
   ranks_->check_supported(*rc_, engine_options_.with_config(rc_->performance));
-  const std::string n = std::to_string(ranks_->ranks()) + " ranks";
-  auto refuse = [&](const std::string& what) {
-    throw std::invalid_argument("mpi: " + what + " (docs/mpi.md lists what dem_service runs on several ranks)");
-  };
-  if (!rc_->output.file.empty())
-    refuse("output.file is not supported by dem_service on " + n +
-           ": its particle snapshots and wrench samples would need the particles gathered on rank "
-           "0 inside the bus's steps, which is not built yet; set output.file: \"\" (the master "
-           "records the tool wrenches) or run dem_service on one rank");
-  if (!rc_->output.checkpoint.empty())
-    refuse("output.checkpoint is not supported by dem_service on " + n +
-           ": the end-of-session checkpoint is not gathered from the ranks yet; set "
-           "output.checkpoint: \"\" or run dem_service on one rank");
-  if (options_.checkpoint_every > 0)
-    refuse("service.checkpoint_every is not supported by dem_service on " + n +
-           ": the service's periodic checkpoints are not gathered from the ranks yet; set "
-           "service.checkpoint_every: 0 or run dem_service on one rank");
+  // output.file, output.checkpoint, service.checkpoint_every and the master's checkpoints run
+  // on several ranks: rank 0 writes what the ranks' gathers collect (docs/mpi.md).
 }
 
 void ServiceModel::save_snapshot() {
@@ -249,19 +237,19 @@ void ServiceModel::restore_snapshot() {
 }
 
 void ServiceModel::save_checkpoint(const std::string& path) {
-  if (ranks_)
-    throw std::runtime_error("dem_service on several ranks does not save the master's checkpoints "
-                             "yet (docs/mpi.md); run it on one rank to checkpoint");
   const cosim::Stopwatch w;
   if (out_) out_->flush_if_older_than(2.0);  // the step is accepted: its rows may go
-  dem::save_checkpoint(rc_->state, path);
+  if (ranks_) {
+    // Several ranks (collective): rank 0 writes the whole scene gathered with its springs.
+    const State whole = ranks_->gather_checkpoint(rc_->state);
+    if (ranks_->lead()) dem::save_checkpoint(whole, path);
+  } else {
+    dem::save_checkpoint(rc_->state, path);
+  }
   if (engine_) engine_->timing().add(section::output, w.seconds());
 }
 
 void ServiceModel::load_checkpoint(const std::string& path) {
-  if (ranks_)
-    throw std::runtime_error("dem_service on several ranks does not resume from checkpoints yet "
-                             "(docs/mpi.md); resume on one rank");
   State s = dem::load_checkpoint(path);
   if (s.tool_pose.size() != rc_->scene.tools.size())
     throw std::runtime_error("it holds " + std::to_string(s.tool_pose.size()) + " tool(s), the scene has " +
@@ -269,6 +257,8 @@ void ServiceModel::load_checkpoint(const std::string& path) {
   validate_state(rc_->scene, s, false);
   rc_->state = std::move(s);
   end_poses_ = rc_->state.tool_pose;
+  // Several ranks (collective; every rank loaded the same file): the slabs cut anew.
+  if (ranks_) ranks_->start(rc_->scene, *engine_, rc_->state);
   // Outputs and reports continue from the resume time.
   t_now_ = run_.resume_time;
   auto first_at_or_after = [&](cosim::Duration every) {
@@ -279,6 +269,14 @@ void ServiceModel::load_checkpoint(const std::string& path) {
   next_particles_ = first_at_or_after(particles_every_);
   next_checkpoint_ = first_at_or_after(checkpoint_every_);
   if (next_checkpoint_ == run_.resume_time) next_checkpoint_ += checkpoint_every_;
+}
+
+void ServiceModel::recut_from_checkpoint(const std::string& path) {
+  if (!ranks_) return;
+  State s = dem::load_checkpoint(path);
+  validate_state(rc_->scene, s, false);
+  rc_->state = std::move(s);
+  ranks_->recut(rc_->scene, *engine_, rc_->state);
 }
 
 cosim::StepResult ServiceModel::step(const cosim::StepInputs& in, bool want_average) {
@@ -311,13 +309,32 @@ cosim::StepResult ServiceModel::step_with_poses(TimePoint t_start, TimePoint t_e
     return reduced;
   };
   double max_overlap = 0, max_ratio = 0;
+  // Several ranks: every rank takes part in the gathers of the output (the same decision on
+  // every rank); rank 0 alone writes, and an error of its writing is raised after the step, once
+  // every rank has done its collectives.
+  const bool output = out_ || (ranks_ && !rc_->output.file.empty());
+  std::exception_ptr write_failed;
+  auto write = [&](auto&& f) {
+    if (!ranks_) return f();
+    if (write_failed) return;
+    try {
+      f();
+    } catch (...) {
+      write_failed = std::current_exception();
+    }
+  };
   // Particle snapshots only at a step's start: that state is accepted (a repeat starts from it).
-  if (out_ && particles_every_ > Duration::zero() && t_start >= next_particles_ && t_start != last_particles_) {
+  if (output && particles_every_ > Duration::zero() && t_start >= next_particles_ && t_start != last_particles_) {
     const cosim::Stopwatch w;
     // The tools where this step's inputs put them at its start (the state holds the poses of
     // the last DEM step's force time, one inner step earlier).
-    out_->snapshot(s, cosim::to_seconds(t_start), poses.front());  // flushes the accepted rows too
-    snapshot_rows_ = out_->buffered_rows();
+    if (ranks_) {
+      const State whole = ranks_->gather(s);
+      if (out_) write([&] { out_->snapshot(whole, cosim::to_seconds(t_start), poses.front()); });
+    } else {
+      out_->snapshot(s, cosim::to_seconds(t_start), poses.front());  // flushes the accepted rows too
+    }
+    if (out_) snapshot_rows_ = out_->buffered_rows();
     last_particles_ = t_start;
     next_particles_ += particles_every_ * ((t_start - next_particles_) / particles_every_ + 1);
     engine.timing().add(section::output, w.seconds());
@@ -344,10 +361,16 @@ cosim::StepResult ServiceModel::step_with_poses(TimePoint t_start, TimePoint t_e
     const ContactStats& c = engine.contact_stats();
     max_overlap = std::max(max_overlap, c.max_overlap);
     max_ratio = std::max(max_ratio, c.max_overlap_ratio);
-    if (out_ && wrenches_every_ > Duration::zero() &&
+    if (output && wrenches_every_ > Duration::zero() &&
         (t - run_.t_start) % wrenches_every_ == Duration::zero()) {
       const cosim::Stopwatch w;
-      out_->sample_wrenches(s, engine, cosim::to_seconds(t));
+      if (ranks_) {
+        if (!want_average) tool_wrenches();  // else summed above for this DEM step
+        const std::vector<Vec3> walls = ranks_->wall_forces();
+        if (out_) write([&] { out_->sample_wrenches(s, reduced, walls, cosim::to_seconds(t)); });
+      } else {
+        out_->sample_wrenches(s, engine, cosim::to_seconds(t));
+      }
       engine.timing().add(section::output, w.seconds());
     }
   }
@@ -376,10 +399,16 @@ cosim::StepResult ServiceModel::step_with_poses(TimePoint t_start, TimePoint t_e
   }
   if (checkpoint_every_ > Duration::zero() && t_now_ >= next_checkpoint_) {
     const cosim::Stopwatch w;
-    dem::save_checkpoint(s, options_.checkpoint);
+    if (ranks_) {
+      const State whole = ranks_->gather_checkpoint(s);
+      if (ranks_->lead()) write([&] { dem::save_checkpoint(whole, options_.checkpoint); });
+    } else {
+      dem::save_checkpoint(s, options_.checkpoint);
+    }
     next_checkpoint_ += checkpoint_every_ * ((t_now_ - next_checkpoint_) / checkpoint_every_ + 1);
     engine.timing().add(section::output, w.seconds());
   }
+  if (write_failed) std::rethrow_exception(write_failed);  // rank 0's, after every collective
   const ContactStats& c = engine.contact_stats();
   if (ranks_) {
     // Several ranks: the whole scene's sums; the per-contact figures and the payload are each
@@ -432,12 +461,26 @@ void ServiceModel::finish(std::ostream& report) {
   const Timing& t = engine_->timing();
   const double sim = cosim::to_seconds(t_now_ - run_.t_start);
   const double wall = session_wall_.seconds();
-  if (out_) {
-    if (t_now_ != last_particles_) out_->snapshot(s, cosim::to_seconds(t_now_), end_poses_);
-    out_->write_summary(t, s, sim);
-    out_->flush();
+  if (ranks_) {
+    // Several ranks (collective, every rank finishes): both gathers before rank 0 writes.
+    State whole, checkpoint;
+    if (!rc_->output.file.empty() && t_now_ != last_particles_) whole = ranks_->gather(s);
+    if (!rc_->output.checkpoint.empty()) checkpoint = ranks_->gather_checkpoint(s);
+    if (out_) {
+      if (t_now_ != last_particles_) out_->snapshot(whole, cosim::to_seconds(t_now_), end_poses_);
+      out_->write_summary(t, s, sim);
+      out_->flush();
+    }
+    if (!rc_->output.checkpoint.empty() && ranks_->lead())
+      dem::save_checkpoint(checkpoint, rc_->output.checkpoint);
+  } else {
+    if (out_) {
+      if (t_now_ != last_particles_) out_->snapshot(s, cosim::to_seconds(t_now_), end_poses_);
+      out_->write_summary(t, s, sim);
+      out_->flush();
+    }
+    if (!rc_->output.checkpoint.empty()) dem::save_checkpoint(s, rc_->output.checkpoint);
   }
-  if (!rc_->output.checkpoint.empty()) dem::save_checkpoint(s, rc_->output.checkpoint);
   std::vector<cosim::TimingRow> rows = t.rows();
   rows.push_back({"snapshot", snapshot_seconds_});
   rows.push_back({"other", std::max(0.0, wall - t.sum() - snapshot_seconds_)});

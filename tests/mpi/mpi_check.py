@@ -18,7 +18,18 @@ CASE is one of:
   rotating  the bed with the rotating particle model (spins, rolling springs): 2 and 3 ranks equal
             1 rank to round-off, spins included
   refused   bad MPI settings refused by name: an unknown decomposition, more ranks than cells,
-            sleeping on 2 ranks, dem_service on 2 ranks with output.file
+            sleeping on 2 ranks, dem_service on 2 ranks with sleeping
+  service_output  the blade co-simulation with dem_service's output on (output.file with particle
+            snapshots and wrench samples, output.checkpoint, service.checkpoint_every) on 1 and 2
+            ranks over 0.02 s: one HDF5 and one XDMF file each with the same datasets; the ids,
+            radii, times, tool poses and meshes bit for bit, the positions, velocities, tool
+            wrenches and wall forces to round-off; both checkpoints hold the same particles, states
+            and springs to round-off; dem_service continues from the 2-rank checkpoint on 1, 2 and
+            3 ranks (particles.keep_time, the master from t = 0.02 s): the runs agree to round-off
+  service_resume  the blade co-simulation with the master's checkpoints (checkpoints.every) and
+            dem_service on 2 ranks, its mpirun killed after a checkpoint, continued with
+            cosim_master --resume and dem_service on 2 ranks again: the record equals the
+            uninterrupted 2-rank run's bit for bit
   service   the co-simulation of tests/dem_service/cosim.yaml (the blade played by the prescribed
             participant through 1500 grains) with dem_service on 2 ranks (rank 0 on the bus):
             it finishes, two 2-rank runs record the same wrench bits, and the wrench equals the
@@ -114,6 +125,20 @@ def max_differences(a, b):
         dx = max(dx, float(np.abs(xa - xb).max()))
         dv = max(dv, float(np.abs(va - vb).max()))
     return dx, dv, ta, tb, wa, wb
+
+
+def identical_records(a, b):
+    """Two records of the master bit for bit, but the run's metadata (wall times, bus counters,
+    the resume points), as master_resume_test compares them."""
+    exclude = [r"(^|/)timing(/|$)", r"(^|/)seconds_", r"(^|/)wall_", r"(^|/)bus(/|$)",
+               # the resume points, and the checkpoint group's attributes: the folder and the
+               # run id, which name the record's own file and run
+               r"^/checkpoint/resumed_at$", r"^/checkpoint$"]
+    cmd = ["/usr/bin/python3", COMPARE, a, b]
+    for e in exclude:
+        cmd += ["--exclude", e]
+    p = subprocess.run(cmd, capture_output=True, text=True)
+    return p.returncode == 0, (p.stdout + p.stderr).strip()
 
 
 def identical(a, b):
@@ -452,11 +477,11 @@ output:
     check(p.returncode == 2 and "no tool" in p.stdout + p.stderr,
           "dem_service under mpirun -np 2 with a bad config is refused once, by rank 0")
     p = subprocess.run([MPIRUN, "--oversubscribe", "--allow-run-as-root", "-np", "2",
-                        os.path.join(BIN, "dem_service"), SERVICE_SCENE, "--set", "output.file=x.h5"],
+                        os.path.join(BIN, "dem_service"), SERVICE_SCENE, "--set", "scene.sleep.enabled=true"],
                        env=ENV, capture_output=True, text=True, timeout=120)
-    check(p.returncode == 2 and "output.file is not supported by dem_service on 2 ranks" in p.stdout + p.stderr,
-          "dem_service on 2 ranks with output.file is refused by name with the reason")
-elif CASE in ("service", "service_fail"):
+    check(p.returncode == 2 and "scene.sleep is not supported on 2 ranks" in p.stdout + p.stderr,
+          "dem_service on 2 ranks with scene.sleep is refused by name with the reason")
+elif CASE in ("service", "service_fail", "service_output", "service_resume"):
     import random
     master = os.path.join(BIN, "cosim_master")
     key = os.path.join(WORK, "key")
@@ -466,7 +491,7 @@ elif CASE in ("service", "service_fail"):
     env = dict(ENV, COSIM_KEY_FILE=key)
     port = 7800 + (os.getpid() + random.randrange(1000)) % 1000
 
-    def cosim(name, ranks, sets=(), timeout=300):
+    def cosim(name, ranks, sets=(), timeout=300, macro_step=2e-5):
         """The blade co-simulation; ranks None: dem_service launched by the master as today."""
         global port
         port += 1
@@ -474,7 +499,7 @@ elif CASE in ("service", "service_fail"):
         h5 = os.path.join(WORK, name + ".h5")
         if os.path.exists(h5):
             os.remove(h5)
-        cmd = [master, SERVICE_COSIM, "--set", "time.end=%g" % END, "--set", "time.macro_step=2e-5",
+        cmd = [master, SERVICE_COSIM, "--set", "time.end=%g" % END, "--set", "time.macro_step=%g" % macro_step,
                "--set", "bus.url=" + url, "--output", h5]
         for s in sets:
             cmd += ["--set", s]
@@ -547,6 +572,223 @@ elif CASE in ("service", "service_fail"):
             check(early <= 1e-9 * peak,
                   "2 ranks equal 1 rank%s to round-off over the first 0.03 s: %.3g N <= 1e-9 of the "
                   "peak" % (label, early))
+    elif CASE == "service_output":
+        END = 0.02
+        P = "participants.dem.parameters."
+
+        def outputs(name):
+            return [P + "output.file=" + os.path.join(WORK, name + "_dem.h5"),
+                    P + "output.particles_every=0.005", P + "output.wrenches_every=1.0e-5",
+                    P + "output.checkpoint=" + os.path.join(WORK, name + "_end.h5"),
+                    P + "service.checkpoint_every=0.015",
+                    P + "service.checkpoint=" + os.path.join(WORK, name + "_every.h5")]
+
+        for n in ("one", "two"):
+            for suffix in ("_dem.h5", "_dem.xdmf", "_end.h5", "_every.h5"):
+                if os.path.exists(os.path.join(WORK, n + suffix)):
+                    os.remove(os.path.join(WORK, n + suffix))
+        runs = {"one": cosim("one", None, outputs("one")), "two": cosim("two", 2, outputs("two"))}
+        for n, (code, svc_code, text, _) in runs.items():
+            if code != 0 or svc_code not in (None, 0):
+                print(text[-4000:])
+        check(all(r[0] == 0 and r[1] in (None, 0) for r in runs.values()),
+              "the co-simulation with dem_service's output on finishes on 1 and on 2 ranks")
+        for n in ("one", "two"):
+            check(all(os.path.exists(os.path.join(WORK, n + s)) for s in ("_dem.h5", "_dem.xdmf", "_end.h5", "_every.h5")),
+                  "%s: dem_service wrote its HDF5 and XDMF files and both checkpoints" % n)
+        if problems:
+            raise SystemExit("mpi_check: %s" % problems)
+
+        def datasets(path):
+            with h5py.File(path, "r") as f:
+                out = {}
+                f.visititems(lambda k, o: out.__setitem__(k, o[()]) if isinstance(o, h5py.Dataset) else None)
+                return out
+
+        a, b = datasets(os.path.join(WORK, "one_dem.h5")), datasets(os.path.join(WORK, "two_dem.h5"))
+        check(sorted(a) == sorted(b) and all(a[k].shape == b[k].shape and a[k].dtype == b[k].dtype for k in a),
+              "the 2-rank file holds the same datasets (%d) with the same shapes and types as the 1-rank one"
+              % len(a))
+        snaps = sorted(k.split("/")[1] for k in a if k.startswith("particles/") and k.endswith("/id"))
+        check(len(snaps) == 5, "5 particle snapshots (t = 0, 0.005, ..., 0.02 s): %d" % len(snaps))
+        exact = [k for k in a if k.endswith("/id") or k.endswith("/radius") or k.startswith("tools/blade/snapshots")
+                 or k in ("tools/blade/triangles", "tools/blade/vertices", "xdmf_point_index")
+                 or k.startswith("particles/%s/" % snaps[0])]
+        differ = [k for k in exact if k in b and a[k].tobytes() != b[k].tobytes()]
+        check(not differ and len(exact) >= 15,
+              "bit for bit: ids and radii of every snapshot, the first snapshot whole, the blade's "
+              "poses and mesh, the XDMF index (%d datasets; differ: %s)" % (len(exact), differ))
+        dx = max(float(np.abs(a[k] - b[k]).max()) for k in a if k.endswith("/position"))
+        dv = max(float(np.abs(a[k] - b[k]).max()) for k in a if k.endswith("/velocity"))
+        print("2 ranks against 1: positions %.3g m, velocities %.3g m/s" % (dx, dv))
+        check(dx <= 1e-10 and dv <= 1e-7,
+              "positions to 1e-10 m (%.3g) and velocities to 1e-7 m/s (%.3g): round-off" % (dx, dv))
+        sa, sb = a["tools/blade/samples"], b["tools/blade/samples"]
+        cols = [0] + list(range(7, 14))  # time and the blade's pose
+        check(sa[:, cols].tobytes() == sb[:, cols].tobytes(),
+              "the wrench samples' times and blade poses bit for bit (%d samples)" % len(sa))
+        peak = np.abs(sa[:, 1:4]).max()
+        fw = np.abs(sa[:, 1:7] - sb[:, 1:7]).max() / peak
+        wa, wb = a["walls"], b["walls"]
+        wpeak = np.abs(wa[:, 1:]).max()
+        fwall = np.abs(wa[:, 1:] - wb[:, 1:]).max() / wpeak
+        print("wrench samples: %.3g of the peak %.4g N; wall forces: %.3g of the peak %.4g N" % (fw, peak, fwall, wpeak))
+        check(peak > 100 and fw <= 1e-9 and wa[:, 0].tobytes() == wb[:, 0].tobytes() and fwall <= 1e-9,
+              "the blade's wrench (peak %.4g N) and the walls' forces to 1e-9 of their peaks" % peak)
+        xa = open(os.path.join(WORK, "one_dem.xdmf")).read().replace("one_dem.h5", "X")
+        xb = open(os.path.join(WORK, "two_dem.xdmf")).read().replace("two_dem.h5", "X")
+        check(xa == xb and "two_dem.h5" in open(os.path.join(WORK, "two_dem.xdmf")).read(),
+              "the 2-rank XDMF file is the 1-rank one, naming its own HDF5 file")
+
+        def checkpoint(path):
+            """A checkpoint by id: ids, radius, mass, x, v, u and the non-zero pair springs
+            {(id_a, id_b): spring on id_a} with id_a < id_b."""
+            with h5py.File(path, "r") as f:
+                d = {k: f[k][()] for k in ("id", "radius", "mass", "x", "v", "u", "pair_offset", "pair_j", "pair_spring")}
+            ids = d["id"]
+            springs = {}
+            for i in range(len(ids)):
+                for k in range(d["pair_offset"][i], d["pair_offset"][i + 1]):
+                    s = d["pair_spring"][k]
+                    if not s.any():
+                        continue
+                    j = d["pair_j"][k]
+                    key = (ids[i], ids[j]) if ids[i] < ids[j] else (ids[j], ids[i])
+                    springs[key] = s if ids[i] < ids[j] else -s
+            order = np.argsort(ids, kind="stable")
+            return {k: d[k][order] for k in ("id", "radius", "mass", "x", "v", "u")}, springs
+
+        for what in ("end", "every"):
+            (ca, ka), (cb, kb) = (checkpoint(os.path.join(WORK, n + "_" + what + ".h5")) for n in ("one", "two"))
+            same = all(ca[k].tobytes() == cb[k].tobytes() for k in ("id", "radius", "mass"))
+            ddx = float(np.abs(ca["x"] - cb["x"]).max())
+            ddv = max(float(np.abs(ca[k] - cb[k]).max()) for k in ("v", "u"))
+            common = set(ka) & set(kb)
+            spring_peak = max(float(np.abs(s).max()) for s in ka.values()) if ka else 0.0
+            dk = max((float(np.abs(ka[k] - kb[k]).max()) for k in common), default=0.0)
+            print("%s checkpoint: positions %.3g m, velocities %.3g m/s, %d and %d springs (%d common), "
+                  "springs %.3g m of the largest %.3g m" % (what, ddx, ddv, len(ka), len(kb), len(common), dk, spring_peak))
+            check(same and ddx <= 1e-10 and ddv <= 1e-7,
+                  "%s checkpoint: the same particles (ids, radii, masses bit for bit), x to 1e-10 m, "
+                  "v and u to 1e-7 m/s" % what)
+            check(len(ka) > 200 and set(ka) == set(kb) and dk <= 1e-9 * spring_peak,
+                  "%s checkpoint: the same %d pair springs (ids), each to 1e-9 of the largest" % (what, len(ka)))
+        if problems:
+            raise SystemExit("mpi_check: %s" % problems)
+        # dem_service continues from the 2-rank checkpoint on 1, 2 and 3 ranks: the master from
+        # t = 0.02 s, the blade where it was, the bed's time kept.
+        END = 0.025
+        cont = [P + "particles.checkpoint=" + os.path.join(WORK, "two_end.h5"), P + "particles.fill=[]",
+                P + "particles.keep_time=true", "time.start=0.02"]
+        later = [cosim("cont%d" % r, None if r == 1 else r, cont) for r in (1, 2, 3)]
+        for r, (code, svc_code, text, _) in zip((1, 2, 3), later):
+            if code != 0 or svc_code not in (None, 0):
+                print(text[-4000:])
+        check(all(c[0] == 0 and c[1] in (None, 0) for c in later),
+              "dem_service continues from the 2-rank checkpoint on 1, 2 and 3 ranks")
+        if not problems:
+            w = [wrench(c[3]) for c in later]
+            peak = np.abs(w[0][2][:, :3]).max()
+            d2 = np.abs(w[1][2] - w[0][2]).max() / peak
+            d3 = np.abs(w[2][2] - w[0][2]).max() / peak
+            print("continued from the checkpoint over 5 ms: 2 ranks %.3g, 3 ranks %.3g of the 1-rank "
+                  "peak %.4g N" % (d2, d3, peak))
+            check(peak > 100 and d2 <= 1e-9 and d3 <= 1e-9 and w[0][1][0] > 0.0199,
+                  "the continued runs start at t = 0.02 s with the blade in the bed (peak %.4g N) and "
+                  "agree to 1e-9 of the peak on 2 and 3 ranks" % peak)
+    elif CASE == "service_resume":
+        import glob
+        import signal
+        import time
+        port += 1
+        url = "udpm://239.255.76.67:%d?ttl=0" % port
+        # 240 macro steps of 5 DEM steps (a broad phase every 5), a checkpoint every 20; the blade
+        # meets the bed at 8.8 ms.
+        sets = ["time.end=0.012", "time.macro_step=5e-5", "bus.url=" + url, "participants.dem.launch=null",
+                "participants.dem.timeout=2", "checkpoints.every=1e-3", "output.progress=off"]
+
+        def start_dem(log):
+            return subprocess.Popen([MPIRUN, "--oversubscribe", "--allow-run-as-root", "-np", "2",
+                                     os.path.join(BIN, "dem_service"), SERVICE_SCENE, "--name", "dem",
+                                     "--bus", url, "--wait", "60"], env=env, stdout=open(log, "w"),
+                                    stderr=subprocess.STDOUT, start_new_session=True)
+
+        def master_cmd(h5):
+            cmd = [master, SERVICE_COSIM, "--output", h5]
+            for s in sets:
+                cmd += ["--set", s]
+            return cmd
+
+        def descendants(pid):
+            """pid's descendants (from /proc), deepest last."""
+            children = {}
+            for d in os.listdir("/proc"):
+                if d.isdigit():
+                    try:
+                        ppid = int(open("/proc/%s/stat" % d).read().rsplit(")", 1)[1].split()[1])
+                    except (OSError, IndexError, ValueError):
+                        continue
+                    children.setdefault(ppid, []).append(int(d))
+            out, todo = [], [pid]
+            while todo:
+                for c in children.get(todo.pop(), []):
+                    out.append(c)
+                    todo.append(c)
+            return out
+
+        full, h5 = os.path.join(WORK, "full.h5"), os.path.join(WORK, "cut.h5")
+        for f in (full, h5):
+            if os.path.exists(f):
+                os.remove(f)
+            shutil.rmtree(f + ".checkpoints", ignore_errors=True)
+        root = os.path.join(HERE, "..", "..")
+        dem = start_dem(os.path.join(WORK, "full_dem.log"))
+        p = subprocess.run(master_cmd(full), env=env, capture_output=True, text=True, timeout=600, cwd=root)
+        dem_code = dem.wait(timeout=60)
+        if p.returncode != 0 or dem_code != 0:
+            print((p.stdout + p.stderr)[-3000:] + open(os.path.join(WORK, "full_dem.log")).read()[-3000:])
+        check(p.returncode == 0 and dem_code == 0,
+              "the uninterrupted run with checkpoints and dem_service on 2 ranks finishes")
+        # The same run, dem_service's job killed (every rank, kill -9) after its checkpoint at 100
+        # steps or later.
+        dem = start_dem(os.path.join(WORK, "cut_dem.log"))
+        m = subprocess.Popen(master_cmd(h5), env=env, stdout=open(os.path.join(WORK, "cut.log"), "w"),
+                             stderr=subprocess.STDOUT, cwd=root)
+        folder, at, deadline = h5 + ".checkpoints", -1, time.time() + 300
+        while time.time() < deadline and at < 100 and m.poll() is None:
+            found = [int(re.search(r"_(\d+)\.ckpt$", f).group(1)) for f in glob.glob(folder + "/dem_*.ckpt")]
+            at = max(found, default=-1)
+            time.sleep(0.005)
+        for pid in [dem.pid] + descendants(dem.pid):
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+        dem.wait(timeout=30)
+        code = m.wait(timeout=120)
+        log = open(os.path.join(WORK, "cut.log")).read()
+        with h5py.File(h5, "r") as f:
+            steps_done = int(f["checkpoint/steps_done"][()])
+            rows = len(f["time"])
+        print("dem_service killed at its checkpoint after %d steps; the record has %d rows, its last "
+              "common checkpoint after %d steps" % (at, rows, steps_done))
+        check(at >= 100 and code == 1 and "participant 'dem' stopped answering" in log and rows < 241
+              and steps_done >= 80 and steps_done % 20 == 0,
+              "the run stops when dem_service's job is killed after a checkpoint (exit %d)" % code)
+        dem = start_dem(os.path.join(WORK, "resume_dem.log"))
+        p = subprocess.run([master, "--resume", h5], env=env, capture_output=True, text=True, timeout=600, cwd=root)
+        dem_code = dem.wait(timeout=60)
+        if p.returncode != 0 or dem_code != 0:
+            print((p.stdout + p.stderr)[-3000:] + open(os.path.join(WORK, "resume_dem.log")).read()[-3000:])
+        check(p.returncode == 0 and dem_code == 0,
+              "cosim_master --resume with dem_service on 2 ranks again finishes")
+        same, note = identical_records(full, h5)
+        print("\n".join(l for l in note.splitlines() if not l.startswith("same")))
+        check(same, "the resumed record equals the uninterrupted 2-rank run's bit for bit (but the "
+              "run's metadata)")
+        with h5py.File(h5, "r") as f:
+            w = f["participants/dem/outputs/blade"][:]
+        check(np.abs(w[:, :3]).max() > 100, "the blade ploughs the bed (peak |F| %.4g N)" % np.abs(w[:, :3]).max())
     else:
         END = 0.02
         # No broad phase after the first within the run, and a strict guard: the grains falling

@@ -42,10 +42,23 @@ class RankDriver {
   virtual void check_supported(const RunConfig& rc, const EngineOptions& options) const = 0;
   // A session's start: `s`, the whole scene (the same on every rank), becomes this rank's share.
   virtual void start(const Scene& scene, Engine& engine, State& s) = 0;
+  // As start, within a session (after a checkpoint of the master): the slabs cut anew from the
+  // whole scene `s`. A restore_snapshot() of a snapshot taken before goes back to the old cut.
+  virtual void recut(const Scene& scene, Engine& engine, State& s) = 0;
   // One DEM step of the whole scene.
   virtual void step(State& s) = 0;
   // The tools' wrenches of the last step, summed over the ranks in rank order.
   virtual std::vector<Wrench> tool_wrenches() = 0;
+  // The walls' forces summed by the last tool_wrenches() (not collective).
+  virtual std::vector<Vec3> wall_forces() const = 0;
+  // Rank 0 writes the output and the checkpoints (not collective).
+  virtual bool lead() const = 0;
+  // Rank 0: the whole scene's particles sorted by id (an output snapshot); the others: an
+  // empty state.
+  virtual State gather(const State& s) = 0;
+  // Rank 0: the whole scene with its lists and every spring (a checkpoint); the others: an
+  // empty state.
+  virtual State gather_checkpoint(const State& s) = 0;
   // The whole scene's particle count and kinetic energy (sums in rank order).
   virtual void totals(const State& s, double& particles, double& kinetic_energy) = 0;
   // Everything besides the State that a repeated step needs to start bit for bit where the
@@ -89,6 +102,10 @@ class ServiceModel final : public cosim::Model {
   bool can_checkpoint() const override { return true; }
   void save_checkpoint(const std::string& path) override;
   void load_checkpoint(const std::string& path) override;
+  // Several ranks, after save_checkpoint(path) (collective; `path` a copy of that file on this
+  // rank's host): the state read back from it and the slabs cut anew, as a resume from that file
+  // does, so that a resumed run repeats the uninterrupted one bit for bit (docs/mpi.md).
+  void recut_from_checkpoint(const std::string& path);
 
   // Ends the run: final particle snapshot, checkpoint, summary; prints the timing table.
   // Safe to call more than once and without a configured session.

@@ -2,8 +2,16 @@
 
 #include <mpi.h>
 
+#include <unistd.h>
+
+#include <algorithm>
 #include <cstdint>
+#include <cstdio>
+#include <cstdlib>
 #include <cstring>
+#include <exception>
+#include <fstream>
+#include <iterator>
 #include <new>
 #include <stdexcept>
 #include <string>
@@ -23,6 +31,7 @@ class Driver final : public RankDriver {
  public:
   explicit Driver(const Options& options) : options_(options) {
     MPI_Comm_size(MPI_COMM_WORLD, &ranks_);
+    MPI_Comm_rank(MPI_COMM_WORLD, &rank_);
   }
   int ranks() const override { return ranks_; }
   void check_supported(const RunConfig& rc, const EngineOptions& options) const override {
@@ -34,20 +43,52 @@ class Driver final : public RankDriver {
     State whole = std::move(s);
     dec_->start(whole, s);
   }
+  void recut(const Scene& scene, Engine& engine, State& s) override {
+    // The old cut is kept until the next snapshot: a repeated step restores it. (Assigning
+    // prev_ ends an older one, which unhooks the engine's ghosts; the new one hooks its own.)
+    prev_ = std::move(dec_);
+    recut_ = true;
+    dec_ = std::make_unique<Decomposed>(scene, engine, options_);
+    State whole = std::move(s);
+    dec_->start(whole, s);
+  }
   void step(State& s) override { dec_->step(s); }
   std::vector<Wrench> tool_wrenches() override {
     dec_->reduce_boundary(tools_, walls_);
     return tools_;
   }
+  std::vector<Vec3> wall_forces() const override { return walls_; }
+  bool lead() const override { return rank_ == 0; }
+  // Detached (rank 0 ended without finishing its session): the gathers are empty and call no
+  // MPI, so a follower's finish() does not wait for a rank 0 that never gathers.
+  State gather(const State& s) override { return detached_ ? State{} : dec_->gather(s); }
+  State gather_checkpoint(const State& s) override {
+    return detached_ ? State{} : dec_->gather_with_lists(s);
+  }
+  void detach() { detached_ = true; }
   void totals(const State& s, double& particles, double& kinetic_energy) override {
     dec_->totals(s, particles, kinetic_energy);
   }
-  void save_snapshot() override { dec_->save_snapshot(); }
-  void restore_snapshot() override { dec_->restore_snapshot(); }
+  void save_snapshot() override {
+    recut_ = false;
+    dec_->save_snapshot();
+  }
+  void restore_snapshot() override {
+    if (recut_ && prev_) {
+      // The snapshot was taken before the last recut: back to that cut (ending the new one
+      // unhooks the engine's ghosts; the restore hooks the old one's).
+      dec_ = std::move(prev_);
+      recut_ = false;
+    }
+    dec_->restore_snapshot();
+  }
 
  private:
   Options options_;
-  int ranks_ = 1;
+  int ranks_ = 1, rank_ = 0;
+  bool detached_ = false;
+  bool recut_ = false;  // recut() since the last save_snapshot()
+  std::unique_ptr<Decomposed> prev_;  // the cut before the last recut()
   std::unique_ptr<Decomposed> dec_;
   std::vector<Wrench> tools_;
   std::vector<Vec3> walls_;
@@ -55,7 +96,9 @@ class Driver final : public RankDriver {
 
 // --- Commands from rank 0.
 
-enum Command : std::int32_t { kConfigure = 1, kStep, kSave, kRestore, kEnd };
+enum Command : std::int32_t { kConfigure = 1, kStep, kSave, kRestore, kEnd, kSaveCheckpoint, kLoadCheckpoint };
+
+Driver* the_driver = nullptr;  // this process's driver (make_rank_driver), for follow()'s end
 
 struct Buffer {
   std::vector<char> bytes;
@@ -94,7 +137,11 @@ void broadcast(Buffer& b) {
   MPI_Bcast(&n, 1, MPI_INT64_T, 0, MPI_COMM_WORLD);
   b.bytes.resize(static_cast<std::size_t>(n));
   b.at = 0;
-  if (n > 0) MPI_Bcast(b.bytes.data(), static_cast<int>(n), MPI_BYTE, 0, MPI_COMM_WORLD);
+  // In pieces of at most 1 GiB (a checkpoint of millions of grains exceeds an int's count).
+  constexpr std::int64_t kPiece = std::int64_t{1} << 30;
+  for (std::int64_t at = 0; at < n; at += kPiece)
+    MPI_Bcast(b.bytes.data() + at, static_cast<int>(std::min(kPiece, n - at)), MPI_BYTE, 0,
+              MPI_COMM_WORLD);
 }
 
 // --- Agreement: a command's outcome on every rank.
@@ -186,8 +233,71 @@ static_assert(std::is_trivially_copyable_v<ToolPose>);
 }  // namespace
 
 std::unique_ptr<RankDriver> make_rank_driver(const Options& options) {
-  return std::make_unique<Driver>(options);
+  auto d = std::make_unique<Driver>(options);
+  the_driver = d.get();
+  return d;
 }
+
+namespace {
+
+// The master's checkpoint file on every rank (collective): rank 0 reads it (on its own host,
+// where the master's folder is) and sends its bytes; the other ranks write them to a private
+// temporary file of their own host; every rank then runs `use` on its copy. Each part's outcome
+// is agreed.
+template <class Use>
+void on_every_rank(const std::string& path, Use&& use) {
+  int rank = 0;
+  MPI_Comm_rank(MPI_COMM_WORLD, &rank);
+  Buffer file;
+  agree(attempt([&] {
+    if (rank != 0) return;
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw std::runtime_error("cannot open the checkpoint " + path);
+    file.bytes.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+    if (in.bad()) throw std::runtime_error("cannot read the checkpoint " + path);
+  }));
+  broadcast(file);
+  std::string local = path;
+  agree(attempt([&] {
+    if (rank == 0) return;
+    const char* dir = std::getenv("TMPDIR");
+    std::string name = std::string(dir && *dir ? dir : "/tmp") + "/dem_service_resume_XXXXXX";
+    std::vector<char> tmpl(name.begin(), name.end());
+    tmpl.push_back('\0');
+    const int fd = ::mkstemp(tmpl.data());
+    if (fd < 0) throw std::runtime_error("cannot make a temporary file in " + name.substr(0, name.rfind('/')) + " for the checkpoint (set TMPDIR to a writable folder)");
+    local = tmpl.data();
+    std::size_t at = 0;
+    while (at < file.bytes.size()) {
+      const ssize_t w = ::write(fd, file.bytes.data() + at, file.bytes.size() - at);
+      if (w <= 0) {
+        ::close(fd);
+        std::remove(local.c_str());
+        throw std::runtime_error("cannot write the checkpoint's copy " + local);
+      }
+      at += static_cast<std::size_t>(w);
+    }
+    ::close(fd);
+  }));
+  file.bytes.clear();
+  file.bytes.shrink_to_fit();
+  Outcome o = attempt([&] { use(local); });
+  if (rank != 0) std::remove(local.c_str());
+  agree(o);
+}
+
+void load_on_every_rank(ServiceModel& model, const std::string& path) {
+  on_every_rank(path, [&](const std::string& local) { model.load_checkpoint(local); });
+}
+
+// The master's checkpoint: rank 0 writes the gathered scene; then every rank continues from that
+// file as a resume from it would (the slabs cut anew), so the resumed run repeats this one.
+void save_on_every_rank(ServiceModel& model, const std::string& path) {
+  agree(attempt([&] { model.save_checkpoint(path); }));
+  on_every_rank(path, [&](const std::string& local) { model.recut_from_checkpoint(local); });
+}
+
+}  // namespace
 
 // --- Rank 0.
 
@@ -232,9 +342,29 @@ void LeadModel::restore_snapshot() {
   agree(attempt([&] { model_.restore_snapshot(); }));
 }
 
+void LeadModel::save_checkpoint(const std::string& path) {
+  Buffer b;
+  b.put(static_cast<std::int32_t>(kSaveCheckpoint));
+  b.put_string(path);
+  broadcast(b);
+  save_on_every_rank(model_, path);
+}
+
+void LeadModel::load_checkpoint(const std::string& path) {
+  Buffer b;
+  b.put(static_cast<std::int32_t>(kLoadCheckpoint));
+  b.put_string(path);
+  broadcast(b);
+  load_on_every_rank(model_, path);
+}
+
 void end_followers() {
+  // Called from a handler (run_participant threw), rank 0 does not finish its session: the
+  // others must not wait in finish()'s gathers for it.
+  const bool finishing = std::current_exception() == nullptr;
   Buffer b;
   b.put(static_cast<std::int32_t>(kEnd));
+  b.put(static_cast<std::int32_t>(finishing));
   broadcast(b);
 }
 
@@ -268,7 +398,11 @@ int follow(ServiceModel& model) {
         }
         case kSave: agree(attempt([&] { model.save_snapshot(); })); break;
         case kRestore: agree(attempt([&] { model.restore_snapshot(); })); break;
-        case kEnd: return 0;
+        case kSaveCheckpoint: save_on_every_rank(model, b.get_string()); break;
+        case kLoadCheckpoint: load_on_every_rank(model, b.get_string()); break;
+        case kEnd:
+          if (b.get<std::int32_t>() == 0 && the_driver) the_driver->detach();
+          return 0;
         default: throw std::logic_error("dem_service: unknown command from rank 0");
       }
     } catch (const std::invalid_argument&) {

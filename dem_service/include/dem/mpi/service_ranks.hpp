@@ -19,7 +19,9 @@ namespace dem::mpi {
 std::unique_ptr<RankDriver> make_rank_driver(const Options& options);
 
 // Rank 0's model for cosim::run_participant: each call sent to the other ranks, then run on
-// every rank and agreed. The master's checkpoints are refused on N > 1 (can_checkpoint false).
+// every rank and agreed. The master's checkpoints: the whole scene gathered on rank 0, which
+// writes the file; a resume sends the file's bytes from rank 0 to every rank, and every rank
+// cuts its slabs anew from it.
 class LeadModel final : public cosim::Model {
  public:
   explicit LeadModel(ServiceModel& model) : model_(model) {}
@@ -32,13 +34,17 @@ class LeadModel final : public cosim::Model {
   bool can_repeat() const override { return model_.can_repeat(); }
   void save_snapshot() override;
   void restore_snapshot() override;
-  bool can_checkpoint() const override { return false; }
+  bool can_checkpoint() const override { return model_.can_checkpoint(); }
+  void save_checkpoint(const std::string& path) override;
+  void load_checkpoint(const std::string& path) override;
 
  private:
   ServiceModel& model_;
 };
 
 // Rank 0: tells the other ranks that the service ends (after run_participant returns or throws).
+// Called from an exception handler (run_participant threw, rank 0 will not finish its session),
+// the others' finish() gathers nothing: they do not wait for rank 0.
 void end_followers();
 
 // Ranks 1..N-1: run rank 0's commands on `model` until it ends the service. An agreed failure of
