@@ -736,6 +736,7 @@ elif CASE in ("service", "service_fail", "service_output", "service_resume"):
                     todo.append(c)
             return out
 
+        KILL_AT = 200  # macro steps: 10 ms, the blade in the bed
         full, h5 = os.path.join(WORK, "full.h5"), os.path.join(WORK, "cut.h5")
         for f in (full, h5):
             if os.path.exists(f):
@@ -755,7 +756,7 @@ elif CASE in ("service", "service_fail", "service_output", "service_resume"):
         m = subprocess.Popen(master_cmd(h5), env=env, stdout=open(os.path.join(WORK, "cut.log"), "w"),
                              stderr=subprocess.STDOUT, cwd=root)
         folder, at, deadline = h5 + ".checkpoints", -1, time.time() + 300
-        while time.time() < deadline and at < 100 and m.poll() is None:
+        while time.time() < deadline and at < KILL_AT and m.poll() is None:
             found = [int(re.search(r"_(\d+)\.ckpt$", f).group(1)) for f in glob.glob(folder + "/dem_*.ckpt")]
             at = max(found, default=-1)
             time.sleep(0.005)
@@ -772,8 +773,8 @@ elif CASE in ("service", "service_fail", "service_output", "service_resume"):
             rows = len(f["time"])
         print("dem_service killed at its checkpoint after %d steps; the record has %d rows, its last "
               "common checkpoint after %d steps" % (at, rows, steps_done))
-        check(at >= 100 and code == 1 and "participant 'dem' stopped answering" in log and rows < 241
-              and steps_done >= 80 and steps_done % 20 == 0,
+        check(at >= KILL_AT and code == 1 and "participant 'dem' stopped answering" in log and rows < 241
+              and steps_done >= KILL_AT - 20 and steps_done % 20 == 0,
               "the run stops when dem_service's job is killed after a checkpoint (exit %d)" % code)
         dem = start_dem(os.path.join(WORK, "resume_dem.log"))
         p = subprocess.run([master, "--resume", h5], env=env, capture_output=True, text=True, timeout=600, cwd=root)
