@@ -116,7 +116,9 @@ void ServiceModel::configure(const YAML::Node& parameters, const cosim::RunInfo&
   pristine_ = false;
   run_ = run;
   const Scene& scene = rc_->scene;
-  engine_ = std::make_unique<Engine>(scene, engine_options_.with_config(rc_->performance));
+  // Kept aside until the ranks' start: the last session's decomposition, ended there, unhooks
+  // itself from the last engine, which must still exist then.
+  auto engine = std::make_unique<Engine>(scene, engine_options_.with_config(rc_->performance));
   out_.reset();
   finished_ = false;
   const OutputOptions& o = rc_->output;
@@ -135,7 +137,8 @@ void ServiceModel::configure(const YAML::Node& parameters, const cosim::RunInfo&
     rc_->state.tool_pose[m] = scene.tools[m].motion.evaluate(cosim::to_seconds(run.t_start));
   end_poses_ = rc_->state.tool_pose;
   // Several ranks: every rank keeps its share of the scene from here on (collective).
-  if (ranks_) ranks_->start(scene, *engine_, rc_->state);
+  if (ranks_) ranks_->start(scene, *engine, rc_->state);
+  engine_ = std::move(engine);
   std::string output_file = o.file;
   if (!output_file.empty() && run.resume_steps_done > 0) {
     // The interrupted session's file keeps the steps before; this one holds the rest.

@@ -38,10 +38,18 @@ class Driver final : public RankDriver {
     dem::mpi::check_supported(rc, options, ranks_);
   }
   void start(const Scene& scene, Engine& engine, State& s) override {
-    dec_.reset();  // the last session's driver held its engine
+    // The last session's decompositions unhook the last engine (the caller keeps it until here).
+    dec_.reset();
+    prev_.reset();
+    recut_ = false;
     dec_ = std::make_unique<Decomposed>(scene, engine, options_);
     State whole = std::move(s);
-    dec_->start(whole, s);
+    try {
+      dec_->start(whole, s);
+    } catch (...) {
+      dec_.reset();  // a refused start: the caller drops `engine`
+      throw;
+    }
   }
   void recut(const Scene& scene, Engine& engine, State& s) override {
     // The old cut is kept until the next snapshot: a repeated step restores it. (Assigning
@@ -61,9 +69,10 @@ class Driver final : public RankDriver {
   bool lead() const override { return rank_ == 0; }
   // Detached (rank 0 ended without finishing its session): the gathers are empty and call no
   // MPI, so a follower's finish() does not wait for a rank 0 that never gathers.
-  State gather(const State& s) override { return detached_ ? State{} : dec_->gather(s); }
+  // (No decomposition: the session's start was refused on every rank alike.)
+  State gather(const State& s) override { return detached_ || !dec_ ? State{} : dec_->gather(s); }
   State gather_checkpoint(const State& s) override {
-    return detached_ ? State{} : dec_->gather_with_lists(s);
+    return detached_ || !dec_ ? State{} : dec_->gather_with_lists(s);
   }
   void detach() { detached_ = true; }
   void totals(const State& s, double& particles, double& kinetic_energy) override {
