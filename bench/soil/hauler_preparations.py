@@ -4,7 +4,7 @@ model (docs/hauler.md "The load before and after", docs/soil_models.md "Which sc
 
     /usr/bin/python3 bench/soil/hauler_preparations.py [--models translating,rotating]
         [--seeds 5,6,7] [--end 3] [--out results/hauler_preparations] [--build build]
-        [--prepare-only] [--analyse-only] [--fresh]
+        [--threads 2] [--prepare-only] [--analyse-only] [--fresh]
 
 For each model and insertion seed S it prepares the load in the dump body with the model's two
 stages (`nice dem_run`; --set particles.insert.0.seed=S, the checkpoints into --out):
@@ -130,9 +130,9 @@ def prepare(model, seed, a):
     if a.fresh or not os.path.exists(load):
         dem_run = os.path.join(a.build, "bin/dem_run")
         run([dem_run, prep, "--set", f"particles.insert.0.seed={seed}", "--set", f"prepare.checkpoint={bed}",
-             "--set", f"output.file={name}_prepare.h5"], name + "_prepare.log")
+             "--set", f"output.file={name}_prepare.h5", "--set", f"scene.threads={a.threads}"], name + "_prepare.log")
         run([dem_run, release, "--set", f"particles.checkpoint={bed}", "--set", f"settle.checkpoint={load}",
-             "--set", f"output.file={name}_release.h5"], name + "_release.log")
+             "--set", f"output.file={name}_release.h5", "--set", f"scene.threads={a.threads}"], name + "_release.log")
     lines = (open(name + "_prepare.log").read() + open(name + "_release.log").read()).splitlines()
     bed_line = next((ln for ln in lines if ln.startswith("Prepared bed:")), "Prepared bed: (not printed)")
     settle = next((ln for ln in lines if ln.startswith("settle:")), "settle: (not printed)")
@@ -151,7 +151,7 @@ def tip(model, seed, load, static, a):
                 f"participants.hauler.parameters.static_load={static}",
                 # dem_service loads its checkpoint when it starts, before the master's parameters
                 f"participants.soil.launch=[dem_service, {os.path.join(ROOT, soil)}, --set, "
-                f"particles.checkpoint={load}]",
+                f"particles.checkpoint={load}, --set, scene.threads={a.threads}]",
                 f"participants.soil.parameters.output.file={out}_soil.h5",
                 "participants.soil.parameters.output.particles_every=0.02",
                 "participants.soil.parameters.particles.perturb.amplitude=1.0e-6",
@@ -171,6 +171,7 @@ def main():
     ap.add_argument("--end", type=float, default=3.0)
     ap.add_argument("--out", default=os.path.join(ROOT, "results/hauler_preparations"))
     ap.add_argument("--build", default=os.path.join(ROOT, "build"))
+    ap.add_argument("--threads", type=int, default=2, help="the DEM's threads (preparation and tipping)")
     ap.add_argument("--prepare-only", action="store_true")
     ap.add_argument("--analyse-only", action="store_true", help="reuse every output; run nothing")
     ap.add_argument("--fresh", action="store_true")
@@ -184,6 +185,8 @@ def main():
         seeds = [int(s) for s in a.seeds.split(",")]
     except ValueError:
         sys.exit(f"hauler_preparations: --seeds {a.seeds}: give whole numbers separated by commas, e.g. 5,6,7")
+    if a.threads < 1:
+        sys.exit(f"hauler_preparations: --threads {a.threads}: at least 1")
     if not a.end > 1.5:
         sys.exit(f"hauler_preparations: --end {a.end}: the body rises from 1 s; give at least 2 s")
     os.makedirs(a.out, exist_ok=True)
@@ -225,8 +228,8 @@ def main():
     if all(1.0 in r[4] and 2.0 in r[4] for m in results for r in results[m]):
         table.append(("front axle gain, 1 s to 2 s [kN]",
                       {m: [(r[4][2.0] - r[4][1.0]) / 1e3 for r in results[m]] for m in results}))
-    print(f"\nmean +- 95 % t-interval over the preparations (seeds {a.seeds}); the difference "
-          f"{models[-1]} - {models[0]} with a Welch 95 % interval")
+    print(f"\nmean +- 95 % t-interval over the preparations (seeds {a.seeds})" +
+          (f"; the difference {models[1]} - {models[0]} with a Welch 95 % interval" if len(results) == 2 else ""))
     head = "| outcome | " + " | ".join(f"{m} ({len(results[m])} preparations)" for m in results) + \
         (" | difference |" if len(results) == 2 else " |")
     print(head)
