@@ -127,6 +127,8 @@ def prepare(model, seed, a):
     prep, release = MODELS[model][:2]
     name = os.path.join(a.out, f"{model}_{seed}")
     bed, load = name + "_bed.h5", name + "_load.h5"
+    if a.analyse_only and not os.path.exists(load):
+        sys.exit(f"hauler_preparations: --analyse-only: {load} is missing; run without --analyse-only first")
     if a.fresh or not os.path.exists(load):
         dem_run = os.path.join(a.build, "bin/dem_run")
         run([dem_run, prep, "--set", f"particles.insert.0.seed={seed}", "--set", f"prepare.checkpoint={bed}",
@@ -146,6 +148,9 @@ def tip(model, seed, load, static, a):
     if done and not a.fresh:
         with h5py.File(out + ".h5", "r") as f:
             done = len(f["time"]) > 0 and f["time"][-1] >= a.end - 2e-3
+    if a.analyse_only and not done:
+        sys.exit(f"hauler_preparations: --analyse-only: {out}.h5 is missing or shorter than --end {a.end}; "
+                 "run without --analyse-only first")
     if a.fresh or not done:
         sets = [f"time.end={a.end}", f"output.file={out}.h5", f"output.csv={out}.csv", "output.progress=off",
                 f"participants.hauler.parameters.static_load={static}",
