@@ -14,6 +14,8 @@
 #include <stdexcept>
 #include <type_traits>
 
+#include <time.h>
+
 #include "cosim/yaml_config.hpp"
 #include "dem/broad_phase.hpp"
 #include "dem/far_movers.hpp"
@@ -332,6 +334,29 @@ std::vector<double> cuts_by_count(std::vector<double> c, int P) {
 
 double axis_of(const Vec3& p, int a) { return a == 0 ? p.x : a == 1 ? p.y : p.z; }
 
+// Waits for the requests. spin: MPI_Waitall (Open MPI polls, holding the core). Otherwise (the
+// engine's scene.thread_wait passive or brief) it tests for about 50 us and then sleeps 20 us
+// between tests: on a host with more runnable tasks than cores a polling rank would burn the
+// share of the core its neighbour needs to finish the step it waits for.
+void wait_for(std::vector<MPI_Request>& req, bool spin) {
+  if (req.empty()) return;
+  const int n = static_cast<int>(req.size());
+  if (spin) {
+    MPI_Waitall(n, req.data(), MPI_STATUSES_IGNORE);
+    return;
+  }
+  int done = 0;
+  const cosim::Stopwatch watch;
+  MPI_Testall(n, req.data(), &done, MPI_STATUSES_IGNORE);
+  while (!done) {
+    if (watch.seconds() > 50e-6) {
+      const timespec nap{0, 20000};
+      nanosleep(&nap, nullptr);
+    }
+    MPI_Testall(n, req.data(), &done, MPI_STATUSES_IGNORE);
+  }
+}
+
 }  // namespace
 
 // --- The decomposed run.
@@ -640,7 +665,9 @@ void Decomposed::rebuild_kept(State& s) {
     std::int64_t mine = 0;
     for (const std::uint8_t g : m.ghost) mine += g == 0;
     std::vector<std::int64_t> counts(static_cast<std::size_t>(P));
-    MPI_Allgather(&mine, 1, MPI_INT64_T, counts.data(), 1, MPI_INT64_T, m.comm);
+    std::vector<MPI_Request> req(1);  // the first collective of the broad phase: waits for the slowest
+    MPI_Iallgather(&mine, 1, MPI_INT64_T, counts.data(), 1, MPI_INT64_T, m.comm, req.data());
+    wait_for(req, scene_.thread_wait == ThreadWait::spin);
     const std::int64_t total = std::accumulate(counts.begin(), counts.end(), std::int64_t{0});
     const std::int64_t most = *std::max_element(counts.begin(), counts.end());
     if (total > 0 && static_cast<double>(most) * P > options_.rebalance * static_cast<double>(total)) {
@@ -1058,7 +1085,9 @@ int Decomposed::tally(State& s, bool failed) {
     t[2] = std::max(t[2], norm2(s.u[i]));
   }
   std::vector<double> all(static_cast<std::size_t>(4 * m.P));
-  MPI_Allgather(t, 4, MPI_DOUBLE, all.data(), 4, MPI_DOUBLE, m.comm);
+  std::vector<MPI_Request> req(1);
+  MPI_Iallgather(t, 4, MPI_DOUBLE, all.data(), 4, MPI_DOUBLE, m.comm, req.data());
+  wait_for(req, scene_.thread_wait == ThreadWait::spin);
   m.d1 = m.d2 = m.u2 = 0;
   int first_failed = -1;
   for (int q = 0; q < m.P; ++q) {
@@ -1144,7 +1173,7 @@ void Decomposed::step(State& s) {
     halo_.bytes_sent += static_cast<std::int64_t>(b.size() * sizeof(double));
     ++halo_.messages_sent;
   }
-  MPI_Waitall(static_cast<int>(req.size()), req.data(), MPI_STATUSES_IGNORE);
+  wait_for(req, scene_.thread_wait == ThreadWait::spin);
   for (int q = 0; q < P; ++q) {
     const auto& idx = m.recv_idx[static_cast<std::size_t>(q)];
     const double* o = m.recv_buf[static_cast<std::size_t>(q)].data();
