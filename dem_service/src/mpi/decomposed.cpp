@@ -916,8 +916,6 @@ void Decomposed::rebuild_kept(State& s) {
     t.wu.resize(n);
   }
   std::vector<std::uint8_t>& ghost = m.ghost;
-  std::vector<std::uint8_t> old_ghost;
-  old_ghost.swap(ghost);
   ghost.assign(n, 1);
   std::vector<std::int32_t> new_of_entry(n);
   t.slot_count.assign(n, 0);
