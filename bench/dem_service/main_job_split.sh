@@ -67,6 +67,8 @@ while os.path.exists(f"/proc/{master}"):
         except (OSError, ValueError, IndexError):
             continue
         if int(pid) == master or ppid == master:
+            if name == "?" and int(pid) in seen:  # exiting: its cmdline is gone
+                name = seen[int(pid)][0]
             seen[int(pid)] = (name, cpu)
     time.sleep(0.2)
 with open(path, "w") as f:
