@@ -230,6 +230,14 @@ void ServiceModel::save_snapshot() {
   snapshot_seconds_ += watch.seconds();
 }
 
+void ServiceModel::skip_snapshot() {
+  const cosim::Stopwatch watch;
+  if (out_) out_->flush_if_older_than(2.0);  // the previous step is accepted: its rows may go
+  snapshot_.reset();  // of an earlier step's start: never to be restored now
+  // No copy: the table's "snapshot" row holds copies only; the flush is output.
+  if (engine_) engine_->timing().add(section::output, watch.seconds());
+}
+
 void ServiceModel::restore_snapshot() {
   if (!snapshot_) throw std::logic_error("dem_service: restore_snapshot without a snapshot");
   const cosim::Stopwatch watch;

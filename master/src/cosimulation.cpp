@@ -172,6 +172,8 @@ std::vector<cosim::step_request_t> CoSimulation::requests(const std::vector<std:
     q.t_start_ns = cosim::to_ns(t0);
     q.t_end_ns = cosim::to_ns(t1);
     q.checkpoint = checkpoint;
+    // The algorithm will not do this step again: the participant need not keep its start.
+    q.no_redo = !algorithm_->may_repeat(step);
     // Asked of a source whose output feeds a `use: average` connection.
     q.want_average = false;
     for (const auto& k : config_.connections)

@@ -100,6 +100,10 @@ class CouplingAlgorithm {
   // initialize; it raises std::runtime_error for text it cannot read.
   virtual std::string save_state() const { return {}; }
   virtual void restore_state(const std::string& state);
+  // Whether macro step `step` may be done again from its start (a larger iteration of it, or a
+  // rejected attempt redone), asked after initialize. false lets the participants skip keeping
+  // the state at its start (step_request_t.no_redo); the default, true, is always safe.
+  virtual bool may_repeat(int64_t step) const { return true; }
 };
 
 // The explicit fixed-step scheme: every macro step once, Jacobi (all participants in one
@@ -113,6 +117,11 @@ class FixedStepAlgorithm final : public CouplingAlgorithm {
   void initialize(const AlgorithmSetup& setup) override;
   Duration do_step(Coupling& coupling, int64_t step, TimePoint t) override;
   void set_step(Duration step) override { macro_step_ = step; }
+  // Only the start-up steps are iterated (step < the highest predictor order, with
+  // startup_iterations > 0 and every participant able to repeat): every later step runs once.
+  bool may_repeat(int64_t step) const override {
+    return can_iterate_ && startup_iterations_ > 0 && step < max_order_;
+  }
   const std::vector<std::vector<std::string>>& groups() const { return groups_; }
 
  private:
@@ -184,6 +193,8 @@ class AdaptiveStepAlgorithm final : public CouplingAlgorithm {
   Duration do_step(Coupling& coupling, int64_t step, TimePoint t) override;
   std::string save_state() const override;
   void restore_state(const std::string& state) override;
+  // A step may be rejected and redone (reject_above > 0), or the inner algorithm may repeat it.
+  bool may_repeat(int64_t step) const override { return spec_.reject_above > 0 || inner_->may_repeat(step); }
 
   struct Record {
     TimePoint t_start;

@@ -144,6 +144,8 @@ std::optional<ready_t> ParticipantCore::configure(const configure_t& m) {
       last_step_ = m.resume_steps_done - 1;
       last_iteration_ = 0;
     }
+    start_kept_ = false;
+    start_note_ = m.resume_steps_done > 0 ? "the run was resumed from a checkpoint after it" : "";
     cached_.reset();
     done_iteration_ = last_iteration_;
     done_step_ = last_step_;
@@ -262,6 +264,10 @@ std::optional<step_reply_t> ParticipantCore::handle(const step_request_t& q) {
                       std::to_string(last_step_ + 1));
   if (redo && !model_.can_repeat())
     return refuse(q, step_reply_t::REJECTED, "this participant cannot repeat a step");
+  if (redo && !start_kept_)
+    return refuse(q, step_reply_t::REJECTED,
+                  "step " + std::to_string(q.step_index) + " cannot be redone: the state at its start was not "
+                  "kept (" + (start_note_.empty() ? std::string("no snapshot of it") : start_note_) + ")");
   const TimePoint expected_start = redo ? t_before_last_ : t_now_;
   const TimePoint t_start = time_point_ns(q.t_start_ns), t_end = time_point_ns(q.t_end_ns);
   if (t_start != expected_start || t_end <= t_start || t_end > run_.t_end)
@@ -293,11 +299,19 @@ step_reply_t ParticipantCore::run_step(const step_request_t& q) {
   busy_step_ = q.step_index;
   const Stopwatch started;
   StepResult result;
+  // Whether the state at this step's start is kept now (a redo's snapshot is the one kept).
+  bool kept = redo;
   try {
-    if (redo)
+    if (redo) {
       model_.restore_snapshot();
-    else if (model_.can_repeat())
-      model_.save_snapshot();
+    } else if (model_.can_repeat()) {
+      if (q.no_redo) {
+        model_.skip_snapshot();  // the master will not redo it: nothing to keep
+      } else {
+        model_.save_snapshot();
+        kept = true;
+      }
+    }
     const StepInputs in(time_point_ns(q.t_start_ns), time_point_ns(q.t_end_ns), inputs);
     result = model_.step(in, q.want_average);
     check_against_ports(result.outputs, outputs_, "outputs");
@@ -313,7 +327,19 @@ step_reply_t ParticipantCore::run_step(const step_request_t& q) {
                           " ns, outside the step");
   } catch (const InputError& e) {
     busy_step_ = -1;
+    if (model_.can_repeat() && !kept) {
+      // no_redo: the state at the step's start was not kept, so it cannot be put back.
+      start_kept_ = false;
+      return refuse(q, step_reply_t::FAILED,
+                    std::string(e.what()) + "; the step was sent with no_redo, so its start was not "
+                    "kept and the participant cannot go back to it");
+    }
     if (model_.can_repeat()) model_.restore_snapshot();
+    // The snapshot is of this refused step's start now, not of the last step's.
+    if (!redo) {
+      start_kept_ = false;
+      start_note_ = "a refused step replaced it";
+    }
     return refuse(q, step_reply_t::REJECTED, e.what());
   } catch (const std::bad_alloc&) {
     busy_step_ = -1;
@@ -331,7 +357,11 @@ step_reply_t ParticipantCore::run_step(const step_request_t& q) {
   for (const auto& [n, v] : result.diagnostics) r.diagnostics.push_back({n, v});
   r.n_diagnostics = static_cast<int32_t>(r.diagnostics.size());
   r.compute_seconds = seconds;
-  if (!redo) t_before_last_ = time_point_ns(q.t_start_ns);
+  if (!redo) {
+    t_before_last_ = time_point_ns(q.t_start_ns);
+    start_kept_ = kept;
+    start_note_ = kept ? "" : model_.can_repeat() ? "the master sent it with no_redo" : "";
+  }
   t_now_ = time_point_ns(q.t_end_ns);
   if (result.ended_at) {  // the model ended itself: the reply says where, and no step follows
     r.status = step_reply_t::ENDED;

@@ -12,6 +12,8 @@
 #include <sstream>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
+#include <filesystem>
 
 #include "../oscillator/harness.hpp"
 #include "dem/checkpoint.hpp"
@@ -260,6 +262,104 @@ TEST(DemService, BadStepsAreRefusedAndTheServiceKeepsServing) {
   Service clean;
   clean.step(request(0));
   EXPECT_EQ(wrench(ok), wrench(clean.step(request(1))));
+}
+
+// Steps the master will not redo (step_request_t.no_redo, an explicit scheme after its start-up)
+// keep no copy of the state: the same bits as steps that keep one, on 1 and 2 threads and
+// through the master's checkpoint and a resume; a redo asked anyway is refused and the service
+// goes on as before.
+TEST(DemService, StepsWithoutRedoKeepNoSnapshotAndGiveTheSameBits) {
+  auto same_state = [](const dem::State& a, const dem::State& b) {
+    auto bytes = [](const auto& u, const auto& v) {
+      return u.size() == v.size() &&
+             (u.empty() || std::memcmp(u.data(), v.data(), u.size() * sizeof(u[0])) == 0);
+    };
+    return a.step == b.step && bytes(a.x, b.x) && bytes(a.v, b.v) && bytes(a.u, b.u) && bytes(a.id, b.id) &&
+           bytes(a.pair_offset, b.pair_offset) && bytes(a.pair_j, b.pair_j) &&
+           bytes(a.pair_spring, b.pair_spring) && bytes(a.slot_key, b.slot_key) &&
+           bytes(a.slot_spring, b.slot_spring) && bytes(a.rest_steps, b.rest_steps) && bytes(a.w, b.w);
+  };
+  for (const int threads : {1, 2}) {
+    SCOPED_TRACE("threads " + std::to_string(threads));
+    // min_particles_per_thread 1: the 1500 grains really run on 2 threads.
+    const std::string p = "{scene.threads: " + std::to_string(threads) +
+                          ", performance.min_particles_per_thread: 1}";
+    const std::string folder = harness::temp_path("_no_redo_" + std::to_string(threads));
+    std::filesystem::remove_all(folder);
+    auto make = [&](std::unique_ptr<dem::ServiceModel>& model, std::int64_t resume) {
+      model = std::make_unique<dem::ServiceModel>(cosim::config::load_file(scene_path()),
+                                                  harness::source("tests/dem_service"));
+      auto core = std::make_unique<cosim::ParticipantCore>("dem", *model);
+      auto c = configure_message(p);
+      c.checkpoint_folder = folder;
+      c.run_id = 0x77;
+      c.resume_steps_done = resume;
+      c.resume_t_ns = resume * kMacro;
+      auto ready = core->configure(c);
+      EXPECT_TRUE(ready && ready->ok) << (ready ? ready->error : "no answer");
+      return core;
+    };
+    std::unique_ptr<dem::ServiceModel> ma, mb, mc;  // outlive the cores
+    auto a = make(ma, 0), b = make(mb, 0);
+    std::vector<cosim::Value> wa;
+    // On until the blade carries a force (the bed settles first), then the checkpoint two steps
+    // later and six steps more.
+    int kCheckpoint = -1, kSteps = 400;
+    for (int k = 0; k < kSteps; ++k) {
+      auto qa = request(k), qb = request(k);
+      qb.no_redo = k > 0;
+      qb.checkpoint = k == kCheckpoint;
+      auto ra = a->handle(qa), rb = b->handle(qb);
+      ASSERT_TRUE(ra && rb);
+      ASSERT_EQ(ra->status, cosim::step_reply_t::OK) << ra->message;
+      ASSERT_EQ(rb->status, cosim::step_reply_t::OK) << rb->message;
+      if (k == 0) {  // the start-up iteration: redone from the snapshot in both
+        ra = a->handle(request(0, 0, 1)), rb = b->handle(request(0, 0, 1));
+        ASSERT_TRUE(ra && rb && ra->status == cosim::step_reply_t::OK && rb->status == cosim::step_reply_t::OK);
+      }
+      wa.push_back(wrench(*ra));
+      ASSERT_EQ(wrench(*rb), wa.back()) << "step " << k;
+      if (kCheckpoint < 0 && k >= 10 && std::abs(cosim::Wrench::from_value(wa.back()).force[0]) > 1.0) {
+        kCheckpoint = k + 2;
+        kSteps = k + 9;
+      }
+    }
+    ASSERT_GT(kCheckpoint, 0) << "the blade never touched the bed";
+    EXPECT_GT(std::abs(cosim::Wrench::from_value(wa.back()).force[0]), 1.0) << "the blade must push the bed";
+    EXPECT_TRUE(same_state(ma->state(), mb->state()));
+    // A redo of a step sent with no_redo: refused, nothing changed.
+    auto redo = b->handle(request(kSteps - 1, 0, 1));
+    ASSERT_TRUE(redo);
+    EXPECT_EQ(redo->status, cosim::step_reply_t::REJECTED);
+    EXPECT_NE(redo->message.find("cannot be redone: the state at its start was not kept"), std::string::npos)
+        << redo->message;
+    EXPECT_TRUE(same_state(ma->state(), mb->state()));
+    // Resumed from the checkpoint written after step kCheckpoint, on with no_redo steps.
+    auto c = make(mc, kCheckpoint + 1);
+    for (int k = kCheckpoint + 1; k <= kSteps; ++k) {
+      auto qc = request(k);
+      qc.no_redo = true;
+      auto rc = c->handle(qc);
+      ASSERT_TRUE(rc);
+      ASSERT_EQ(rc->status, cosim::step_reply_t::OK) << rc->message;
+      if (k < kSteps) {
+        EXPECT_EQ(wrench(*rc), wa[static_cast<std::size_t>(k)]) << "resumed, step " << k;
+      } else {  // one step past the rest: all three alike
+        auto ra = a->handle(request(k));
+        auto qb = request(k);
+        qb.no_redo = true;
+        auto rb = b->handle(qb);
+        ASSERT_TRUE(ra && rb);
+        EXPECT_EQ(wrench(*rb), wrench(*ra));
+        EXPECT_EQ(wrench(*rc), wrench(*ra));
+      }
+    }
+    EXPECT_TRUE(same_state(ma->state(), mc->state()));
+    EXPECT_TRUE(same_state(ma->state(), mb->state()));
+    c->end_session(true);
+    b->end_session(true);
+    std::filesystem::remove_all(folder);
+  }
 }
 
 TEST(DemService, WritesPeriodicCheckpointsThatRestoreTheState) {

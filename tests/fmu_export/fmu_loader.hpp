@@ -10,7 +10,9 @@
 #include <cstdarg>
 #include <cstdio>
 #include <fstream>
+#include <map>
 #include <regex>
+#include <utility>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -34,14 +36,20 @@ inline std::string guid_of(const std::string& id) {
   const std::string xml = read_text(xml_path(id));
   return std::regex_search(xml, m, std::regex("guid=\"([^\"]+)\"")) ? m[1].str() : "";
 }
+// Looked up once per FMU and name: the tests set and get by name at every step, and reading the
+// XML and matching a regex each time was most of their time.
 inline fmi2ValueReference vr_of(const std::string& id, const std::string& name) {
+  static std::map<std::pair<std::string, std::string>, fmi2ValueReference> known;
+  if (const auto it = known.find({id, name}); it != known.end()) return it->second;
   std::smatch m;
   const std::string xml = read_text(xml_path(id));
   if (!std::regex_search(xml, m, std::regex("name=\"" + name + "\" valueReference=\"([0-9]+)\""))) {
     ADD_FAILURE() << id << " declares no variable " << name;
     return 9999;
   }
-  return static_cast<fmi2ValueReference>(std::stoul(m[1].str()));
+  const auto vr = static_cast<fmi2ValueReference>(std::stoul(m[1].str()));
+  known.emplace(std::pair{id, name}, vr);
+  return vr;
 }
 
 struct Log {

@@ -164,3 +164,90 @@ TEST(CouplingAlgorithm, AnAlgorithmGivenToCoSimulationRunsIt) {
   ASSERT_EQ(a.x.size(), 100u);
   EXPECT_EQ(a.x, b.x);
 }
+
+// Which steps may be redone (step_request_t.no_redo is sent for the others): the fixed step
+// iterates only the start-up steps, below the highest predictor order, with startup_iterations
+// and participants that can repeat. In a co-simulation the participants then keep a snapshot
+// only of those steps' starts, with the same records as when every step keeps one.
+TEST(CouplingAlgorithm, OnlyTheStartupStepsMayBeRedoneAndTheOthersKeepNoSnapshot) {
+  master::FixedStepAlgorithm a;
+  a.setup(config({"startup_iterations=2"}));
+  const auto can = participants(true), cannot = participants(false);
+  a.initialize({&can, 2});
+  EXPECT_TRUE(a.may_repeat(0));
+  EXPECT_TRUE(a.may_repeat(1));
+  EXPECT_FALSE(a.may_repeat(2));
+  EXPECT_FALSE(a.may_repeat(1000));
+  a.initialize({&can, 0});  // order 0: nothing to iterate
+  EXPECT_FALSE(a.may_repeat(0));
+  master::FixedStepAlgorithm b;
+  b.setup(config({"startup_iterations=0"}));
+  b.initialize({&can, 1});
+  EXPECT_FALSE(b.may_repeat(0));
+  b.initialize({&cannot, 1});
+  EXPECT_FALSE(b.may_repeat(0));
+
+  // The oscillator's halves, counting the snapshots kept and skipped.
+  class Spy final : public cosim::Model {
+   public:
+    explicit Spy(oscillator::Side side) : m(side) {}
+    oscillator::OscillatorAdapter m;
+    int saves = 0, skips = 0;
+    void configure(const YAML::Node& p, const cosim::RunInfo& r) override { m.configure(p, r); }
+    cosim::Ports inputs() const override { return m.inputs(); }
+    cosim::Ports outputs() const override { return m.outputs(); }
+    cosim::Duration inner_step() const override { return m.inner_step(); }
+    cosim::Signals initial_outputs() override { return m.initial_outputs(); }
+    cosim::StepResult step(const cosim::StepInputs& in, bool avg) override { return m.step(in, avg); }
+    bool can_repeat() const override { return true; }
+    void save_snapshot() override { ++saves, m.save_snapshot(); }
+    void restore_snapshot() override { m.restore_snapshot(); }
+    void skip_snapshot() override { ++skips; }
+  };
+  // The fixed step as an algorithm that does not say which steps repeat (the default: all may).
+  class Cautious final : public master::CouplingAlgorithm {
+   public:
+    master::FixedStepAlgorithm inner;
+    std::string name() const override { return "cautious"; }
+    void setup(const master::Config& c) override { inner.setup(c); }
+    void initialize(const master::AlgorithmSetup& s) override { inner.initialize(s); }
+    master::Duration do_step(master::Coupling& c, int64_t step, master::TimePoint t) override {
+      return inner.do_step(c, step, t);
+    }
+  };
+  class Rows final : public master::Observer {
+   public:
+    std::vector<double> x, f;
+    void on_step(const master::StepRecord& r) override {
+      x.push_back(r.outputs.at("mass1").at("x").value[0]);
+      f.push_back(r.outputs.at("mass2").at("force").value[0]);
+    }
+  };
+  // Order 2 for the force: the first two steps are iterated.
+  const auto c = config({"time.end=0.05", "startup_iterations=2", "predictors.force.order=2"});
+  struct Run {
+    Rows rows;
+    int saves = 0, skips = 0;
+  };
+  auto run = [&](std::unique_ptr<master::CouplingAlgorithm> algorithm) {
+    Run out;
+    Spy m1(oscillator::Side::Mass1), m2(oscillator::Side::Mass2);
+    cosim::ParticipantCore c1("mass1", m1), c2("mass2", m2);
+    auto transport = cosim::make_in_process_transport(1234, {{"mass1", &c1}, {"mass2", &c2}});
+    master::CoSimulation sim(c, *transport, std::move(algorithm));
+    sim.add_observer(&out.rows);
+    sim.connect();
+    sim.run();
+    out.saves = m1.saves + m2.saves;
+    out.skips = m1.skips + m2.skips;
+    return out;
+  };
+  const Run fixed = run(nullptr), cautious = run(std::make_unique<Cautious>());
+  ASSERT_EQ(fixed.rows.x.size(), 100u);
+  EXPECT_EQ(fixed.saves, 2 * 2);  // steps 0 and 1, both participants
+  EXPECT_EQ(fixed.skips, 2 * 98);
+  EXPECT_EQ(cautious.saves, 2 * 100);
+  EXPECT_EQ(cautious.skips, 0);
+  EXPECT_EQ(fixed.rows.x, cautious.rows.x);  // bit for bit
+  EXPECT_EQ(fixed.rows.f, cautious.rows.f);
+}

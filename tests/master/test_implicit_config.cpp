@@ -295,3 +295,33 @@ TEST(master_Acceleration, TheQrFilterDropsADependentColumn) {
   EXPECT_NEAR(x[0], 2.0, 1e-9);
   EXPECT_NEAR(x[1], 2.0, 1e-9);
 }
+
+// step_request_t.no_redo is sent for the steps no algorithm will do again: implicit coupling
+// redoes every step, an adaptive step with reject_above may redo any, one without it as often
+// as the fixed step inside it (here never: order 0, nothing to iterate at start-up).
+TEST(master_ImplicitConfig, ImplicitAndRejectingAlgorithmsMayRepeatEveryStep) {
+  std::map<std::string, cosim::ParticipantInfo> infos;
+  for (const char* n : {"a", "b"}) {
+    infos[n].can_repeat = true;
+    infos[n].inner_step = cosim::Duration(1000000);
+  }
+  const auto implicit = parse({"coupling.type=implicit", kConv});
+  master::ImplicitAlgorithm alg;
+  alg.setup(implicit);
+  alg.initialize({&infos, 1});
+  EXPECT_TRUE(alg.may_repeat(0));
+  EXPECT_TRUE(alg.may_repeat(1000));
+  const std::string power = "power=[{name: p, force: b.f, velocity: a.x}]";
+  const std::string adaptive = "coupling.adaptive={min_step: 1.0e-4, max_step: 1.0e-2}";
+  const auto rejecting = parse({power, adaptive, "coupling.adaptive.reject_above=3"});
+  auto r = master::make_algorithm(rejecting);
+  r->setup(rejecting);
+  r->initialize({&infos, 0});
+  EXPECT_TRUE(r->may_repeat(1000));
+  const auto accepting = parse({power, adaptive});
+  auto a = master::make_algorithm(accepting);
+  a->setup(accepting);
+  a->initialize({&infos, 0});
+  EXPECT_FALSE(a->may_repeat(0));
+  EXPECT_FALSE(a->may_repeat(1000));
+}

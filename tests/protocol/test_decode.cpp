@@ -44,8 +44,10 @@ TEST(Decode, AnArrayCountTheBytesCannotHoldIsADecodingError) {
   std::vector<char> buf = encoded(q);
   cosim::step_request_t out;
   ASSERT_GT(out.decode(buf.data(), 0, static_cast<int>(buf.size())), 0);
-  // the inputs' n_scalars is the first field after the fixed part of the request
-  const std::size_t at = 8 + 8 + (4 + 2) + 8 + 4 + 4 + 8 + 8 + 1;
+  // the inputs' n_scalars is the first field after the fixed part of the request (its last
+  // three fields: want_average, checkpoint, no_redo)
+  const std::size_t at = 8 + 8 + (4 + 2) + 8 + 4 + 4 + 8 + 8 + 1 + 1 + 1;
+  ASSERT_EQ(buf.size(), at + 3 * 4) << "the request's layout changed: fix the offset";  // 3 empty counts
   for (const int32_t bad : {-1, 100000, 2147483647}) {
     put_int32(buf, at, bad);
     EXPECT_EQ(out.decode(buf.data(), 0, static_cast<int>(buf.size())), -1) << bad;

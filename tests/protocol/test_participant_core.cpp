@@ -16,7 +16,7 @@ namespace {
 // Integrates x' = u with an inner step of 1 ms; counts the steps it really takes.
 class Counter final : public Model {
  public:
-  int steps_taken = 0;
+  int steps_taken = 0, saves = 0, skips = 0;
   double x = 0, saved = 0;
   void configure(const YAML::Node& p, const RunInfo&) override {
     config::check_keys(p, "parameters", {"x0"});
@@ -29,11 +29,14 @@ class Counter final : public Model {
   StepResult step(const StepInputs& in, bool) override {
     ++steps_taken;
     for (TimePoint t = in.t_start(); t < in.t_end(); t += inner_step()) x += in.at("u", t)[0] * 1e-3;
+    // An input found bad halfway through the step (after the state changed).
+    if (in.at("u", in.t_start())[0] == 999) throw InputError("u = 999 is refused after the step began");
     return {{{"x", {SignalKind::Scalar, {x}}}}, std::nullopt, {}};
   }
   bool can_repeat() const override { return true; }
-  void save_snapshot() override { saved = x; }
+  void save_snapshot() override { saved = x, ++saves; }
   void restore_snapshot() override { x = saved; }
+  void skip_snapshot() override { ++skips; }
 };
 
 configure_t configure_message(const std::string& params = "x0: 1") {
@@ -142,6 +145,56 @@ TEST(ParticipantCore, RedoOfAStepStartsFromItsSnapshot) {
   auto same = core.handle(request(1, 1.0, 1));  // repeat of iteration 1: cached, not recomputed
   EXPECT_EQ(same->outputs.scalars[0].value, redo->outputs.scalars[0].value);
   EXPECT_EQ(m.steps_taken, 3);
+}
+
+// step_request_t.no_redo: the master will not redo the step, so no snapshot of its start is
+// taken (skip_snapshot instead of save_snapshot); the results are the same; a redo asked anyway
+// is refused, naming why, and the participant keeps serving.
+TEST(ParticipantCore, StepsSentWithNoRedoKeepNoSnapshotAndRefuseARedo) {
+  Counter keep, skip;
+  ParticipantCore a("p", keep), b("p", skip);
+  ASSERT_TRUE(a.configure(configure_message())->ok);
+  ASSERT_TRUE(b.configure(configure_message())->ok);
+  const double u[] = {0.3, -1.7, 2.9, 0.1, 1e-3};
+  // Step 0 iterated as at start-up (may be redone), then steps the master will not redo.
+  for (int k = 0; k < 5; ++k) {
+    auto qa = request(k, u[k]), qb = request(k, u[k]);
+    qb.no_redo = k > 0;
+    auto ra = a.handle(qa), rb = b.handle(qb);
+    ASSERT_TRUE(ra && rb && ra->status == step_reply_t::OK && rb->status == step_reply_t::OK);
+    EXPECT_EQ(ra->outputs.scalars[0].value, rb->outputs.scalars[0].value) << "step " << k;
+    if (k == 0) {  // the start-up redo works alike
+      ra = a.handle(request(0, 2.0, 1)), rb = b.handle(request(0, 2.0, 1));
+      ASSERT_TRUE(ra && rb && ra->status == step_reply_t::OK && rb->status == step_reply_t::OK);
+      EXPECT_EQ(ra->outputs.scalars[0].value, rb->outputs.scalars[0].value);
+    }
+  }
+  EXPECT_EQ(keep.saves, 5);
+  EXPECT_EQ(keep.skips, 0);
+  EXPECT_EQ(skip.saves, 1);
+  EXPECT_EQ(skip.skips, 4);
+  // A redo of a no_redo step: refused (state unchanged), not restored from a stale snapshot.
+  auto redo = b.handle(request(4, 5.0, 1));
+  ASSERT_TRUE(redo);
+  EXPECT_EQ(redo->status, step_reply_t::REJECTED);
+  EXPECT_NE(redo->message.find("step 4 cannot be redone: the state at its start was not kept (the master "
+                               "sent it with no_redo)"),
+            std::string::npos) << redo->message;
+  EXPECT_EQ(skip.steps_taken, 6);
+  auto qa = request(5, 1.0), qb = request(5, 1.0);
+  qb.no_redo = true;
+  EXPECT_EQ(a.handle(qa)->outputs.scalars[0].value, b.handle(qb)->outputs.scalars[0].value);
+  // A model's InputError after the state changed: with a snapshot it is put back (REJECTED);
+  // without one it cannot be, and the step fails, saying so.
+  auto bad_a = a.handle(request(6, 999)), bad_b = [&] { auto q = request(6, 999); q.no_redo = true; return b.handle(q); }();
+  ASSERT_TRUE(bad_a && bad_b);
+  EXPECT_EQ(bad_a->status, step_reply_t::REJECTED);
+  EXPECT_EQ(bad_b->status, step_reply_t::FAILED);
+  EXPECT_NE(bad_b->message.find("u = 999 is refused after the step began; the step was sent with no_redo, so its "
+                                "start was not kept"),
+            std::string::npos) << bad_b->message;
+  // The one with a snapshot goes on from the state before the refused step.
+  EXPECT_NEAR(a.handle(request(6, 1.0))->outputs.scalars[0].value, keep.saved + 0.01, 1e-12);
 }
 
 TEST(ParticipantCore, JoinsOneSessionAndRefusesAnotherNamingItself) {

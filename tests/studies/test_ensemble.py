@@ -58,9 +58,9 @@ ensemble:
   perturb:
     - {{keys: [participants.mass1.parameters.position, participants.mass2.parameters.coupled_position],
         normal: {{mean: 0.1, sigma: 1.0e-3}}, seed: 11}}
-reference: {{label: ref, set: {{time.macro_step: 1.0e-4}}}}
+reference: {{label: ref, set: {{time.macro_step: 2.0e-4}}}}
 variants:
-  - {{label: same settings, name: same, set: {{time.macro_step: 1.0e-4}}, seed: 100}}
+  - {{label: same settings, name: same, set: {{time.macro_step: 2.0e-4}}, seed: 100}}
   - {{label: "H 2e-3, force constant", name: coarse, set: {{time.macro_step: 2.0e-3, predictors.force.order: 0}}}}
 signals:
   - {{path: participants/mass1/outputs/x, label: x1, scale: 1000}}
@@ -107,8 +107,11 @@ class Ensemble(unittest.TestCase):
             expect_std = np.abs(g) * np.std(draws, ddof=1)
             expect_mean = g * np.mean(draws)
             rel = lambda a, b: np.sqrt(np.sum((a - b) ** 2) / np.sum(b ** 2))  # noqa: E731
-            # Jacobi (1,1) at H = 1e-4 s is within 3e-5 of the monolithic solution here; a wrong
-            # ddof (x1.095), a missing scale or a mixed-up member would be off by far more.
+            # Jacobi (1,1) at H = 2e-4 s is within about 1.2e-4 of the monolithic solution here
+            # (second order: 3e-5 at 1e-4 s); a wrong ddof (x1.095), a missing scale or a
+            # mixed-up member would be off by far more.
+            print(f"ensemble spread against the linear theory: std {rel(std, expect_std):.2e}, "
+                  f"mean {rel(mean, expect_mean):.2e} (relative RMS)")
             self.assertLess(rel(std, expect_std), 1e-3)
             self.assertLess(rel(mean, expect_mean), 1e-3)
 

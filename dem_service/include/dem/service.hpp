@@ -96,6 +96,9 @@ class ServiceModel final : public cosim::Model {
   bool can_repeat() const override { return options_.snapshot; }
   void save_snapshot() override;
   void restore_snapshot() override;
+  // The master will not redo the step about to run (step_request_t.no_redo): no copy of the
+  // state; the accepted rows may go to the file as at save_snapshot.
+  void skip_snapshot() override;
   // The master's checkpoints: the whole State (dem/checkpoint.hpp), bit for bit. A resumed
   // session writes its output.file under a new name (<stem>_from_step<n><ext>) and leaves the
   // interrupted session's file alone.

@@ -14,7 +14,10 @@
 #include <stdexcept>
 #include <type_traits>
 
+#include <time.h>
+
 #include "cosim/yaml_config.hpp"
+#include "dem/broad_phase.hpp"
 #include "dem/far_movers.hpp"
 #include "dem/rotation.hpp"
 #include "dem/sleepers.hpp"
@@ -331,6 +334,29 @@ std::vector<double> cuts_by_count(std::vector<double> c, int P) {
 
 double axis_of(const Vec3& p, int a) { return a == 0 ? p.x : a == 1 ? p.y : p.z; }
 
+// Waits for the requests. spin: MPI_Waitall (Open MPI polls, holding the core). Otherwise (the
+// engine's scene.thread_wait passive or brief) it tests for about 50 us and then sleeps 20 us
+// between tests: on a host with more runnable tasks than cores a polling rank would burn the
+// share of the core its neighbour needs to finish the step it waits for.
+void wait_for(std::vector<MPI_Request>& req, bool spin) {
+  if (req.empty()) return;
+  const int n = static_cast<int>(req.size());
+  if (spin) {
+    MPI_Waitall(n, req.data(), MPI_STATUSES_IGNORE);
+    return;
+  }
+  int done = 0;
+  const cosim::Stopwatch watch;
+  MPI_Testall(n, req.data(), &done, MPI_STATUSES_IGNORE);
+  while (!done) {
+    if (watch.seconds() > 50e-6) {
+      const timespec nap{0, 20000};
+      nanosleep(&nap, nullptr);
+    }
+    MPI_Testall(n, req.data(), &done, MPI_STATUSES_IGNORE);
+  }
+}
+
 }  // namespace
 
 // --- The decomposed run.
@@ -346,6 +372,8 @@ struct Decomposed::Impl {
   // The guard's tally over all ranks after the last step.
   double d1 = 0, d2 = 0, u2 = 0;
   Particles start_own;  // start(): this rank's share of the initial state
+  State spare;  // rebuild_kept(): the arrays of the state before the last one, emptied (their
+                // capacity kept: no page faults at the next broad phase)
 
   int owner(const std::vector<double>& cuts, double c) const {
     return static_cast<int>(std::upper_bound(cuts.begin(), cuts.end(), c) - cuts.begin());
@@ -549,55 +577,17 @@ void Decomposed::start(const State& all, State& s) {
 }
 
 void Decomposed::rebuild(State& s, bool first) {
+  if (!first) {
+    rebuild_kept(s);
+    return;
+  }
   Impl& m = *impl_;
   const int P = m.P;
   Particles own;
   std::vector<char> in;
   std::vector<int> in_count, in_start;
-  if (first) {
-    own = std::move(m.start_own);
-    m.start_own.clear();
-  } else {
-    // Rebalance by count when the largest rank holds too many.
-    std::int64_t mine = 0;
-    for (const std::uint8_t g : m.ghost) mine += g == 0;
-    std::vector<std::int64_t> counts(static_cast<std::size_t>(P));
-    MPI_Allgather(&mine, 1, MPI_INT64_T, counts.data(), 1, MPI_INT64_T, m.comm);
-    const std::int64_t total = std::accumulate(counts.begin(), counts.end(), std::int64_t{0});
-    const std::int64_t most = *std::max_element(counts.begin(), counts.end());
-    if (total > 0 && static_cast<double>(most) * P > options_.rebalance * static_cast<double>(total)) {
-      std::vector<double> mine_c;
-      mine_c.reserve(static_cast<std::size_t>(mine));
-      for (std::size_t i = 0; i < s.size(); ++i)
-        if (!m.ghost[i]) mine_c.push_back(axis_of(s.x[i], axis_));
-      std::vector<int> cnt(P), at(P + 1, 0);
-      for (int q = 0; q < P; ++q) {
-        cnt[q] = static_cast<int>(counts[q]);
-        at[q + 1] = at[q] + cnt[q];
-      }
-      std::vector<double> every(static_cast<std::size_t>(at[P]));
-      MPI_Allgatherv(mine_c.data(), static_cast<int>(mine_c.size()), MPI_DOUBLE, every.data(),
-                     cnt.data(), at.data(), MPI_DOUBLE, m.comm);
-      cuts_ = cuts_by_count(std::move(every), P);
-      ++halo_.rebalances;
-    }
-    // Migration: every owned particle to the rank of its slab, with its slots and records.
-    std::vector<std::int32_t> rec_offset;
-    std::vector<Record> rec;
-    pair_records(s, m.ghost, rec_offset, rec);
-    std::vector<Writer> out(static_cast<std::size_t>(P));
-    for (std::size_t i = 0; i < s.size(); ++i) {
-      if (m.ghost[i]) continue;
-      const int to = m.owner(cuts_, axis_of(s.x[i], axis_));
-      if (to != m.rank) ++halo_.migrated;
-      pack_owned(s, i, rec_offset, rec, out[static_cast<std::size_t>(to)]);
-    }
-    halo_.migration_bytes += exchange(m.comm, out, in, in_count, in_start);
-    for (int q = 0; q < P; ++q) {
-      Reader r{in.data() + in_start[q], in.data() + in_start[q] + in_count[q]};
-      unpack_owned(r, own);
-    }
-  }
+  own = std::move(m.start_own);  // start(): this rank's share, with slots and records
+  m.start_own.clear();
   // Ghosts: every owned particle within the interaction range (2 r_max + skin) of another
   // rank's slab goes there as a copy.
   const double range = 2 * scene_.r_max() + scene_.skin_distance();
@@ -653,6 +643,437 @@ void Decomposed::rebuild(State& s, bool first) {
   ++halo_.migrations;
 }
 
+namespace {
+// A ghost in the ghost lists of rebuild_kept: its id, and whether its data follow (a Core) or
+// the receiver holds it already (it was a ghost there, from the same rank, since the last
+// broad phase, and the forward exchange has kept it current).
+struct GhostHead {
+  std::int64_t id;
+  std::int32_t full;
+  std::int32_t pad = 0;
+};
+static_assert(std::is_trivially_copyable_v<GhostHead>);
+}  // namespace
+
+void Decomposed::rebuild_kept(State& s) {
+  Impl& m = *impl_;
+  const int P = m.P;
+  const std::size_t n0 = s.size();
+  cosim::Stopwatch watch;
+  // Rebalance by count when the largest rank holds too many.
+  {
+    std::int64_t mine = 0;
+    for (const std::uint8_t g : m.ghost) mine += g == 0;
+    std::vector<std::int64_t> counts(static_cast<std::size_t>(P));
+    std::vector<MPI_Request> req(1);  // the first collective of the broad phase: waits for the slowest
+    MPI_Iallgather(&mine, 1, MPI_INT64_T, counts.data(), 1, MPI_INT64_T, m.comm, req.data());
+    wait_for(req, scene_.thread_wait == ThreadWait::spin);
+    const std::int64_t total = std::accumulate(counts.begin(), counts.end(), std::int64_t{0});
+    const std::int64_t most = *std::max_element(counts.begin(), counts.end());
+    if (total > 0 && static_cast<double>(most) * P > options_.rebalance * static_cast<double>(total)) {
+      std::vector<double> mine_c;
+      mine_c.reserve(static_cast<std::size_t>(mine));
+      for (std::size_t i = 0; i < n0; ++i)
+        if (!m.ghost[i]) mine_c.push_back(axis_of(s.x[i], axis_));
+      std::vector<int> cnt(P), at(P + 1, 0);
+      for (int q = 0; q < P; ++q) {
+        cnt[q] = static_cast<int>(counts[q]);
+        at[q + 1] = at[q] + cnt[q];
+      }
+      std::vector<double> every(static_cast<std::size_t>(at[P]));
+      MPI_Allgatherv(mine_c.data(), static_cast<int>(mine_c.size()), MPI_DOUBLE, every.data(),
+                     cnt.data(), at.data(), MPI_DOUBLE, m.comm);
+      cuts_ = cuts_by_count(std::move(every), P);
+      ++halo_.rebalances;
+    }
+  }
+  halo_.seconds_count += watch.lap();
+
+  // Migration: only the owned particles that leave this rank's slab travel, with their slots
+  // and pair records; the others stay where they are.
+  std::vector<std::int32_t> dest(n0, -1);  // owned: the rank of its slab; ghosts: -1
+  std::vector<std::uint8_t> not_leaving(n0, 1);
+  bool leaving = false;
+  for (std::size_t i = 0; i < n0; ++i) {
+    if (m.ghost[i]) continue;
+    dest[i] = m.owner(cuts_, axis_of(s.x[i], axis_));
+    if (dest[i] != m.rank) {
+      not_leaving[i] = 0;
+      leaving = true;
+      ++halo_.migrated;
+    }
+  }
+  std::vector<std::int32_t> rec_offset(n0 + 1, 0);
+  std::vector<Record> rec;
+  if (leaving) pair_records(s, not_leaving, rec_offset, rec);
+  if (rec_offset.size() != n0 + 1) rec_offset.assign(n0 + 1, 0);
+  std::vector<char> in;
+  std::vector<int> in_count, in_start;
+  Particles arr;  // the particles that arrive, by sender rank
+  {
+    std::vector<Writer> out(static_cast<std::size_t>(P));
+    if (leaving)
+      for (std::size_t i = 0; i < n0; ++i)
+        if (dest[i] >= 0 && dest[i] != m.rank)
+          pack_owned(s, i, rec_offset, rec, out[static_cast<std::size_t>(dest[i])]);
+    halo_.migration_bytes += exchange(m.comm, out, in, in_count, in_start);
+    for (int q = 0; q < P; ++q) {
+      Reader r{in.data() + in_start[q], in.data() + in_start[q] + in_count[q]};
+      unpack_owned(r, arr);
+    }
+  }
+  halo_.seconds_migrate += watch.lap();
+
+  // Ghost lists: every owned particle (staying or arrived) within the interaction range of
+  // another rank's slab goes there: its id alone when that rank holds it as a ghost from here
+  // already (it was in the last list sent there), else with its data.
+  const double range = 2 * scene_.r_max() + scene_.skin_distance();
+  std::vector<std::vector<std::int64_t>> sent_before(static_cast<std::size_t>(P));
+  for (int q = 0; q < P; ++q) {
+    auto& ids = sent_before[static_cast<std::size_t>(q)];
+    for (const std::int32_t i : m.send_idx[static_cast<std::size_t>(q)]) ids.push_back(s.id[i]);
+    std::sort(ids.begin(), ids.end());
+  }
+  // A provisional index of every particle of this rank after the broad phase: stayers and kept
+  // ghosts by their old index (0 .. n0), the rest after them.
+  std::vector<Writer> gout(static_cast<std::size_t>(P));
+  std::vector<std::vector<std::int64_t>> send_key(static_cast<std::size_t>(P));  // old index, or n0 + arrival
+  auto offer = [&](const Core& c0, std::int64_t key) {
+    const double a = axis_of(c0.x, axis_);
+    for (int q = 0; q < P; ++q) {
+      if (q == m.rank) continue;
+      const double lo = q == 0 ? -std::numeric_limits<double>::infinity() : cuts_[q - 1];
+      const double hi = q == P - 1 ? std::numeric_limits<double>::infinity() : cuts_[q];
+      if (!(a > lo - range && a < hi + range)) continue;
+      const auto& before = sent_before[static_cast<std::size_t>(q)];
+      const bool held = std::binary_search(before.begin(), before.end(), c0.id);
+      Writer& w = gout[static_cast<std::size_t>(q)];
+      w.put(GhostHead{c0.id, held ? 0 : 1});
+      if (!held) {
+        Core c = c0;
+        c.nslot = c.nrec = 0;
+        w.put(c);
+      }
+      send_key[static_cast<std::size_t>(q)].push_back(key);
+    }
+  };
+  for (std::size_t i = 0; i < n0; ++i) {
+    if (dest[i] != m.rank) continue;
+    const double a = axis_of(s.x[i], axis_);
+    // Cheap test first: most stayers are far from every other slab.
+    const double lo = m.rank == 0 ? -std::numeric_limits<double>::infinity() : cuts_[m.rank - 1];
+    const double hi = m.rank == P - 1 ? std::numeric_limits<double>::infinity() : cuts_[m.rank];
+    if (a >= lo + range && a <= hi - range) continue;
+    offer(core_of(s, i), static_cast<std::int64_t>(i));
+  }
+  for (std::size_t k = 0; k < arr.size(); ++k) offer(arr.core[k], static_cast<std::int64_t>(n0 + k));
+  {
+    const std::int64_t b = exchange(m.comm, gout, in, in_count, in_start);
+    halo_.migration_bytes += b;
+    halo_.ghost_bytes += b;
+  }
+  // The old particles a message may name: the ghosts and those that left, by id.
+  std::vector<std::pair<std::int64_t, std::int32_t>> known;
+  for (std::size_t i = 0; i < n0; ++i)
+    if (dest[i] != m.rank) known.emplace_back(s.id[i], static_cast<std::int32_t>(i));
+  std::sort(known.begin(), known.end());
+  auto old_index = [&](std::int64_t id) -> std::int32_t {
+    const auto it = std::lower_bound(known.begin(), known.end(), std::make_pair(id, std::int32_t{-1}));
+    return it != known.end() && it->first == id ? it->second : -1;
+  };
+  // Every particle of the new set: where its data come from and what it is.
+  struct Src {
+    std::int32_t old;   // old index, or -1
+    std::int32_t core;  // index in `cores` (data from a message), or -1 (data from s)
+    std::int32_t arrival;  // index in arr (owned, with slots and records), or -1
+    std::uint8_t owned;
+  };
+  std::vector<Src> src;
+  src.reserve(n0 + arr.size());
+  std::vector<Core> cores;
+  std::vector<std::int32_t> entry_of_old(n0, -1);
+  for (std::size_t i = 0; i < n0; ++i)
+    if (dest[i] == m.rank) {
+      entry_of_old[i] = static_cast<std::int32_t>(src.size());
+      src.push_back({static_cast<std::int32_t>(i), -1, -1, 1});
+    }
+  std::vector<std::int32_t> entry_of_arrival(arr.size());
+  for (std::size_t k = 0; k < arr.size(); ++k) {
+    entry_of_arrival[k] = static_cast<std::int32_t>(src.size());
+    const std::int32_t o = old_index(arr.core[k].id);
+    cores.push_back(arr.core[k]);
+    const Src e{o, static_cast<std::int32_t>(cores.size() - 1), static_cast<std::int32_t>(k), 1};
+    if (o >= 0) entry_of_old[o] = static_cast<std::int32_t>(src.size());
+    src.push_back(e);
+  }
+  std::vector<std::vector<std::int32_t>> recv_entry(static_cast<std::size_t>(P));
+  for (int q = 0; q < P; ++q) {
+    Reader r{in.data() + in_start[q], in.data() + in_start[q] + in_count[q]};
+    while (r.p < r.end) {
+      const GhostHead h = r.get<GhostHead>();
+      const std::int32_t o = old_index(h.id);
+      std::int32_t ci = -1;
+      if (h.full) {
+        cores.push_back(r.get<Core>());
+        ci = static_cast<std::int32_t>(cores.size() - 1);
+      } else if (o < 0 || !m.ghost[o]) {
+        throw std::logic_error("dem::mpi: rank " + std::to_string(q) + " named ghost " +
+                               std::to_string(h.id) + " as held, but this rank does not hold it");
+      }
+      if (o >= 0) entry_of_old[o] = static_cast<std::int32_t>(src.size());
+      recv_entry[static_cast<std::size_t>(q)].push_back(static_cast<std::int32_t>(src.size()));
+      src.push_back({o, ci, -1, 0});
+    }
+  }
+  std::size_t ghosts_now = 0;
+  for (int q = 0; q < P; ++q) ghosts_now += recv_entry[static_cast<std::size_t>(q)].size();
+  halo_.seconds_ghosts += watch.lap();
+
+  // The order of the broad phase (docs/mpi.md): by the engine's cell, then owned before ghosts, then by id: a
+  // function of the particles alone (a restart from a checkpoint makes the same). The engine's
+  // grid from the same positions (make_grid, set_grid), so its sort finds them in order.
+  const std::size_t n = src.size();
+  auto pos = [&](const Src& e) -> const Vec3& { return e.core >= 0 ? cores[e.core].x : s.x[e.old]; };
+  auto idof = [&](const Src& e) { return e.core >= 0 ? cores[e.core].id : s.id[e.old]; };
+  // Provisional order: the old particles in their old order (the last broad phase's: nearly
+  // sorted), then the new ones.
+  std::vector<std::int32_t> prov;
+  prov.reserve(n);
+  for (std::size_t i = 0; i < n0; ++i)
+    if (entry_of_old[i] >= 0) prov.push_back(entry_of_old[i]);
+  for (std::size_t e = 0; e < n; ++e)
+    if (src[e].old < 0) prov.push_back(static_cast<std::int32_t>(e));
+  if (prov.size() != n) throw std::logic_error("dem::mpi: a particle received twice");
+  Vec3 lo{1e300, 1e300, 1e300}, hi{-1e300, -1e300, -1e300};
+  for (const Src& e : src) {
+    const Vec3& p = pos(e);
+    lo = {std::min(lo.x, p.x), std::min(lo.y, p.y), std::min(lo.z, p.z)};
+    hi = {std::max(hi.x, p.x), std::max(hi.y, p.y), std::max(hi.z, p.z)};
+  }
+  if (n == 0) lo = hi = Vec3{};
+  double h = 2 * scene_.r_max() + scene_.skin_distance();
+  long nx = 1, ny = 1, nz = 1;
+  detail::grid_cells(lo, hi, std::max<double>(4.0 * static_cast<double>(n), 64.0), h, nx, ny, nz);
+  const double inv_h = 1.0 / h;
+  auto coord = [&](double v, double l, long nmax) -> long {  // BroadPhase::cell_coord
+    const double a = (v - l) * inv_h;
+    return a > 0 ? (a < static_cast<double>(nmax) ? static_cast<long>(a) : nmax - 1) : 0;
+  };
+  std::vector<std::int32_t> cell(n);
+  for (const std::int32_t e : prov) {
+    const Vec3& p = pos(src[e]);
+    cell[e] = static_cast<std::int32_t>((coord(p.z, lo.z, nz) * ny + coord(p.y, lo.y, ny)) * nx +
+                                        coord(p.x, lo.x, nx));
+  }
+  const std::size_t ncells = static_cast<std::size_t>(nx * ny * nz);
+  std::vector<std::int32_t> start(ncells + 1, 0);
+  for (const std::int32_t e : prov) ++start[cell[e] + 1];
+  for (std::size_t c = 0; c < ncells; ++c) start[c + 1] += start[c];
+  std::vector<std::int32_t> order(n);  // new index -> entry
+  {
+    std::vector<std::int32_t> fill(start.begin(), start.end() - 1);
+    for (const std::int32_t e : prov) order[fill[cell[e]]++] = e;
+  }
+  // Within each cell the owned particles first, each kind by id (assemble's order: the owned
+  // by id, then the ghosts by id, sorted stably by cell). Insertion: cells are small.
+  auto after = [&](std::int32_t e, std::int32_t f) {  // e goes after f
+    if (src[e].owned != src[f].owned) return src[f].owned != 0;
+    return idof(src[e]) > idof(src[f]);
+  };
+  for (std::size_t c = 0; c < ncells; ++c)
+    for (std::int32_t p = start[c] + 1; p < start[c + 1]; ++p) {
+      const std::int32_t e = order[p];
+      std::int32_t q = p;
+      while (q > start[c] && after(order[q - 1], e)) {
+        order[q] = order[q - 1];
+        --q;
+      }
+      order[q] = e;
+    }
+  // The new state in that order (the arrays of the state before last, emptied, hold it).
+  const bool rotating = m.rotating;
+  State t = std::move(m.spare);
+  for_each_array(t, [](const char*, auto& a, Field) { a.clear(); });
+  t.step = s.step;
+  t.tool_pose = s.tool_pose;
+  t.tool_pose_at_rebuild = s.tool_pose_at_rebuild;
+  t.rebuilds = s.rebuilds;
+  t.early_rebuilds = s.early_rebuilds;
+  t.removed_count = s.removed_count;
+  t.removed_mass = s.removed_mass;
+  t.lists_valid = false;
+  t.steps_since_rebuild = 0;
+  t.max_displacement = t.second_displacement = 0;
+  t.x.resize(n);
+  t.v.resize(n);
+  t.u.resize(n);
+  t.radius.resize(n);
+  t.mass.resize(n);
+  t.species.resize(n);
+  t.id.resize(n);
+  if (rotating) {
+    t.w.resize(n);
+    t.wu.resize(n);
+  }
+  std::vector<std::uint8_t>& ghost = m.ghost;
+  ghost.assign(n, 1);
+  std::vector<std::int32_t> new_of_entry(n);
+  t.slot_count.assign(n, 0);
+  t.slot_block.assign(n, -1);
+  const bool old_slots = s.slot_count.size() == n0 && s.slot_block.size() == n0;
+  const bool old_rolls = s.slot_roll.size() == s.slot_key.size() && !s.slot_roll.empty();
+  for (std::size_t p = 0; p < n; ++p) {
+    const Src& e = src[order[p]];
+    new_of_entry[order[p]] = static_cast<std::int32_t>(p);
+    if (e.core >= 0) {
+      const Core& c = cores[e.core];
+      t.x[p] = c.x;
+      t.v[p] = c.v;
+      t.u[p] = c.u;
+      t.radius[p] = c.radius;
+      t.mass[p] = c.mass;
+      t.species[p] = c.species;
+      t.id[p] = c.id;
+      if (rotating) {
+        t.w[p] = c.w;
+        t.wu[p] = c.wu;
+      }
+    } else {
+      const std::size_t i = static_cast<std::size_t>(e.old);
+      t.x[p] = s.x[i];
+      t.v[p] = s.v[i];
+      t.u[p] = s.u[i];
+      t.radius[p] = s.radius[i];
+      t.mass[p] = s.mass[i];
+      t.species[p] = s.species[i];
+      t.id[p] = s.id[i];
+      if (rotating) {
+        t.w[p] = s.w.size() == n0 ? s.w[i] : Vec3{};
+        t.wu[p] = s.wu.size() == n0 ? s.wu[i] : Vec3{};
+      }
+    }
+    if (!e.owned) continue;
+    ghost[p] = 0;
+    // Boundary slots of the owned particles that remember a contact (as assemble() makes them:
+    // the broad phase copies them into its new pool).
+    int ns = 0;
+    const Slot* from = nullptr;
+    std::size_t q0 = 0;
+    if (e.arrival >= 0) {
+      ns = arr.core[e.arrival].nslot;
+      if (ns > 0) from = &arr.slot[static_cast<std::size_t>(arr.slot_offset[e.arrival])];
+    } else if (old_slots) {
+      const std::size_t i = static_cast<std::size_t>(e.old);
+      if (s.slot_block[i] >= 0 && (static_cast<std::size_t>(s.slot_block[i]) + 1) * B <= s.slot_key.size()) {
+        ns = s.slot_count[i];
+        q0 = static_cast<std::size_t>(s.slot_block[i]) * B;
+      }
+    }
+    if (ns <= 0) continue;
+    t.slot_block[p] = static_cast<std::int32_t>(t.slot_particle.size());
+    t.slot_count[p] = static_cast<std::uint8_t>(ns);
+    t.slot_particle.push_back(static_cast<std::int32_t>(p));
+    for (int k = 0; k < B; ++k) {
+      Slot sl{0, Vec3{}, Vec3{}};
+      if (k < ns) {
+        if (from)
+          sl = from[k];
+        else
+          sl = {s.slot_key[q0 + k], s.slot_spring[q0 + k], old_rolls ? s.slot_roll[q0 + k] : Vec3{}};
+      }
+      t.slot_key.push_back(sl.key);
+      t.slot_spring.push_back(sl.spring);
+      if (rotating) t.slot_roll.push_back(sl.roll);
+    }
+  }
+  State old = std::move(s);
+  s = std::move(t);
+  halo_.seconds_local += watch.lap();
+  engine_.set_ghosts(nullptr);
+  engine_.rebuild(s);  // finds the particles in cell order: nothing to permute
+  halo_.seconds_broad_phase += watch.lap();
+
+  // Springs, by the rule of assemble(): a pair takes its spring from its first particle when
+  // that one is owned, else from its second when owned, else none (two ghosts). A particle that
+  // stayed on this rank has its springs in the old lists (this rank's); one that arrived brings
+  // them in its records.
+  if (rotating) s.pair_roll.assign(s.pair_j.size(), Vec3{});
+  std::vector<std::int32_t> new_of_old(n0, -1);
+  std::vector<std::uint8_t> stayer(n, 0);
+  for (std::size_t i = 0; i < n0; ++i)
+    if (entry_of_old[i] >= 0) new_of_old[i] = new_of_entry[entry_of_old[i]];
+  for (std::size_t e = 0; e < n; ++e)
+    if (src[e].owned && src[e].arrival < 0) stayer[new_of_entry[e]] = 1;
+  auto chosen = [&](std::int32_t a, std::int32_t b) -> std::int32_t {
+    return !ghost[a] ? a : !ghost[b] ? b : -1;
+  };
+  if (old.lists_valid && old.pair_offset.size() == n0 + 1) {
+    const bool rolls = old.pair_roll.size() == old.pair_j.size() && !old.pair_roll.empty();
+    for (std::size_t oa = 0; oa < n0; ++oa) {
+      const std::int32_t na = new_of_old[oa];
+      if (na < 0) continue;
+      for (std::int32_t k = old.pair_offset[oa]; k < old.pair_offset[oa + 1]; ++k) {
+        const Vec3 sp = old.pair_spring[k];
+        const Vec3 ro = rolls ? old.pair_roll[k] : Vec3{};
+        if (!nonzero(sp) && !(rolls && nonzero(ro))) continue;
+        const std::int32_t nb = new_of_old[old.pair_j[k]];
+        if (nb < 0) continue;
+        const bool swap = na > nb;
+        const std::int32_t row = swap ? nb : na, col = swap ? na : nb;
+        const std::int32_t c = chosen(row, col);
+        if (c < 0 || !stayer[c]) continue;
+        for (std::int32_t q = s.pair_offset[row]; q < s.pair_offset[row + 1]; ++q)
+          if (s.pair_j[q] == col) {
+            s.pair_spring[q] = swap ? -sp : sp;
+            if (rotating) s.pair_roll[q] = swap ? -ro : ro;
+            break;
+          }
+      }
+    }
+  }
+  if (!arr.core.empty()) {
+    std::vector<std::int32_t> arrival_of(n, -1);
+    for (std::size_t e = 0; e < n; ++e)
+      if (src[e].arrival >= 0) arrival_of[new_of_entry[e]] = src[e].arrival;
+    for (std::size_t a = 0; a + 1 < s.pair_offset.size(); ++a)
+      for (std::int32_t k = s.pair_offset[a]; k < s.pair_offset[a + 1]; ++k) {
+        const std::int32_t b = s.pair_j[k];
+        const std::int32_t c = chosen(static_cast<std::int32_t>(a), b);
+        if (c < 0 || arrival_of[c] < 0) continue;
+        const std::int32_t p = arrival_of[c];
+        const std::int64_t partner = c == static_cast<std::int32_t>(a) ? s.id[b] : s.id[a];
+        for (std::int32_t r = arr.rec_offset[p]; r < arr.rec_offset[p + 1]; ++r)
+          if (arr.rec[r].partner == partner) {
+            const bool first = c == static_cast<std::int32_t>(a);
+            s.pair_spring[k] = first ? arr.rec[r].spring : -arr.rec[r].spring;
+            if (rotating) s.pair_roll[k] = first ? arr.rec[r].roll : -arr.rec[r].roll;
+            break;
+          }
+      }
+  }
+  // The forward exchange's index lists, in message order.
+  m.send_idx.assign(static_cast<std::size_t>(P), {});
+  m.recv_idx.assign(static_cast<std::size_t>(P), {});
+  for (int q = 0; q < P; ++q) {
+    auto& si = m.send_idx[static_cast<std::size_t>(q)];
+    for (const std::int64_t key : send_key[static_cast<std::size_t>(q)]) {
+      const std::int32_t e = key < static_cast<std::int64_t>(n0)
+                                 ? entry_of_old[static_cast<std::size_t>(key)]
+                                 : entry_of_arrival[static_cast<std::size_t>(key) - n0];
+      si.push_back(new_of_entry[static_cast<std::size_t>(e)]);
+    }
+    auto& ri = m.recv_idx[static_cast<std::size_t>(q)];
+    for (const std::int32_t e : recv_entry[static_cast<std::size_t>(q)]) ri.push_back(new_of_entry[e]);
+  }
+  halo_.owned = static_cast<std::int64_t>(n - ghosts_now);
+  halo_.ghosts = static_cast<std::int64_t>(ghosts_now);
+  ++halo_.migrations;
+  m.spare = std::move(old);
+  for_each_array(m.spare, [](const char*, auto& a, Field) { a.clear(); });
+  engine_.set_ghosts(&m.ghost);
+  halo_.seconds_springs += watch.lap();
+}
+
 int Decomposed::tally(State& s, bool failed) {
   Impl& m = *impl_;
   double t[4] = {0, 0, 0, failed ? 1.0 : 0.0};
@@ -662,7 +1083,9 @@ int Decomposed::tally(State& s, bool failed) {
     t[2] = std::max(t[2], norm2(s.u[i]));
   }
   std::vector<double> all(static_cast<std::size_t>(4 * m.P));
-  MPI_Allgather(t, 4, MPI_DOUBLE, all.data(), 4, MPI_DOUBLE, m.comm);
+  std::vector<MPI_Request> req(1);
+  MPI_Iallgather(t, 4, MPI_DOUBLE, all.data(), 4, MPI_DOUBLE, m.comm, req.data());
+  wait_for(req, scene_.thread_wait == ThreadWait::spin);
   m.d1 = m.d2 = m.u2 = 0;
   int first_failed = -1;
   for (int q = 0; q < m.P; ++q) {
@@ -748,7 +1171,7 @@ void Decomposed::step(State& s) {
     halo_.bytes_sent += static_cast<std::int64_t>(b.size() * sizeof(double));
     ++halo_.messages_sent;
   }
-  MPI_Waitall(static_cast<int>(req.size()), req.data(), MPI_STATUSES_IGNORE);
+  wait_for(req, scene_.thread_wait == ThreadWait::spin);
   for (int q = 0; q < P; ++q) {
     const auto& idx = m.recv_idx[static_cast<std::size_t>(q)];
     const double* o = m.recv_buf[static_cast<std::size_t>(q)].data();
@@ -767,8 +1190,12 @@ void Decomposed::step(State& s) {
     }
   }
   ++halo_.steps;
+  const double forward = exchange_watch.seconds();
+  halo_.seconds_forward += forward;
   const int first_failed = tally(s, failed != nullptr);
-  halo_.seconds_exchange += exchange_watch.seconds();
+  const double both = exchange_watch.seconds();
+  halo_.seconds_tally += both - forward;
+  halo_.seconds_exchange += both;
   if (failed) std::rethrow_exception(failed);
   if (first_failed >= 0)
     throw OtherRankFailed(first_failed, "the step failed on rank " + std::to_string(first_failed) +
@@ -886,13 +1313,19 @@ State Decomposed::gather_with_lists(const State& s) const {
 
 std::string Decomposed::halo_summary() const {
   const Impl& m = *impl_;
-  const std::int64_t mine[11] = {halo_.owned,         halo_.ghosts,    halo_.steps,
-                                 halo_.bytes_sent,    halo_.messages_sent, halo_.migrations,
-                                 halo_.migrated,      halo_.rebalances, halo_.migration_bytes,
-                                 std::llround(1e6 * halo_.seconds_rebuild),
-                                 std::llround(1e6 * halo_.seconds_exchange)};
-  std::vector<std::int64_t> all(static_cast<std::size_t>(11 * m.P));
-  MPI_Gather(mine, 11, MPI_INT64_T, all.data(), 11, MPI_INT64_T, 0, m.comm);
+  constexpr int K = 20;
+  auto us = [](double sec) { return static_cast<std::int64_t>(std::llround(1e6 * sec)); };
+  const std::int64_t mine[K] = {halo_.owned,         halo_.ghosts,    halo_.steps,
+                                halo_.bytes_sent,    halo_.messages_sent, halo_.migrations,
+                                halo_.migrated,      halo_.rebalances, halo_.migration_bytes,
+                                us(halo_.seconds_rebuild), us(halo_.seconds_exchange),
+                                halo_.ghost_bytes, us(halo_.seconds_count),
+                                us(halo_.seconds_migrate), us(halo_.seconds_ghosts),
+                                us(halo_.seconds_local), us(halo_.seconds_broad_phase),
+                                us(halo_.seconds_springs), us(halo_.seconds_forward),
+                                us(halo_.seconds_tally)};
+  std::vector<std::int64_t> all(static_cast<std::size_t>(K * m.P));
+  MPI_Gather(mine, K, MPI_INT64_T, all.data(), K, MPI_INT64_T, 0, m.comm);
   if (m.rank != 0) return {};
   std::ostringstream o;
   const char* names[3] = {"x", "y", "z"};
@@ -900,7 +1333,7 @@ std::string Decomposed::halo_summary() const {
   for (const double c : cuts_) o << ' ' << c;
   o << " m\n";
   for (int q = 0; q < m.P; ++q) {
-    const std::int64_t* h = &all[static_cast<std::size_t>(11 * q)];
+    const std::int64_t* h = &all[static_cast<std::size_t>(K * q)];
     const double steps = std::max<double>(1.0, static_cast<double>(h[2]));
     char line[400];
     std::snprintf(line, sizeof line,
@@ -914,6 +1347,18 @@ std::string Decomposed::halo_summary() const {
                   static_cast<long long>(h[5]), static_cast<long long>(h[6]),
                   static_cast<long long>(h[7]), static_cast<double>(h[8]),
                   1e-6 * static_cast<double>(h[9]), 1e-6 * static_cast<double>(h[10]));
+    o << line;
+    // The rebuilds after the start by part (the ghost lists' bytes among the broad phases'),
+    // then the step's exchange: the forward messages and the tally's wait for the slowest rank.
+    std::snprintf(line, sizeof line,
+                  "    (rank %d wall s: count %.3f, migrate %.3f, ghost lists %.3f (%.4g bytes), "
+                  "local order %.3f, engine broad phase %.3f, springs and lists %.3f; forward "
+                  "%.3f, tally and wait %.3f)\n",
+                  q, 1e-6 * static_cast<double>(h[12]), 1e-6 * static_cast<double>(h[13]),
+                  1e-6 * static_cast<double>(h[14]), static_cast<double>(h[11]),
+                  1e-6 * static_cast<double>(h[15]), 1e-6 * static_cast<double>(h[16]),
+                  1e-6 * static_cast<double>(h[17]), 1e-6 * static_cast<double>(h[18]),
+                  1e-6 * static_cast<double>(h[19]));
     o << line;
   }
   return o.str();

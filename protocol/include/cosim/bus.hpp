@@ -22,7 +22,7 @@ inline bool wire_size_ok(const void* data, std::uint64_t size) {
   return size <= kMaxMessageBytes && (data != nullptr || size == 0);
 }
 
-constexpr int32_t kProtocolVersion = 3;
+constexpr int32_t kProtocolVersion = 4;
 constexpr const char* kDefaultBusUrl = "udpm://239.255.76.67:7667?ttl=0";
 
 // The URL given (non-empty), else $LCM_DEFAULT_URL, else kDefaultBusUrl.

@@ -79,6 +79,10 @@ class Model {
   virtual std::string repeat_note() const { return ""; }
   virtual void save_snapshot() {}
   virtual void restore_snapshot() {}
+  // Called instead of save_snapshot when the master says the step about to run will not be
+  // redone (step_request_t.no_redo): the state at its start is accepted and need not be kept.
+  // restore_snapshot is not called before the next save_snapshot.
+  virtual void skip_snapshot() {}
   // Checkpoints (docs/protocol.md#checkpoints-and-resume): a model that can write everything
   // its future steps depend on to one file, between steps, and read it back after configure()
   // so that the steps that follow are bit-identical to an uninterrupted run. Both raise

@@ -83,6 +83,10 @@ class ParticipantCore {
   int32_t last_iteration_ = -1;
   TimePoint t_now_{};          // end of the last completed step
   TimePoint t_before_last_{};  // its start, for repeats
+  // Whether the model holds a snapshot of t_before_last_ (a redo of last_step_ is possible),
+  // and if not, why (for the refusal of a redo).
+  bool start_kept_ = false;
+  std::string start_note_;
   std::optional<step_reply_t> cached_;
   std::atomic<int64_t> busy_step_{-1};
   std::atomic<int32_t> busy_iteration_{-1};

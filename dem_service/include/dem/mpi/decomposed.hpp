@@ -80,6 +80,15 @@ struct HaloStats {
   double seconds_rebuild = 0;   // wall time of the broad phases with migration and ghost setup
   double seconds_exchange = 0;  // wall time of the forward exchanges and the guard's tally
                                 // (waits for the other ranks included)
+  std::int64_t ghost_bytes = 0;  // of migration_bytes: the ghost lists' messages
+  // seconds_rebuild by part: the count (and re-cut), the migration (records, pack, send,
+  // unpack), the ghost lists (select, send, match), the local order and arrays, the engine's
+  // broad phase, the springs and the exchange lists.
+  double seconds_count = 0, seconds_migrate = 0, seconds_ghosts = 0, seconds_local = 0,
+         seconds_broad_phase = 0, seconds_springs = 0;
+  // seconds_exchange by part: the forward exchange (pack, send, wait, unpack) and the guard's
+  // tally, whose MPI_Allgather is where a rank waits for the slowest (load imbalance).
+  double seconds_forward = 0, seconds_tally = 0;
 };
 
 // Thrown by Decomposed::step on the ranks whose own step went well when another rank's step
@@ -154,6 +163,10 @@ class Decomposed {
   bool saved_due_ = true;
 
   void rebuild(State& s, bool first);
+  // rebuild() after the start: only the particles that change rank travel, the ghost lists send
+  // ids for the ghosts the receiver holds already, and the rank's particles are put in the
+  // broad phase's order (cell, then id) from the order they are in (docs/mpi.md).
+  void rebuild_kept(State& s);
   // The guard's tally over all ranks; failed: this rank's step threw. Returns the lowest rank
   // whose step threw, -1 for none (the same on every rank).
   int tally(State& s, bool failed = false);
