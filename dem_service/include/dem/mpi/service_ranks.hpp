@@ -34,6 +34,9 @@ class LeadModel final : public cosim::Model {
   bool can_repeat() const override { return model_.can_repeat(); }
   void save_snapshot() override;
   void restore_snapshot() override;
+  // Rank 0 alone (its output's accepted rows may go to the file; nothing of the ranks' state
+  // changes, so the others are not told).
+  void skip_snapshot() override { model_.skip_snapshot(); }
   bool can_checkpoint() const override { return model_.can_checkpoint(); }
   void save_checkpoint(const std::string& path) override;
   void load_checkpoint(const std::string& path) override;
