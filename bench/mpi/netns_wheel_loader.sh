@@ -11,8 +11,7 @@
 # --end: the bucket meets the pile at t = 1.23 s (default 1.5 s: 1500 macro steps).
 # The soil's config and its --set options are those of participants.soil.launch in --config
 # (read from the YAML). Needs the prepared pile (bash scripts/prepare_pile_dry_sand.sh) and a
-# build; --np above 1 needs dem_service that decomposes under mpirun (docs/mpi.md; until then two
-# ranks would both join the bus as soil and the master refuses the run, naming both).
+# build; --np above 1 runs dem_service decomposed under mpirun, rank 0 on the bus (docs/mpi.md).
 set -euo pipefail
 repo=$(cd "$(dirname "$0")/../.." && pwd)
 cd "$repo"
