@@ -76,7 +76,7 @@ Engine::Engine(const Scene& scene, const EngineOptions& options)
   thread_stats_.assign(max_threads_, ContactStats{});
   broad_.use_vector_row_test(options.vector_row_test);
   reset_thread_busy();
-  validate_rotation(scene);  // the rotating model's rules (sleeping refused, ranges)
+  validate_rotation(scene);  // the rotating model's rules (ranges)
 }
 
 double Engine::thread_busy(std::size_t sec, int t) const {
@@ -165,8 +165,9 @@ void Engine::step(State& s) {
   timing_.lap(section::mesh_contacts, watch);
   sum_contact_stats();
   watch.restart();
-  integrate(s);
+  // The spins first: the fall-asleep test in integrate() reads the new w (|v| + |w| r).
   if (rotating) rotation_.integrate(scene_, s);
+  integrate(s);
   timing_.lap(section::integration, watch);
 }
 
@@ -216,7 +217,18 @@ void Engine::rotating_pair_forces(State& s) {
   const cosim::Stopwatch busy;
   split_.clear();  // the integration splits the particles evenly
   for (int t = 0; t < threads_; ++t) thread_stats_[t] = ContactStats{};
-  rotation_.pair_forces(scene_, s, force_, thread_stats_[0]);
+  awake_now_ = nullptr;
+  if (scene_.sleep.enabled) {
+    // The translating model's sleeping rules in the rotating pair loop (one thread, every wake
+    // direct); the integration is the translating one's (awake list, wake tests).
+    detail::PairSleep rules = sleepers_.pair_rules(s, false);
+    if (s.size() > 0) std::memset(rules.wake, 0, s.size());
+    rules.woken = &sleepers_.woken(0);
+    if (options_.awake_list) awake_now_ = &sleepers_.awake(s);
+    rotation_.pair_forces(scene_, s, force_, thread_stats_[0], &rules);
+  } else {
+    rotation_.pair_forces(scene_, s, force_, thread_stats_[0]);
+  }
   add_busy(section::pair_forces, 0, busy.seconds());
 }
 
@@ -563,6 +575,13 @@ void Engine::integrate_range(State& s, std::size_t a0, std::size_t a1, bool keep
   Vec3* __restrict const X = s.x.data();
   std::int32_t* __restrict const REST = Sleep ? s.rest_steps.data() : nullptr;
   const std::uint8_t* __restrict const WAKE = Sleep ? sleepers_.wake() : nullptr;
+  // The rotating model: its spins (already advanced, Rotation::integrate) count in the rest test,
+  // but for their part about gravity's direction (no twisting resistance: a grain on a floor
+  // spins about the vertical for ever without moving or pushing anything; docs/dem.md).
+  Vec3* const W = Sleep && scene_.rotation.rotating() ? s.w.data() : nullptr;
+  Vec3* const WU = W ? s.wu.data() : nullptr;
+  const double gn = norm(scene_.gravity);
+  const Vec3 gdir = gn > 0 ? (1 / gn) * scene_.gravity : Vec3{};
   if (!Sleep) {
     // All awake (0.88 of the time with the raw pointers than through State's vectors).
     for (std::size_t i = a0; i < a1; ++i) {
@@ -600,9 +619,16 @@ void Engine::integrate_range(State& s, std::size_t a0, std::size_t a1, bool keep
     const double d2 = norm2(X[i] - XR[i]);
     moved(i, d2);
     std::int32_t r = REST[i];
-    if (v2 < rest_speed2 && !sleepers_.near(tools_, X[i], RAD[i])) {
+    double rest2 = v2;  // rotating: (|v| + |w_h| r)^2, w_h the spin's part across gravity
+    if (W) {
+      const Vec3 wh = W[i] - dot(W[i], gdir) * gdir;
+      const double sp = std::sqrt(v2) + std::sqrt(norm2(wh)) * RAD[i];
+      rest2 = sp * sp;
+    }
+    if (rest2 < rest_speed2 && !sleepers_.near(tools_, X[i], RAD[i])) {
       if (++r >= S) {  // falls asleep where it is
         V[i] = U[i] = Vec3{};
+        if (W) W[i] = WU[i] = Vec3{};  // and stops turning
         ++my.sleeping;
         notes.fell.push_back(static_cast<std::int32_t>(i));
         if (keep) note_sleeper(i, d2);

@@ -8,6 +8,7 @@
 #include <stdexcept>
 
 #include "cosim/yaml_config.hpp"
+#include "dem/pair_kernel.hpp"
 #include "dem/stability.hpp"
 
 namespace dem {
@@ -27,10 +28,6 @@ void check_rotation(const Scene& sc, Fail&& fail) {
            "rotate cannot roll); set particles.model: rotating or remove rolling_resistance");
     return;
   }
-  if (sc.sleep.enabled)
-    fail("scene.sleep: the rotating particle model (particles.model: rotating) does not sleep "
-         "yet (a sleeper would keep its spin); remove scene.sleep or use particles.model: "
-         "translating");
   if (r.kind == RollingResistance::Kind::none) return;
   std::ostringstream m;
   if (!(r.friction > 0) || !std::isfinite(r.friction)) {
@@ -138,7 +135,7 @@ void Rotation::size_arrays(State& s) {
 }
 
 void Rotation::pair_forces(const Scene& sc, State& s, std::vector<Vec3>& force,
-                           ContactStats& stats) {
+                           ContactStats& stats, const detail::PairSleep* sleep) {
   const std::size_t n = s.size();
   size_arrays(s);
   if (s.pair_roll.size() != s.pair_j.size()) s.pair_roll.assign(s.pair_j.size(), Vec3{});
@@ -155,6 +152,13 @@ void Rotation::pair_forces(const Scene& sc, State& s, std::vector<Vec3>& force,
   const double* const M = s.mass.data();
   Vec3* const F = force.data();
   Vec3* const T = torque_.data();
+  // Sleeping (scene.sleep): the translating model's rules (detail::pair_rows_sleep), one thread.
+  const std::int32_t* const REST = sleep ? sleep->rest : nullptr;
+  const std::int32_t S = sleep ? sleep->steps : 0;
+  auto wake = [&](std::size_t p) {
+    if (!sleep->wake[p] && sleep->woken) sleep->woken->push_back(static_cast<std::int32_t>(p));
+    sleep->wake[p] = 1;
+  };
   for (std::size_t i = 0; i < n; ++i) F[i] = M[i] * g;
   stats.particle_contacts = 0;
   stats.max_overlap = 0;
@@ -162,8 +166,11 @@ void Rotation::pair_forces(const Scene& sc, State& s, std::vector<Vec3>& force,
   for (std::size_t i = 0; i < n; ++i) {
     const double ri = R[i], mi = M[i];
     const double ii = moment_of_inertia(mi, ri);
+    const bool si = REST && REST[i] >= S;
     for (std::int32_t k = s.pair_offset[i]; k < s.pair_offset[i + 1]; ++k) {
       const std::size_t j = static_cast<std::size_t>(s.pair_j[k]);
+      const bool sj = REST && REST[j] >= S;
+      if (si && sj) continue;  // two sleepers: no force, both springs stay as they were
       Vec3& spring = s.pair_spring[k];
       Vec3& roll = s.pair_roll[k];
       const Vec3 d = X[i] - X[j];
@@ -173,6 +180,8 @@ void Rotation::pair_forces(const Scene& sc, State& s, std::vector<Vec3>& force,
       // Spins do not change the normal speed at the contact ((w x n) . n = 0): the translating
       // screen holds.
       if (surely_apart(d2, rsum, norm2(urel), dt)) {
+        // A sleeper whose contact with an awake particle ends may have lost its support.
+        if ((si || sj) && (nonzero(spring) || nonzero(roll))) wake(si ? i : j);
         spring = Vec3{};
         roll = Vec3{};
         continue;
@@ -193,19 +202,24 @@ void Rotation::pair_forces(const Scene& sc, State& s, std::vector<Vec3>& force,
       ++stats.particle_contacts;
       stats.max_overlap = std::max(stats.max_overlap, overlap);
       stats.max_overlap_ratio = std::max(stats.max_overlap_ratio, overlap / std::min(ri, rj));
-      F[i] += f;
-      F[j] -= f;
+      // Awake against asleep: the force and torques act on the awake particle only (the
+      // sleeper, v = w = 0, is a fixed body for it); a partner whose centre or contact point
+      // moves faster than scene.sleep.wake_speed relative to the sleeper wakes it.
+      if ((si || sj) && (norm2(urel) > sleep->wake_speed2 || norm2(uc) > sleep->wake_speed2))
+        wake(si ? i : j);
+      if (!si) F[i] += f;
+      if (!sj) F[j] -= f;
       // (c - x_i) x f with c - x_i = -a_i n; (c - x_j) x (-f) with c - x_j = a_j n.
       const Vec3 nf = cross(nrm, f);
-      T[i] -= ai * nf;
-      T[j] -= aj * nf;
+      if (!si) T[i] -= ai * nf;
+      if (!sj) T[j] -= aj * nf;
       if (rr.kind != RollingResistance::Kind::none) {
         const double ij = moment_of_inertia(mj, rj);
         const double ir = 1 / (1 / (ii + mi * ri * ri) + 1 / (ij + mj * rj * rj));
         const RollingCoefficients rc = rolling_coefficients(rr, c.k, ri * rj / rsum, ir);
         const Vec3 m = rolling_torque(rc, nrm, WU[i] - WU[j], dot(f, nrm), roll, dt);
-        T[i] += m;
-        T[j] -= m;
+        if (!si) T[i] += m;
+        if (!sj) T[j] -= m;
       }
     }
   }
@@ -214,8 +228,13 @@ void Rotation::pair_forces(const Scene& sc, State& s, std::vector<Vec3>& force,
 void Rotation::integrate(const Scene& sc, State& s) {
   const std::size_t n = s.size();
   const double dt = sc.dt;
+  // With scene.sleep: the particles awake at the start of the step (rest_steps not yet updated).
+  const std::int32_t* const REST =
+      sc.sleep.enabled && s.rest_steps.size() == n ? s.rest_steps.data() : nullptr;
+  const std::int32_t S = sc.sleep.steps;
   std::size_t bad = n;
   for (std::size_t i = 0; i < n; ++i) {
+    if (REST && REST[i] >= S) continue;  // asleep: w = wu = 0 kept
     const double c = dt / moment_of_inertia(s.mass[i], s.radius[i]);
     const Vec3 dw = c * torque_[i];
     s.w[i] += dw;
@@ -223,8 +242,10 @@ void Rotation::integrate(const Scene& sc, State& s) {
     if (bad == n && !std::isfinite(norm2(s.w[i]))) bad = i;
   }
   if (bad < n) {
+    // s.step + 1: the step this integration ends in (the translating one counts it after).
     std::ostringstream msg;
-    msg << "blow-up at step " << s.step << " (t = " << s.step * dt << " s): particle id " << s.id[bad]
+    msg << "blow-up at step " << s.step + 1 << " (t = " << (s.step + 1) * dt
+        << " s): particle id " << s.id[bad]
         << " has a non-finite angular velocity (rotating model); lower scene.dt or soften the "
            "contact or rolling stiffness (particles.rolling_resistance.stiffness_factor)";
     throw SimulationError(msg.str());

@@ -124,16 +124,28 @@ inline bool rotating_boundary_contact(const BoundarySpin& b, double overlap, Vec
 
 // Engine part of the rotating model: the torques of a step, the pair loop and the spin
 // integration. The pair loop is scalar and on one thread (docs/soil_models.md: its cost).
+namespace detail {
+struct PairSleep;  // dem/pair_kernel.hpp
+}
+
 class Rotation {
  public:
   // w, wu sized to the particles (zeros for new ones), the rolling springs to their lists.
   static void size_arrays(State& s);
   // Gravity plus every pair force on force[i] (resized to the particles), every pair torque on
-  // torque(); springs of pairs out of contact are cleared.
-  void pair_forces(const Scene& sc, State& s, std::vector<Vec3>& force, ContactStats& stats);
+  // torque(); springs of pairs out of contact are cleared. With `sleep` (scene.sleep, the rules
+  // of detail::pair_rows_sleep, one thread: every wake is direct) two sleepers' pair is skipped
+  // (both springs keep their bits), a pair force and torque act on the awake particle only, and
+  // a sleeper is woken as in the translating model.
+  void pair_forces(const Scene& sc, State& s, std::vector<Vec3>& force, ContactStats& stats,
+                   const detail::PairSleep* sleep = nullptr);
   Vec3* torque() { return torque_.data(); }
   // Semi-implicit Euler of the spins, as for the velocities: w += dt T / I, then
   // wu = w + dt/2 T / I (the spin at the next force time). Throws SimulationError for a NaN.
+  // Runs before the translating integration of the step (s.step not yet counted) so that the
+  // fall-asleep test sees the new spin; with scene.sleep only the particles awake at the start
+  // of the step are advanced (a sleeper's w = wu = 0 stays so; one woken in this step turns
+  // from the next step on, as its v does).
   void integrate(const Scene& sc, State& s);
   std::size_t bytes() const { return torque_.capacity() * sizeof(Vec3); }
 
