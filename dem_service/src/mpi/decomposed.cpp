@@ -431,6 +431,18 @@ int Decomposed::ranks() const { return impl_->P; }
 
 namespace {
 
+// A rebuilt state t keeps the clock, tool poses, broad-phase counters and tally of removed
+// grains of the state s it replaces.
+void copy_clock(const State& s, State& t) {
+  t.step = s.step;
+  t.tool_pose = s.tool_pose;
+  t.tool_pose_at_rebuild = s.tool_pose_at_rebuild;
+  t.rebuilds = s.rebuilds;
+  t.early_rebuilds = s.early_rebuilds;
+  t.removed_count = s.removed_count;
+  t.removed_mass = s.removed_mass;
+}
+
 // s := owned (sorted by id) then ghosts (sorted by id), their lists built by `engine` (a broad
 // phase), the springs from the owned particles' records; ghost: the mask. Keeps s's step, tool
 // poses and counters.
@@ -440,13 +452,7 @@ void assemble(const Scene& scene, Particles& own, Particles& gh, State& s, Engin
   sort_by_id(gh);
   const bool rotating = scene.rotation.rotating();
   State t;
-  t.step = s.step;
-  t.tool_pose = s.tool_pose;
-  t.tool_pose_at_rebuild = s.tool_pose_at_rebuild;
-  t.rebuilds = s.rebuilds;
-  t.early_rebuilds = s.early_rebuilds;
-  t.removed_count = s.removed_count;
-  t.removed_mass = s.removed_mass;
+  copy_clock(s, t);
   const std::size_t no = own.size(), n = no + gh.size();
   t.x.reserve(n);
   auto add = [&](const Core& c) {
@@ -894,13 +900,7 @@ void Decomposed::rebuild_kept(State& s) {
   const bool rotating = m.rotating;
   State t = std::move(m.spare);
   for_each_array(t, [](const char*, auto& a, Field) { a.clear(); });
-  t.step = s.step;
-  t.tool_pose = s.tool_pose;
-  t.tool_pose_at_rebuild = s.tool_pose_at_rebuild;
-  t.rebuilds = s.rebuilds;
-  t.early_rebuilds = s.early_rebuilds;
-  t.removed_count = s.removed_count;
-  t.removed_mass = s.removed_mass;
+  copy_clock(s, t);
   t.lists_valid = false;
   t.steps_since_rebuild = 0;
   t.max_displacement = t.second_displacement = 0;
