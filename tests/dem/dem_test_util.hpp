@@ -2,6 +2,7 @@
 #pragma once
 
 #include <cmath>
+#include <random>
 #include <vector>
 
 #include "dem/engine.hpp"
@@ -66,6 +67,20 @@ inline void add(dem::State& st, Vec3 x, Vec3 v, double r, double density = 2500)
 }
 
 // Index of the particle with the given id (the broad phase reorders particles).
+// 150 spheres of radius 0.8-1 r on a jittered 5 x 5 x 6 lattice (spacing 2.2 r, jitter 0.1 r)
+// just above a floor at z = 0: the piles that the sleep tests drop and let settle.
+inline void add_jittered_block(dem::State& st, double r, unsigned seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> U(0, 1);
+  const double h = 2.2 * r;
+  for (int iz = 0; iz < 6; ++iz)
+    for (int iy = 0; iy < 5; ++iy)
+      for (int ix = 0; ix < 5; ++ix)
+        add(st, {(ix - 2) * h + 0.1 * r * U(rng), (iy - 2) * h + 0.1 * r * U(rng),
+                 r + 0.001 + iz * h},
+            {}, r * (0.8 + 0.2 * U(rng)));
+}
+
 inline std::size_t index_of(const dem::State& st, std::int64_t id) {
   for (std::size_t i = 0; i < st.size(); ++i)
     if (st.id[i] == id) return i;

@@ -275,15 +275,7 @@ Pile make_pile(int threads, bool sleep) {
   p.scene.sleep.enabled = sleep;
   p.scene.sleep.speed = 0.005;
   p.scene.sleep.steps = 200;
-  std::mt19937_64 rng(7);
-  std::uniform_real_distribution<double> U(0, 1);
-  const double h = 2.2 * kR;
-  for (int iz = 0; iz < 6; ++iz)
-    for (int iy = 0; iy < 5; ++iy)
-      for (int ix = 0; ix < 5; ++ix)
-        add(p.st, {(ix - 2) * h + 0.1 * kR * U(rng), (iy - 2) * h + 0.1 * kR * U(rng),
-                   kR + 0.001 + iz * h},
-            {}, kR * (0.8 + 0.2 * U(rng)));
+  add_jittered_block(p.st, kR, 7);
   return p;
 }
 
