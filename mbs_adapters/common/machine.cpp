@@ -44,15 +44,117 @@ void Machine::Simbody::make_integrator(double inner_step, double constraint_tole
   integrator->setFixedStepSize(inner_step);
   integrator->setAllowInterpolation(false);
   if (constraint_tolerance > 0) integrator->setConstraintTolerance(constraint_tolerance);
+  integrator_initialized = false;
 }
 
-void advance_fixed(Integrator& integ, State& s, double h, double t_end,
-                   const std::function<void()>& after_inner_step) {
-  const double t0 = s.getTime();
-  const long n = std::lround((t_end - t0) / h);
+namespace {
+
+void check_whole_steps(double t0, double h, double t_end, long& n) {
+  n = std::lround((t_end - t0) / h);
   if (n < 1 || std::abs(t0 + n * h - t_end) > 1e-9 * std::max(1.0, std::abs(t_end)))
     throw std::invalid_argument("advance: " + std::to_string(t_end - t0) +
                                 " s is not a whole number of inner steps of " + std::to_string(h) + " s");
+}
+
+// Moves the caller's state into the integrator for the advance and back out at its end, also
+// when Simbody throws (the state is then the integrator's: the last inner step it completed).
+class StateLoan {
+ public:
+  StateLoan(Integrator& integ, State& s) : integ_(integ), s_(s) { integ_.updAdvancedState() = std::move(s_); }
+  ~StateLoan() { s_ = std::move(integ_.updAdvancedState()); }
+  StateLoan(const StateLoan&) = delete;
+  StateLoan& operator=(const StateLoan&) = delete;
+
+ private:
+  Integrator& integ_;
+  State& s_;
+};
+
+}  // namespace
+
+namespace {
+
+// What Integrator::initialize (Simbody 3.7, IntegratorRep::initialize) does to a state, done to
+// the integrator's own advanced state, less what is left the same for an integrator that was
+// initialized before with this system and settings: the model and instance realizations
+// (done), the copy (the state is already there), the event-trigger and tolerance set-up
+// (unchanged), the initialization events (none: no measures, no event handlers) and its second
+// realization after the auto-update discrete variables (none). What stays: the projection onto
+// the constraint manifold that initialize forces (full Newton, the integrator's constraint
+// tolerance; it moves q and u by round-off at every restart, so it must stay for the same
+// bits) and the restart of the step sequence (reinitialize: the next stepTo begins a
+// continuous interval, realizes the derivatives with the input now in force and saves the
+// step's start as initialize would have).
+void restart(Integrator& integ, const System& system) {
+  State& s = integ.updAdvancedState();
+  system.realizeModel(s);
+  ProjectOptions options(integ.getConstraintToleranceInUse());
+  options.setOption(ProjectOptions::ForceProjection);
+  options.setOption(ProjectOptions::ForceFullNewton);
+  Vector no_error_estimate;
+  ProjectResults results;
+  system.realize(s, Stage::Time);
+  system.prescribeQ(s);
+  system.realize(s, Stage::Position);
+  system.projectQ(s, no_error_estimate, options, results);
+  system.prescribeU(s);
+  system.realize(s, Stage::Velocity);
+  results.clear();
+  system.projectU(s, no_error_estimate, options, results);
+  integ.reinitialize(Stage::Time, false);
+}
+
+void advance(Integrator& integ, State& s, double h, double t_end,
+             const std::function<void()>& after_inner_step, const System* system, bool* initialized) {
+  const double t0 = s.getTime();
+  long n = 0;
+  check_whole_steps(t0, h, t_end, n);
+  // No copy of the state: it is moved into the integrator and back out at the end.
+  StateLoan loan(integ, s);
+  if (initialized && *initialized) {
+    *initialized = false;  // until this advance succeeds
+    restart(integ, *system);
+  } else {
+    // Integrator::initialize on the integrator's own state: a State assigned to itself is
+    // left as it is, and the cache it brings is valid for its t, q and u (set_wrench
+    // invalidated what depends on the input).
+    integ.initialize(integ.getAdvancedState());
+  }
+  for (long k = 1; k <= n; ++k) {
+    const double tk = k == n ? t_end : t0 + k * h;
+    while (integ.getTime() < tk) integ.stepTo(tk);
+    if (after_inner_step) {
+      // the callback reads the machine's state: lend it back for the call
+      s = std::move(integ.updAdvancedState());
+      try {
+        after_inner_step();
+      } catch (...) {
+        integ.updAdvancedState() = std::move(s);
+        throw;
+      }
+      integ.updAdvancedState() = std::move(s);
+    }
+  }
+  if (initialized) *initialized = true;
+}
+
+}  // namespace
+
+void advance_fixed(Integrator& integ, State& s, double h, double t_end,
+                   const std::function<void()>& after_inner_step) {
+  advance(integ, s, h, t_end, after_inner_step, nullptr, nullptr);
+}
+
+void advance_fixed(Integrator& integ, const System& system, bool& initialized, State& s, double h,
+                   double t_end, const std::function<void()>& after_inner_step) {
+  advance(integ, s, h, t_end, after_inner_step, &system, &initialized);
+}
+
+void advance_fixed_reference(Integrator& integ, State& s, double h, double t_end,
+                             const std::function<void()>& after_inner_step) {
+  const double t0 = s.getTime();
+  long n = 0;
+  check_whole_steps(t0, h, t_end, n);
   integ.initialize(s);
   for (long k = 1; k <= n; ++k) {
     const double tk = k == n ? t_end : t0 + k * h;
@@ -131,7 +233,12 @@ void Machine::set_wrench(WrenchInput input) {
 }
 
 void Machine::advance(double t_end, const std::function<void()>& after_inner_step) {
-  advance_fixed(*sim_->integrator, sim_->state, inner_step_, t_end, after_inner_step);
+  advance_fixed(*sim_->integrator, sim_->system, sim_->integrator_initialized, sim_->state, inner_step_,
+                t_end, after_inner_step);
+}
+
+void Machine::advance_reference(double t_end, const std::function<void()>& after_inner_step) {
+  advance_fixed_reference(*sim_->integrator, sim_->state, inner_step_, t_end, after_inner_step);
 }
 
 double Machine::time() const { return sim_->state.getTime(); }

@@ -48,6 +48,9 @@ class Machine {
   // else is refused with std::invalid_argument); after_inner_step, when given, runs after
   // every inner step with the state at its end.
   void advance(double t_end, const std::function<void()>& after_inner_step = {});
+  // The same advance by the plain path advance() must equal bit for bit (tests, bench/mbs):
+  // simbody_machine.hpp, advance_fixed_reference.
+  void advance_reference(double t_end, const std::function<void()>& after_inner_step = {});
 
   double time() const;
   double inner_step() const { return inner_step_; }

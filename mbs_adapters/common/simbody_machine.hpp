@@ -25,6 +25,7 @@ struct Machine::Simbody {
   SimTK::GeneralForceSubsystem forces{system};
   const SimTK::MobilizedBody* coupled = nullptr;  // the body the soil acts on (couple())
   std::unique_ptr<SimTK::RungeKutta3Integrator> integrator;
+  bool integrator_initialized = false;  // advance_fixed's record (set by Machine::advance)
   SimTK::State state, snapshot;
 
   // Adds the soil's wrench (machine.wrench_at(t)) on `body`, taken about its origin, as a force
@@ -40,8 +41,22 @@ struct Machine::Simbody {
 // (std::invalid_argument otherwise). The integrator starts afresh (the input may have changed,
 // and a restored snapshot must repeat bit for bit); after_inner_step, when given, runs after
 // every step with `state` at its end.
+// The state is moved into the integrator and back, never copied.
 void advance_fixed(SimTK::Integrator& integrator, SimTK::State& state, double h, double t_end,
                    const std::function<void()>& after_inner_step = {});
+// The same with a warm restart: `initialized` is the caller's record that this integrator of
+// `system` has been initialized (set after an advance that succeeded, cleared when one throws
+// and by make_integrator). With it the integrator restarts without Integrator::initialize,
+// doing only what initialize does that changes a bit (its forced projection) and leaving out
+// what it repeats (realizations, set-up): the same bits (tests/wheel_loader,
+// wheel_loader_advance_test).
+void advance_fixed(SimTK::Integrator& integrator, const SimTK::System& system, bool& initialized,
+                   SimTK::State& state, double h, double t_end,
+                   const std::function<void()>& after_inner_step = {});
+// The same advance done plainly, the reference advance_fixed must equal bit for bit (tests and
+// bench/mbs): the state copied into the integrator (Integrator::initialize) and copied back.
+void advance_fixed_reference(SimTK::Integrator& integrator, SimTK::State& state, double h, double t_end,
+                             const std::function<void()>& after_inner_step = {});
 
 inline SimTK::Vec3 to_simtk(const V3& a) { return SimTK::Vec3(a[0], a[1], a[2]); }
 inline V3 to_array(const SimTK::Vec3& a) { return {a[0], a[1], a[2]}; }
