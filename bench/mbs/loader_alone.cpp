@@ -29,6 +29,20 @@
 
 namespace {
 
+// A positive number from option `key`, or a message naming it.
+double positive(const std::map<std::string, std::string>& opt, const std::string& key) {
+  std::size_t used = 0;
+  double v = 0;
+  try {
+    v = std::stod(opt.at(key), &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (used != opt.at(key).size() || !(v > 0) || !std::isfinite(v))
+    throw std::invalid_argument(key + " needs a positive number of seconds, got '" + opt.at(key) + "'");
+  return v;
+}
+
 std::vector<double> read_f64(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw std::runtime_error("cannot read " + path);
@@ -48,10 +62,14 @@ int main(int argc, char** argv) {
                                          {"--average", "0"}};
   if (!bench::parse_options(argc, argv, 1, "loader_alone", opt)) return 2;
   try {
-    const double end = std::stod(opt["--end"]), macro = std::stod(opt["--macro"]);
+    const double end = positive(opt, "--end"), macro = positive(opt, "--macro");
+    if (opt["--average"] != "0" && opt["--average"] != "1")
+      throw std::invalid_argument("--average must be 0 or 1, got '" + opt["--average"] + "'");
     const bool average = opt["--average"] == "1";
     const std::vector<double> wrench = opt["--wrench"].empty() ? std::vector<double>{} : read_f64(opt["--wrench"]);
     const long steps = std::lround(end / macro);
+    if (steps < 1 || std::abs(steps * macro - end) > 1e-9 * end)
+      throw std::invalid_argument("--end must be a whole number of --macro steps");
     const auto H = cosim::nanoseconds(std::llround(macro * 1e9));
 
     wheel_loader::WheelLoaderAdapter m(cosim::config::load_file(opt["--machine"]));
@@ -85,9 +103,7 @@ int main(int argc, char** argv) {
     }
     const double cpu = bench::cpu_seconds() - c1;
     if (out) std::fclose(out);
-    const double inner = std::stod(YAML::Load(opt["--params"])["inner_step"]
-                                       ? YAML::Load(opt["--params"])["inner_step"].Scalar()
-                                       : cosim::config::load_file(opt["--machine"])["inner_step"].Scalar());
+    const double inner = 1e-9 * static_cast<double>(cosim::to_ns(m.inner_step()));
     const double substeps = steps * std::round(macro / inner);
     std::printf("loader_alone: %ld macro steps of %g s (%ld with a soil wrench), inner step %g s, average %d\n",
                 steps, macro, nonzero, inner, average ? 1 : 0);
