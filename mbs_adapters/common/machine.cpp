@@ -70,10 +70,6 @@ class StateLoan {
   State& s_;
 };
 
-}  // namespace
-
-namespace {
-
 // What Integrator::initialize (Simbody 3.7, IntegratorRep::initialize) does to a state, done to
 // the integrator's own advanced state, less what is left the same for an integrator that was
 // initialized before with this system and settings: the model and instance realizations

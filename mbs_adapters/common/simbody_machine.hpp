@@ -49,7 +49,10 @@ void advance_fixed(SimTK::Integrator& integrator, SimTK::State& state, double h,
 // and by make_integrator). With it the integrator restarts without Integrator::initialize,
 // doing only what initialize does that changes a bit (its forced projection) and leaving out
 // what it repeats (realizations, set-up): the same bits (tests/wheel_loader,
-// wheel_loader_advance_test).
+// wheel_loader_advance_test). That holds for systems without measures, event handlers and
+// auto-update discrete variables (initialize acts on those; the machines here have none): a
+// model that adds one must extend the restart and hold it to advance_fixed_reference as that
+// test does.
 void advance_fixed(SimTK::Integrator& integrator, const SimTK::System& system, bool& initialized,
                    SimTK::State& state, double h, double t_end,
                    const std::function<void()>& after_inner_step = {});
