@@ -171,7 +171,8 @@ bool BoundaryContacts::begin(State& s, const Vec3* torque) {
 }
 
 void BoundaryContacts::run(State& s, const ToolGeometry& tools, Vec3* force, int t, int T,
-                           double* busy, Vec3* torque, const std::uint8_t* ghost) {
+                           double* busy, Vec3* torque, const std::uint8_t* ghost,
+                           const ChunkWait* wait) {
   if (chunks_ == 0) return;  // begin() found no wall and no tool
   const ContactLaw& law = scene_.particle_wall;
   const bool per_body_laws = !scene_.boundary_laws.empty();
@@ -184,6 +185,7 @@ void BoundaryContacts::run(State& s, const ToolGeometry& tools, Vec3* force, int
   const std::int64_t pass = chunk_pass_;
   {
     const cosim::Stopwatch watch;
+    double waited = 0;
     Contact cs[kBoundarySlots];
     TriangleHit hits[kMaxHits];
     std::int64_t my_overflow = -1;
@@ -200,6 +202,15 @@ void BoundaryContacts::run(State& s, const ToolGeometry& tools, Vec3* force, int
       Wrench* const tw = chunk_tool_wrench_.data() + chunk * ntools;
       Vec3* const wf = chunk_wall_force_.data() + chunk * nwalls;
       const std::size_t k0 = nb * chunk / C, k1 = nb * (chunk + 1) / C;
+      if (wait && k1 > k0) {
+        std::size_t lo = static_cast<std::size_t>(s.slot_particle[k0]), hi = lo;
+        for (std::size_t k = k0 + 1; k < k1; ++k) {
+          const std::size_t i = static_cast<std::size_t>(s.slot_particle[k]);
+          lo = std::min(lo, i);
+          hi = std::max(hi, i);
+        }
+        waited += wait->fn(wait->ctx, lo, hi);
+      }
       for (std::size_t k = k0; k < k1; ++k) {
         const std::size_t i = static_cast<std::size_t>(s.slot_particle[k]);
         // A sleeper has no wall or mesh forces; its boundary history stays as it was.
@@ -273,7 +284,7 @@ void BoundaryContacts::run(State& s, const ToolGeometry& tools, Vec3* force, int
       }
     }
     thread_stats_[t] = my_stats;
-    busy[t] += watch.seconds();
+    busy[t] += watch.seconds() - waited;
     if (my_overflow >= 0) {
 #pragma omp critical(dem_overflow)
       if (overflow_ < 0 || my_overflow < overflow_) overflow_ = my_overflow;

@@ -444,6 +444,28 @@ void Engine::owner_range(const BlockPass& p, int T, int t, std::size_t* out) con
   }
 }
 
+// BoundaryContacts::ChunkWait for one region per step: returns once the pair forces of
+// particles [lo, hi] are complete, the seconds waited. A particle's force is written by the
+// rows of its own block and of the block before it (a row's partners lie in its block or the
+// next; an even block starts the forces of the next one), so the blocks from the one before
+// lo's to hi's must be done. A thread comes here after its walk over the blocks, when every
+// block is claimed: one not done is being run by another thread, which waits for no boundary
+// chunk, so the wait ends.
+double Engine::wait_for_blocks(const void* ctx, std::size_t lo, std::size_t hi) {
+  const BlockPass& p = *static_cast<const BlockPass*>(ctx);
+  if (p.K <= 0) return 0;
+  auto block_of = [&](std::size_t i) {
+    const std::int64_t k = std::upper_bound(p.B, p.B + p.K + 1, i) - p.B - 1;
+    return std::clamp<std::int64_t>(k, 0, p.K - 1);
+  };
+  const std::int64_t k0 = std::max<std::int64_t>(0, block_of(lo) - 1), k1 = block_of(hi);
+  return wait_until([&] {
+    for (std::int64_t k = k0; k <= k1; ++k)
+      if (__atomic_load_n(&p.DONE[k], __ATOMIC_ACQUIRE) != p.pass) return false;
+    return true;
+  });
+}
+
 template <bool Sleep>
 void Engine::pair_forces_ranges(State& s, const detail::PairRows& rows,
                                 const detail::PairSleep& rules) {
@@ -802,12 +824,15 @@ void Engine::integrate_range(State& s, std::size_t a0, std::size_t a1, bool keep
 // integrate, each in its own region, give. What the stages decide before their threads start
 // (the pair blocks, the sleepers' rules and awake list, the chunks of the boundary contacts,
 // the integration's plan) is made first, by this thread: none of it reads what the threads
-// write. In the region: the pair blocks; a barrier (a boundary contact adds to forces the pair
-// blocks of another thread wrote); the boundary chunks; then the integration: with the awake
-// list each thread goes on to its share of the sleepers' wake tests, whose barrier is also the
-// end of every force (the wake tests read none), else a barrier and the particles of the blocks
-// the thread ran. Three waits for the other threads per step (the region's start, the two
-// barriers) and its end, where the separate regions had three starts, three ends and a barrier.
+// write. In the region: the pair blocks; the boundary chunks (a boundary contact adds to forces
+// the pair blocks of another thread wrote: with the awake list a chunk waits for the blocks of
+// its particles, wait_for_blocks; else a barrier first); then the integration: with the awake
+// list each thread waits for every pair block (the wake tests read the wake flags they set)
+// and goes on to its share of the sleepers' wake tests, whose barrier is also the end of every
+// force (the wake tests read none), else a barrier and the particles of the blocks the thread
+// ran. With the awake list the threads wait for each other at the region's start,
+// the one barrier and its end, where the separate regions had three starts, three ends and a
+// barrier.
 // docs/performance.md, "One parallel region per DEM step".
 template <bool Sleep>
 void Engine::step_one_region(State& s) {
@@ -830,21 +855,38 @@ void Engine::step_one_region(State& s) {
   const IntegrationPlan plan = begin_integration<Sleep>(s);
   timing_.lap(section::integration, watch);
   StepTally total;
-  // The sections' wall times inside the region, from its start: the pair blocks end at the
-  // barrier, the boundary contacts when the last thread leaves its chunks.
-  double pair_end = 0;
-  region_marks_.assign(static_cast<std::size_t>(T), 0.0);
+  // With the awake list a thread goes from its pair blocks to the boundary chunks without a
+  // barrier: before a chunk it waits for the pair blocks that write its particles' forces.
+  BoundaryContacts::ChunkWait chunk_wait;
+  chunk_wait.fn = &Engine::wait_for_blocks;
+  chunk_wait.ctx = &pass;
+  const BoundaryContacts::ChunkWait* const wait = plan.listed ? &chunk_wait : nullptr;
+  // The sections' wall times inside the region, from its start: the pair blocks end when the
+  // last thread leaves its walk, the boundary contacts when the last thread leaves its chunks.
+  // With the awake list the two overlap (a thread runs chunks while another still runs pair
+  // blocks): the region's wall time is then shared among the three sections in proportion to
+  // the threads' working seconds in each (thread_busy, waits left out) in this step.
+  region_marks_.assign(2 * static_cast<std::size_t>(T), 0.0);
+  double busy_before[3] = {0, 0, 0};
+  const std::size_t sections[3] = {section::pair_forces, section::mesh_contacts,
+                                   section::integration};
+  for (int q = 0; q < 3; ++q)
+    for (int u = 0; u < T; ++u) busy_before[q] += thread_busy(sections[q], u);
 #pragma omp parallel num_threads(T)
   {
     const int t = omp_get_thread_num();
     pair_blocks_thread<Sleep>(s, pass, t, T);
+    region_marks_[static_cast<std::size_t>(T + t)] = watch.seconds();
+    if (!wait) {
 #pragma omp barrier
-    if (t == 0) pair_end = watch.seconds();
+    }
     if (boundary)
       boundary_.run(s, tools_, force_.data(), t, T, busy_row(section::mesh_contacts), nullptr,
-                    ghost);
+                    ghost, wait);
     region_marks_[static_cast<std::size_t>(t)] = watch.seconds();
     if (plan.listed) {
+      // The wake tests read the wake flags the pair blocks set: every block done first.
+      if (n > 0) wait_for_blocks(&pass, 0, n - 1);
       integrate_listed_thread(s, total, t, T);
     } else {
       std::size_t split[2];
@@ -855,11 +897,22 @@ void Engine::step_one_region(State& s) {
     }
   }
   const double region = watch.lap();
-  const double mesh_end = std::max(
-      pair_end, *std::max_element(region_marks_.begin(), region_marks_.end()));
-  timing_.add(section::pair_forces, pair_end);
-  timing_.add(section::mesh_contacts, mesh_end - pair_end);
-  timing_.add(section::integration, region - mesh_end);
+  double work[3] = {0, 0, 0}, all = 0;
+  for (int q = 0; q < 3; ++q) {
+    for (int u = 0; u < T; ++u) work[q] += thread_busy(sections[q], u);
+    work[q] = std::max(0.0, work[q] - busy_before[q]);
+    all += work[q];
+  }
+  if (wait && all > 0) {
+    for (int q = 0; q < 3; ++q) timing_.add(sections[q], region * work[q] / all);
+  } else {
+    const double pair_end = *std::max_element(region_marks_.begin() + T, region_marks_.end());
+    const double mesh_end =
+        std::max(pair_end, *std::max_element(region_marks_.begin(), region_marks_.begin() + T));
+    timing_.add(section::pair_forces, pair_end);
+    timing_.add(section::mesh_contacts, mesh_end - pair_end);
+    timing_.add(section::integration, region - mesh_end);
+  }
   split_.resize(static_cast<std::size_t>(T) + 1);
   owner_split(pass, T, split_.data());
   if (boundary) boundary_.end(s);  // throws if a particle had too many boundary contacts

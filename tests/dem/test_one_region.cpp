@@ -1,6 +1,7 @@
 // One parallel region per DEM step (EngineOptions::one_region, docs/performance.md "One parallel
 // region per DEM step"): the pair blocks, the boundary contacts and the integration run in one
-// OpenMP region with barriers between them instead of a region each. The work is split as
+// OpenMP region instead of a region each (a boundary chunk waits for the pair blocks of its
+// particles, or all wait at a barrier; a barrier before the integration). The work is split as
 // before and every sum runs in the same order, so a run is the same bits as with a region per
 // stage, on 1 and 2 threads, with and without sleepers, with the sleepers' awake list or the
 // walk over every particle (close pairs), with a moving tool, and through a checkpoint; and a

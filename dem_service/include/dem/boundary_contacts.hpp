@@ -37,9 +37,17 @@ class BoundaryContacts {
   // may start while another is still in run()), end() (one thread, after every run(): throws
   // the SimulationError of a particle with too many contacts, sums the chunks' forces on the
   // walls and tools). overflowed(): a run() found such a particle (read after every run()).
+  // wait (optional): before a chunk, run() calls wait->fn(wait->ctx, lo, hi) with the lowest and
+  // highest particle of the chunk, which returns once force[lo..hi] is complete (the seconds
+  // waited, left out of busy): a caller whose other threads may still be adding to force.
+  struct ChunkWait {
+    double (*fn)(const void* ctx, std::size_t lo, std::size_t hi) = nullptr;
+    const void* ctx = nullptr;
+  };
   bool begin(State& s, const Vec3* torque = nullptr);
   void run(State& s, const ToolGeometry& tools, Vec3* force, int t, int T, double* busy,
-           Vec3* torque = nullptr, const std::uint8_t* ghost = nullptr);
+           Vec3* torque = nullptr, const std::uint8_t* ghost = nullptr,
+           const ChunkWait* wait = nullptr);
   void end(State& s);
   bool overflowed() const { return overflow_ >= 0; }
 

@@ -118,6 +118,8 @@ class Engine {
   void pair_blocks_thread(State& s, const BlockPass& pass, int t, int T);
   void owner_split(const BlockPass& pass, int T, std::size_t* out) const;
   void owner_range(const BlockPass& pass, int T, int t, std::size_t* out) const;
+  // BoundaryContacts::ChunkWait's function (ctx: the BlockPass).
+  static double wait_for_blocks(const void* ctx, std::size_t lo, std::size_t hi);
   // The step after prepare() in one parallel region (EngineOptions::one_region).
   template <bool Sleep>
   void step_one_region(State& s);
@@ -173,7 +175,8 @@ class Engine {
   std::vector<std::size_t> split_;   // and the ranges the integration gives them (T + 1)
   std::vector<ContactStats> thread_stats_;  // per thread, pair forces
   std::int64_t one_region_steps_ = 0;
-  std::vector<double> region_marks_;  // step_one_region: when each thread left its boundary chunks
+  // step_one_region: when each thread left its boundary chunks, then its pair blocks (2 T).
+  std::vector<double> region_marks_;
   // thread_busy(): section * max_threads_ + t, for the three sections with parallel loops.
   std::vector<double> busy_;
   ContactStats stats_;

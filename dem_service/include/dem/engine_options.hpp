@@ -60,7 +60,7 @@ struct EngineOptions {
   // walk over every particle (dem_Sleep.AwakeListChangesNoBit).
   bool awake_list = true;
   // A step in one OpenMP parallel region (pair forces, boundary contacts and integration, with
-  // barriers between them) instead of one region per stage: fewer waits for the threads to
+  // waits and barriers between them) instead of one region per stage: fewer waits for threads to
   // wake (docs/performance.md, "One parallel region per DEM step"). Taken with pair_schedule
   // blocks and the translating model; the broad phase keeps its own regions. Always on in the
   // apps; off only for the tests that hold it to the regions per stage
