@@ -2,7 +2,9 @@
 """Two dem_run binaries against each other on the same scene, interleaved (A B, B A, A B, ...),
 so that a VM whose speed drifts between minutes hits both alike. Prints, per binary, the median
 (and range) of each section of dem_run's timing table, the loop time and the process's CPU time
-(user + system, from os.wait4), and the ratio B / A of the medians. A ratio says something only
+(user + system, from os.wait4), the context switches of all its threads (voluntary: a thread went to
+sleep, e.g. an idle OpenMP thread at a barrier; involuntary: taken off its core), the 1-minute
+load average before each run, and the ratio B / A of the medians. A ratio says something only
 where the ranges do not overlap. Build the old binary from a worktree, e.g.
 
   git worktree add /tmp/old <commit> && cmake -S /tmp/old -B /tmp/old/build \\
@@ -47,6 +49,10 @@ def run(binary, config, sets, out):
     if "loop" not in times:
         sys.exit(f"binary_ab: no 'Loop time' line in the output of {' '.join(cmd)}")
     times["cpu"] = usage.ru_utime + usage.ru_stime
+    # Threads going to sleep (voluntary: an idle OpenMP thread at a barrier or between regions
+    # with OMP_WAIT_POLICY=PASSIVE) and being taken off a core (involuntary), every thread's.
+    times["voluntary_switches"] = float(usage.ru_nvcsw)
+    times["involuntary_switches"] = float(usage.ru_nivcsw)
     return times
 
 
@@ -70,13 +76,16 @@ def main():
         for r in range(args.rounds):
             order = [("A", args.a), ("B", args.b)] if r % 2 == 0 else [("B", args.b), ("A", args.a)]
             for label, binary in order:
+                load = os.getloadavg()[0]
                 t = run(binary, args.config, args.set, out)
+                t["load_before"] = load
                 results[label].append(t)
-                print(f"round {r + 1} {label}: loop {t['loop']:.3f} s, cpu {t['cpu']:.2f} s",
+                print(f"round {r + 1} {label}: loop {t['loop']:.3f} s, cpu {t['cpu']:.2f} s, "
+                      f"{t['voluntary_switches']:.0f} voluntary context switches, load {load:.1f}",
                       flush=True)
     keys = [k for k in results["A"][0] if all(k in t for t in results["A"] + results["B"])]
     print()
-    print("| quantity (s) | A median | A range | B median | B range | B / A |")
+    print("| quantity (s, or a count) | A median | A range | B median | B range | B / A |")
     print("| --- | ---: | --- | ---: | --- | ---: |")
     for k in keys:
         a = [t[k] for t in results["A"]]

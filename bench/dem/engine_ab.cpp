@@ -10,14 +10,20 @@
 //   build/bin/engine_ab CONFIG [--set KEY=VALUE ...] --a KEY=VALUE [--a ...] --b KEY=VALUE
 //                       [--b ...] [--steps 1000] [--block 50]
 //
-// Besides config keys, --a and --b take the engine switch engine.awake_list=true|false (the
-// sleepers' awake list, EngineOptions::awake_list).
+// Besides config keys, --a and --b take the engine switches engine.awake_list=true|false (the
+// sleepers' awake list, EngineOptions::awake_list) and engine.one_region=true|false (a step in
+// one parallel region, EngineOptions::one_region). Beside the wall time of the blocks, the
+// process's CPU seconds (every thread's) and its voluntary context switches (threads going to
+// sleep) during each variant's blocks are printed.
 //
 // Tools follow their motion as in dem_run; nothing is written.
+#include <sys/resource.h>
+
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <ctime>
 #include <exception>
 #include <filesystem>
 #include <string>
@@ -63,11 +69,24 @@ long parse_count(const char* text, const char* what) {
   return v;
 }
 
+double cpu_seconds() {
+  timespec t{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+  return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
+}
+
+double voluntary_switches() {
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  return static_cast<double>(u.ru_nvcsw);
+}
+
 struct Variant {
   std::vector<std::string> sets;
   dem::EngineOptions options;  // with the engine.* keys below
   dem::RunConfig rc;
-  std::vector<double> block_seconds;
+  std::vector<double> block_seconds, block_cpu;
+  double switches = 0;
 };
 
 }  // namespace
@@ -115,14 +134,20 @@ int main(int argc, char** argv) {
       x.options = bench_engine_options();
       for (const auto& s : common) cosim::config::apply_override(root, s);
       for (const auto& s : x.sets) {
-        // The engine's switches that are no config key: engine.awake_list=true|false.
+        // The engine's switches that are no config key: engine.awake_list=true|false,
+        // engine.one_region=true|false.
         if (s.rfind("engine.", 0) == 0) {
           if (s == "engine.awake_list=true" || s == "engine.awake_list=false") {
             x.options.awake_list = s == "engine.awake_list=true";
             continue;
           }
+          if (s == "engine.one_region=true" || s == "engine.one_region=false") {
+            x.options.one_region = s == "engine.one_region=true";
+            continue;
+          }
           std::fprintf(stderr, "engine_ab: unknown engine switch '%s' (known: "
-                               "engine.awake_list=true|false)\n", s.c_str());
+                               "engine.awake_list=true|false, engine.one_region=true|false)\n",
+                       s.c_str());
           return 2;
         }
         cosim::config::apply_override(root, s);
@@ -146,28 +171,36 @@ int main(int argc, char** argv) {
         dem::State& s = v[k].rc.state;
         const dem::Scene& scene = v[k].rc.scene;
         const cosim::Stopwatch watch;
+        const double cpu0 = cpu_seconds(), sw0 = voluntary_switches();
         for (long q = 0; q < n; ++q) {
           for (std::size_t m = 0; m < scene.tools.size(); ++m)
             s.tool_pose[m] = scene.tools[m].motion.evaluate(s.step * scene.dt);
           engines[k]->step(s);
         }
         v[k].block_seconds.push_back(watch.seconds());
+        v[k].block_cpu.push_back(cpu_seconds() - cpu0);
+        v[k].switches += voluntary_switches() - sw0;
       }
       b_faster += v[1].block_seconds.back() < v[0].block_seconds.back();
       if ((blocks + 1) % 10 == 0)
         std::fprintf(stderr, "engine_ab: %ld of %ld steps\n", done + n, steps);
     }
-    double total[2] = {0, 0};
-    for (int k = 0; k < 2; ++k)
+    double total[2] = {0, 0}, cpu[2] = {0, 0};
+    for (int k = 0; k < 2; ++k) {
       for (double t : v[k].block_seconds) total[k] += t;
+      for (double t : v[k].block_cpu) cpu[k] += t;
+    }
     const double ma = median(v[0].block_seconds), mb = median(v[1].block_seconds);
     std::printf("%zu particles, %ld steps in blocks of %ld, %d thread(s)\n",
                 v[0].rc.state.size(), steps, block, engine_a.threads());
     for (int k = 0; k < 2; ++k) {
       std::string s;
       for (const auto& x : v[k].sets) s += " " + x;
-      std::printf("%c:%s\n   median block %.4f s, total %.3f s\n", k ? 'B' : 'A',
-                  s.empty() ? " (no overrides)" : s.c_str(), k ? mb : ma, total[k]);
+      std::printf("%c:%s\n   median block %.4f s, total %.3f s; CPU median block %.4f s, total "
+                  "%.3f s (%.1f us per step); %.2f voluntary context switches per step\n",
+                  k ? 'B' : 'A', s.empty() ? " (no overrides)" : s.c_str(), k ? mb : ma,
+                  total[k], median(v[k].block_cpu), cpu[k], 1e6 * cpu[k] / static_cast<double>(steps),
+                  v[k].switches / static_cast<double>(steps));
     }
     // Seconds per section, A then B (both timers ran over the same alternating blocks).
     const std::vector<cosim::TimingRow> ra = engine_a.timing().rows(), rb = engine_b.timing().rows();
@@ -178,6 +211,9 @@ int main(int argc, char** argv) {
     std::printf("B/A %.3f (medians), %.3f (totals); B faster in %d of %d blocks\n",
                 ma > 0 ? mb / ma : 0.0, total[0] > 0 ? total[1] / total[0] : 0.0, b_faster,
                 blocks);
+    const double ca = median(v[0].block_cpu), cb = median(v[1].block_cpu);
+    std::printf("CPU B/A %.3f (medians), %.3f (totals)\n", ca > 0 ? cb / ca : 0.0,
+                cpu[0] > 0 ? cpu[1] / cpu[0] : 0.0);
     const std::string diff = dem::differing_arrays(v[0].rc.state, v[1].rc.state);
     std::printf("final states: %s\n", diff.empty() ? "identical" : ("differ in" + diff).c_str());
     if (const std::string c = dem::close_pairs_summary(engine_b, steps); !c.empty())

@@ -4,12 +4,16 @@
 // candidates, the candidate triangles per such particle, how many of those are within contact
 // reach, the boundary contacts, the bucket mesh's triangle count, and the engine's seconds per
 // section turned into nanoseconds per unit of work (per contact, per triangle test, per
-// particle). docs/performance.md, "The main job".
+// particle), and the threads' context switches per step (with bench/dem/omp_count.c preloaded,
+// the OpenMP regions and barriers too). docs/performance.md, "The main job".
 //
 //   build/bin/step_counts CONFIG [--set KEY=VALUE ...] [--steps 1000]
 //
 // The counts are read from the State between steps (the lists the next step uses); the
 // triangle distances are recomputed here with dem::closest_on_triangle, outside the timed steps.
+#include <dlfcn.h>
+#include <sys/resource.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -52,6 +56,24 @@ double cpu_seconds() {
   timespec t{};
   clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
   return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
+}
+
+// The process's context switches so far (every thread's): voluntary ones are a thread going to
+// sleep (an idle OpenMP thread at a barrier or between regions with OMP_WAIT_POLICY=PASSIVE).
+struct Switches {
+  double voluntary = 0, involuntary = 0;
+};
+Switches switches() {
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  return {static_cast<double>(u.ru_nvcsw), static_cast<double>(u.ru_nivcsw)};
+}
+
+// bench/dem/omp_count.c's counters when it is preloaded (regions, barrier calls, single calls),
+// else nullptr.
+using OmpCountRead = void (*)(long*, long*, long*);
+OmpCountRead omp_count_reader() {
+  return reinterpret_cast<OmpCountRead>(dlsym(RTLD_DEFAULT, "omp_count_read"));
 }
 
 struct Counts {
@@ -138,13 +160,29 @@ int main(int argc, char** argv) {
     Counts c;
     const std::int64_t rebuilds0 = s.rebuilds;
     double step_seconds = 0, step_cpu = 0;
+    Switches sw;
+    const OmpCountRead omp_read = omp_count_reader();
+    long omp_regions = 0, omp_barriers = 0, omp_singles = 0;
     for (long q = 0; q < steps; ++q) {
       for (std::size_t m = 0; m < scene.tools.size(); ++m)
         s.tool_pose[m] = scene.tools[m].motion.evaluate(s.step * scene.dt);
       const cosim::Stopwatch watch;
       const double cpu0 = cpu_seconds();
+      const Switches sw0 = switches();
+      long r0 = 0, b0 = 0, s0 = 0;
+      if (omp_read) omp_read(&r0, &b0, &s0);
       engine.step(s);
       step_cpu += cpu_seconds() - cpu0;
+      const Switches sw1 = switches();
+      sw.voluntary += sw1.voluntary - sw0.voluntary;
+      sw.involuntary += sw1.involuntary - sw0.involuntary;
+      if (omp_read) {
+        long r1 = 0, b1 = 0, s1 = 0;
+        omp_read(&r1, &b1, &s1);
+        omp_regions += r1 - r0;
+        omp_barriers += b1 - b0;
+        omp_singles += s1 - s0;
+      }
       step_seconds += watch.seconds();
       const dem::ContactStats& st = engine.contact_stats();
       c.particle_contacts += static_cast<double>(st.particle_contacts);
@@ -199,6 +237,14 @@ int main(int argc, char** argv) {
                 "per particle-step\n",
                 step_seconds, step_cpu, step_seconds > 0 ? step_cpu / step_seconds : 0.0,
                 step_cpu / ns * 1e6, step_cpu / ns / n * 1e9);
+    std::printf("threads: %.2f voluntary and %.2f involuntary context switches per step",
+                sw.voluntary / ns, sw.involuntary / ns);
+    if (omp_read)
+      std::printf("; %.2f parallel regions, %.2f barrier calls, %.2f single calls per step "
+                  "(bench/dem/omp_count.c)",
+                  static_cast<double>(omp_regions) / ns, static_cast<double>(omp_barriers) / ns,
+                  static_cast<double>(omp_singles) / ns);
+    std::printf("\n");
   } catch (const std::exception& e) {
     std::fprintf(stderr, "step_counts: %s\n", e.what());
     return 2;

@@ -145,28 +145,47 @@ BoundaryContacts::BoundaryContacts(const Scene& scene, int max_threads) : scene_
 
 void BoundaryContacts::forces(State& s, const ToolGeometry& tools, Vec3* force, int T,
                               double* busy, Vec3* torque, const std::uint8_t* ghost) {
+  if (!begin(s, torque)) return;
+#pragma omp parallel num_threads(T)
+  run(s, tools, force, omp_get_thread_num(), T, busy, torque, ghost);
+  end(s);
+}
+
+bool BoundaryContacts::begin(State& s, const Vec3* torque) {
+  const std::size_t ntools = scene_.tools.size(), nwalls = scene_.walls.size();
+  std::fill(thread_stats_.begin(), thread_stats_.end(), ContactStats{});
+  overflow_ = -1;
+  chunks_ = 0;
+  if (ntools == 0 && nwalls == 0) return false;
+  // Only particles with a slot block can touch a wall or a tool; they are cut into chunks.
+  const std::size_t nb = s.slot_particle.size();
+  // The rotating model (torque != nullptr, dem/rotation.hpp): spins, torques, rolling springs.
+  if (torque != nullptr && s.slot_roll.size() != s.slot_key.size())
+    s.slot_roll.assign(s.slot_key.size(), Vec3{});
+  chunks_ = std::max<std::size_t>(1, std::min(kBoundaryChunks, nb));
+  chunk_tool_wrench_.assign(chunks_ * ntools, Wrench{});
+  chunk_wall_force_.assign(chunks_ * nwalls, Vec3{});
+  if (chunk_claim_.size() < chunks_) chunk_claim_.resize(chunks_, 0);
+  ++chunk_pass_;
+  return true;
+}
+
+void BoundaryContacts::run(State& s, const ToolGeometry& tools, Vec3* force, int t, int T,
+                           double* busy, Vec3* torque, const std::uint8_t* ghost,
+                           const ChunkWait* wait) {
+  if (chunks_ == 0) return;  // begin() found no wall and no tool
   const ContactLaw& law = scene_.particle_wall;
   const bool per_body_laws = !scene_.boundary_laws.empty();
   const double dt = scene_.dt;
   const std::size_t ntools = scene_.tools.size(), nwalls = scene_.walls.size();
-  std::fill(thread_stats_.begin(), thread_stats_.end(), ContactStats{});
-  if (ntools == 0 && nwalls == 0) return;
-  std::int64_t overflow = -1;
-  // Only particles with a slot block can touch a wall or a tool; they are cut into chunks.
   const std::size_t nb = s.slot_particle.size();
-  // The rotating model (torque != nullptr, dem/rotation.hpp): spins, torques, rolling springs.
   const bool spin = torque != nullptr;
-  if (spin && s.slot_roll.size() != s.slot_key.size()) s.slot_roll.assign(s.slot_key.size(), Vec3{});
   const RollingResistance& rolling = scene_.rotation.rolling;
-  const std::size_t C = std::max<std::size_t>(1, std::min(kBoundaryChunks, nb));
-  chunk_tool_wrench_.assign(C * ntools, Wrench{});
-  chunk_wall_force_.assign(C * nwalls, Vec3{});
-  if (chunk_claim_.size() < C) chunk_claim_.resize(C, 0);
-  const std::int64_t pass = ++chunk_pass_;
-#pragma omp parallel num_threads(T)
+  const std::size_t C = chunks_;
+  const std::int64_t pass = chunk_pass_;
   {
-    const int t = omp_get_thread_num();
     const cosim::Stopwatch watch;
+    double waited = 0;
     Contact cs[kBoundarySlots];
     TriangleHit hits[kMaxHits];
     std::int64_t my_overflow = -1;
@@ -183,6 +202,15 @@ void BoundaryContacts::forces(State& s, const ToolGeometry& tools, Vec3* force, 
       Wrench* const tw = chunk_tool_wrench_.data() + chunk * ntools;
       Vec3* const wf = chunk_wall_force_.data() + chunk * nwalls;
       const std::size_t k0 = nb * chunk / C, k1 = nb * (chunk + 1) / C;
+      if (wait && k1 > k0) {
+        std::size_t lo = static_cast<std::size_t>(s.slot_particle[k0]), hi = lo;
+        for (std::size_t k = k0 + 1; k < k1; ++k) {
+          const std::size_t i = static_cast<std::size_t>(s.slot_particle[k]);
+          lo = std::min(lo, i);
+          hi = std::max(hi, i);
+        }
+        waited += wait->fn(wait->ctx, lo, hi);
+      }
       for (std::size_t k = k0; k < k1; ++k) {
         const std::size_t i = static_cast<std::size_t>(s.slot_particle[k]);
         // A sleeper has no wall or mesh forces; its boundary history stays as it was.
@@ -256,12 +284,18 @@ void BoundaryContacts::forces(State& s, const ToolGeometry& tools, Vec3* force, 
       }
     }
     thread_stats_[t] = my_stats;
-    busy[t] += watch.seconds();
+    busy[t] += watch.seconds() - waited;
+    if (my_overflow >= 0) {
 #pragma omp critical(dem_overflow)
-    if (my_overflow >= 0 && (overflow < 0 || my_overflow < overflow)) overflow = my_overflow;
+      if (overflow_ < 0 || my_overflow < overflow_) overflow_ = my_overflow;
+    }
   }
-  if (overflow >= 0) {
-    const std::size_t i = static_cast<std::size_t>(overflow);
+}
+
+void BoundaryContacts::end(State& s) {
+  if (chunks_ == 0) return;
+  if (overflow_ >= 0) {
+    const std::size_t i = static_cast<std::size_t>(overflow_);
     std::ostringstream msg;
     msg << "step " << s.step << " (t = " << s.step * scene_.dt << " s): particle id " << s.id[i]
         << " at (" << s.x[i].x << ", " << s.x[i].y << ", " << s.x[i].z << ") touches more than "
@@ -269,7 +303,7 @@ void BoundaryContacts::forces(State& s, const ToolGeometry& tools, Vec3* force, 
         << "than the particles (coarsen it) or the particle was pushed through it (lower dt)";
     throw SimulationError(msg.str());
   }
-  sum_chunks(C);
+  sum_chunks(chunks_);
 }
 
 // The chunks' sums in chunk order.

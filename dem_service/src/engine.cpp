@@ -151,6 +151,14 @@ void Engine::prepare(State& s) {
 
 void Engine::step(State& s) {
   prepare(s);
+  if (options_.one_region && !scene_.rotation.rotating() &&
+      options_.pair_schedule == PairSchedule::blocks) {
+    if (scene_.sleep.enabled)
+      step_one_region<true>(s);
+    else
+      step_one_region<false>(s);
+    return;
+  }
   cosim::Stopwatch watch;
   // The rotating model (dem/rotation.hpp) has its own pair loop and spin integration; the
   // translating model's loops are not touched by it.
@@ -320,69 +328,142 @@ void Engine::pair_forces_impl(State& s) {
     pair_forces_ranges<Sleep>(s, rows, rules);
 }
 
+// One step's pass over the pair blocks: what every thread reads (pair_blocks_thread).
+struct Engine::BlockPass {
+  detail::PairRows rows;
+  detail::PairSleep rules;
+  detail::Kernel kernel = detail::Kernel::vector;
+  std::size_t n = 0;
+  std::int64_t K = 0, pass = 0;
+  const std::size_t* B = nullptr;  // the first row of each block and the end
+  std::int64_t* DONE = nullptr;
+  std::int64_t* CLAIM = nullptr;
+  int* owner = nullptr;  // the thread that ran each block
+};
+
+Engine::BlockPass Engine::begin_pair_blocks(State& s, const detail::PairRows& rows,
+                                            const detail::PairSleep& rules) {
+  BlockPass p;
+  p.kernel = pair_kernel();
+  blocks_.make(s);
+  p.n = s.size();
+  p.K = blocks_.count();
+  p.pass = blocks_.next_pass();
+  p.B = blocks_.start().data();
+  p.DONE = blocks_.done();
+  p.CLAIM = blocks_.claim();
+  p.owner = blocks_.owner().data();
+  p.rows = rows;
+  p.rows.direct_end = p.n;  // a block's partners: in it or in the next block (made so)
+  p.rules = rules;
+  return p;
+}
+
 template <bool Sleep>
 void Engine::pair_forces_blocks(State& s, const detail::PairRows& block_rows,
                                 const detail::PairSleep& rules) {
-  const std::size_t n = s.size();
   const int T = threads_;
-  const detail::Kernel kernel = pair_kernel();
-  blocks_.make(s);
-  const std::int64_t K = blocks_.count();
-  const std::int64_t pass = blocks_.next_pass();
-  const std::size_t* const B = blocks_.start().data();
-  std::int64_t* const DONE = blocks_.done();
-  std::int64_t* const CLAIM = blocks_.claim();
-  std::vector<int>& owner = blocks_.owner();
-  detail::PairRows rows = block_rows;
-  rows.direct_end = n;  // a block's partners: in it or in the next block (made so)
+  const BlockPass p = begin_pair_blocks(s, block_rows, rules);
 #pragma omp parallel num_threads(T)
-  {
-    const int t = omp_get_thread_num();
-    cosim::Stopwatch busy;
-    double waited = 0;  // for the even blocks beside an odd one
-    std::vector<detail::PairRemote> remote;  // stays empty: every partner is direct
-    std::vector<std::int32_t> remote_wake;
-    detail::PairSleep sl = rules;
-    sl.remote_wake = &remote_wake;
-    if (Sleep) sl.woken = &sleepers_.woken(t);
-    detail::PairRowStats st;
-    // This thread's walk: it runs each block that no one has claimed before it. Before an odd
-    // block the walk has passed both evens beside it, so they are claimed and, as an even
-    // block never waits, done or being done.
-    for (const std::int32_t kk : detail::pair_block_walk(static_cast<std::int32_t>(K), t, T)) {
-      const std::int64_t k = kk;
-      if (!claim_first(CLAIM, k, pass)) continue;
-      owner[k] = t;
-      if (k % 2 == 0) {
-        // This block's and the next block's particles start from gravity (no one else
-        // writes the next block before this block is done).
-        start_forces<Sleep>(s, B[k], B[std::min(k + 2, K)]);
-      } else {
-        // The even blocks beside it: the one before has set up this block and written into
-        // it, the one after is written into by this one.
-        waited += wait_until([&] {
-          return __atomic_load_n(&DONE[k - 1], __ATOMIC_ACQUIRE) == pass &&
-                 (k + 1 >= K || __atomic_load_n(&DONE[k + 1], __ATOMIC_ACQUIRE) == pass);
-        });
-      }
-      if (Sleep)
-        detail::pair_rows_sleep(rows, sl, B[k], B[k + 1], remote, st, kernel);
-      else
-        detail::pair_rows(rows, B[k], B[k + 1], remote, st, kernel);
-      __atomic_store_n(&DONE[k], pass, __ATOMIC_RELEASE);
+  pair_blocks_thread<Sleep>(s, p, omp_get_thread_num(), T);
+  split_.resize(static_cast<std::size_t>(T) + 1);
+  owner_split(p, T, split_.data());
+}
+
+// Thread t's part of a pass over the pair blocks (inside a parallel region of T threads).
+template <bool Sleep>
+void Engine::pair_blocks_thread(State& s, const BlockPass& p, int t, int T) {
+  const std::int64_t K = p.K, pass = p.pass;
+  const std::size_t* const B = p.B;
+  std::int64_t* const DONE = p.DONE;
+  std::int64_t* const CLAIM = p.CLAIM;
+  cosim::Stopwatch busy;
+  double waited = 0;  // for the even blocks beside an odd one
+  std::vector<detail::PairRemote> remote;  // stays empty: every partner is direct
+  std::vector<std::int32_t> remote_wake;
+  detail::PairSleep sl = p.rules;
+  sl.remote_wake = &remote_wake;
+  if (Sleep) sl.woken = &sleepers_.woken(t);
+  detail::PairRowStats st;
+  // This thread's walk: it runs each block that no one has claimed before it. Before an odd
+  // block the walk has passed both evens beside it, so they are claimed and, as an even
+  // block never waits, done or being done.
+  for (const std::int32_t kk : detail::pair_block_walk(static_cast<std::int32_t>(K), t, T)) {
+    const std::int64_t k = kk;
+    if (!claim_first(CLAIM, k, pass)) continue;
+    p.owner[k] = t;
+    if (k % 2 == 0) {
+      // This block's and the next block's particles start from gravity (no one else
+      // writes the next block before this block is done).
+      start_forces<Sleep>(s, B[k], B[std::min(k + 2, K)]);
+    } else {
+      // The even blocks beside it: the one before has set up this block and written into
+      // it, the one after is written into by this one.
+      waited += wait_until([&] {
+        return __atomic_load_n(&DONE[k - 1], __ATOMIC_ACQUIRE) == pass &&
+               (k + 1 >= K || __atomic_load_n(&DONE[k + 1], __ATOMIC_ACQUIRE) == pass);
+      });
     }
-    thread_stats_[t] = ContactStats{st.contacts, 0, st.max_overlap, st.max_overlap_ratio};
-    add_busy(section::pair_forces, t, busy.seconds() - waited);
+    if (Sleep)
+      detail::pair_rows_sleep(p.rows, sl, B[k], B[k + 1], remote, st, p.kernel);
+    else
+      detail::pair_rows(p.rows, B[k], B[k + 1], remote, st, p.kernel);
+    __atomic_store_n(&DONE[k], pass, __ATOMIC_RELEASE);
   }
-  // The integration's ranges follow the blocks' owners: thread t starts at the first block
-  // that a thread t or above ran (a split of the particles only, never of a sum).
-  split_.assign(T + 1, n);
-  split_[0] = 0;
+  thread_stats_[t] = ContactStats{st.contacts, 0, st.max_overlap, st.max_overlap_ratio};
+  add_busy(section::pair_forces, t, busy.seconds() - waited);
+}
+
+// The integration's ranges follow the blocks' owners (out: T + 1 entries): thread t starts at
+// the first block that a thread t or above ran (a split of the particles only, never of a sum).
+void Engine::owner_split(const BlockPass& p, int T, std::size_t* out) const {
+  out[0] = 0;
+  out[T] = p.n;
   for (int t = 1; t < T; ++t) {
     std::int64_t k = 0;
-    while (k < K && owner[k] < t) ++k;
-    split_[t] = std::max(split_[t - 1], B[k]);
+    while (k < p.K && p.owner[k] < t) ++k;
+    out[t] = std::max(out[t - 1], p.B[k]);
   }
+}
+
+// Thread t's entries of owner_split (out[0], out[1]: its range), without the others'.
+void Engine::owner_range(const BlockPass& p, int T, int t, std::size_t* out) const {
+  std::size_t split = 0;  // owner_split's entry u, for u = 0 .. t + 1
+  for (int u = 1; u <= t + 1; ++u) {
+    std::size_t next = p.n;
+    if (u < T) {
+      std::int64_t k = 0;
+      while (k < p.K && p.owner[k] < u) ++k;
+      next = std::max(split, p.B[k]);
+    }
+    if (u == t + 1) {
+      out[0] = split;
+      out[1] = next;
+    }
+    split = next;
+  }
+}
+
+// BoundaryContacts::ChunkWait for one region per step: returns once the pair forces of
+// particles [lo, hi] are complete, the seconds waited. A particle's force is written by the
+// rows of its own block and of the block before it (a row's partners lie in its block or the
+// next; an even block starts the forces of the next one), so the blocks from the one before
+// lo's to hi's must be done. A thread comes here after its walk over the blocks, when every
+// block is claimed: one not done is being run by another thread, which waits for no boundary
+// chunk, so the wait ends.
+double Engine::wait_for_blocks(const void* ctx, std::size_t lo, std::size_t hi) {
+  const BlockPass& p = *static_cast<const BlockPass*>(ctx);
+  if (p.K <= 0) return 0;
+  auto block_of = [&](std::size_t i) {
+    const std::int64_t k = std::upper_bound(p.B, p.B + p.K + 1, i) - p.B - 1;
+    return std::clamp<std::int64_t>(k, 0, p.K - 1);
+  };
+  const std::int64_t k0 = std::max<std::int64_t>(0, block_of(lo) - 1), k1 = block_of(hi);
+  return wait_until([&] {
+    for (std::int64_t k = k0; k <= k1; ++k)
+      if (__atomic_load_n(&p.DONE[k], __ATOMIC_ACQUIRE) != p.pass) return false;
+    return true;
+  });
 }
 
 template <bool Sleep>
@@ -452,50 +533,63 @@ void Engine::integrate(State& s) {
     integrate_impl<false>(s);
 }
 
+// What the integration of this step does, decided before it (begin_integration).
+struct Engine::IntegrationPlan {
+  bool close = false;   // close pairs in use: their tallies are kept
+  bool keep = false;    // the sleepers' share of the guard's tallies is kept between steps
+  bool renote = false;  // and is noted again from every sleeper in this step
+  bool listed = false;  // the awake list's integration (integrate_listed)
+};
+
 template <bool Sleep>
-void Engine::integrate_impl(State& s) {
-  const std::size_t n = s.size();
+Engine::IntegrationPlan Engine::begin_integration(State& s) {
   const int T = threads_;
+  IntegrationPlan plan;
   if (Sleep) {
     sleepers_.begin_step();
     sleepers_.make_neighbourhood(s, tools_);
   }
   guard_.size_lists(static_cast<std::size_t>(T));
   // Close pairs in use: the slow particles' displacements since they were listed, and speeds.
-  const bool close = close_.in_use_for(s);
+  plan.close = close_.in_use_for(s);
   // Sleeping without close pairs: the sleepers' share of the guard's tallies is kept between
   // steps (Sleepers' tally); a particle adds its displacement when it falls asleep.
-  const bool keep = Sleep && !close;
-  const bool renote = keep && sleepers_.begin_tally(s, T);
+  plan.keep = Sleep && !plan.close;
+  plan.renote = plan.keep && sleepers_.begin_tally(s, T);
   // The awake list: the awake particles and the sleepers a wake test needs, not the whole bed
   // (every sleeper is visited when the tally is noted again, or without the shortcuts).
-  const bool listed = keep && !renote && options_.awake_list && options_.sleeper_blocks &&
-                      awake_now_ != nullptr && sleepers_.awake_holds(s);
+  plan.listed = plan.keep && !plan.renote && options_.awake_list && options_.sleeper_blocks &&
+                awake_now_ != nullptr && sleepers_.awake_holds(s);
+  return plan;
+}
+
+// After the threads: the tallies of the step, and the step finished.
+void Engine::end_integration(State& s, StepTally& total, const IntegrationPlan& plan) {
+  const int T = threads_;
+  int lists = T;
+  if (plan.keep) lists = sleepers_.end_tally(s, T, total.d1, total.d2, total.far, guard_);
+  finish_step(s, total, lists, plan.close);
+}
+
+template <bool Sleep>
+void Engine::integrate_impl(State& s) {
+  const std::size_t n = s.size();
+  const int T = threads_;
+  const IntegrationPlan plan = begin_integration<Sleep>(s);
   StepTally total;
-  if (listed) {
+  if (plan.listed) {
     integrate_listed(s, total);
   } else {
 #pragma omp parallel num_threads(T)
     {
       const int t = omp_get_thread_num();
-      const cosim::Stopwatch busy;
       // The particles whose pair forces this thread ran (pair_forces), which are in its cache.
       const bool own = split_.size() == static_cast<std::size_t>(T) + 1 && split_[T] == n;
       const std::size_t a0 = own ? split_[t] : n * t / T, a1 = own ? split_[t + 1] : n * (t + 1) / T;
-      StepTally my;
-      Sleepers::ThreadNotes notes;
-      integrate_range<Sleep>(s, a0, a1, keep, renote, my, notes, nullptr);
-      add_busy(section::integration, t, busy.seconds());
-#pragma omp critical(dem_integrate)
-      {
-        total.merge(my);
-        if (Sleep) sleepers_.merge(notes, keep);
-      }
+      integrate_walk_thread<Sleep>(s, a0, a1, plan.keep, plan.renote, total, t);
     }
   }
-  int lists = T;
-  if (keep) lists = sleepers_.end_tally(s, T, total.d1, total.d2, total.far, guard_);
-  finish_step(s, total, lists, close);
+  end_integration(s, total, plan);
 }
 
 // The integration with the awake list (Sleepers::awake, the awake particles at the start of
@@ -505,8 +599,19 @@ void Engine::integrate_impl(State& s) {
 // equal, contiguous share of the awake list. The same per-particle work as integrate_range over
 // every particle: a sleeper far from every tool and woken by no one is not read at all.
 void Engine::integrate_listed(State& s, StepTally& total) {
-  const std::size_t n = s.size();
   const int T = threads_;
+#pragma omp parallel num_threads(T)
+  integrate_listed_thread(s, total, omp_get_thread_num(), T);
+  total.sleeping += static_cast<std::int64_t>(s.size() - awake_now_->size());
+}
+
+// Thread t's part of integrate_listed (inside a parallel region of T threads; its wake tests
+// are a worksharing loop of the region). In one region per step (step_one_region) a thread
+// comes here from its boundary contacts: the wake tests read no force, and the loop's barrier
+// is where every force of the step is done. Nothing is advanced if a boundary contact overflowed
+// (BoundaryContacts::end() throws after the region, as forces() would have before).
+void Engine::integrate_listed_thread(State& s, StepTally& total, int t, int T) {
+  const std::size_t n = s.size();
   const std::vector<std::int32_t>& A = *awake_now_;
   const std::size_t L = A.size();
   constexpr std::size_t kBlock = Sleepers::kBlock;
@@ -516,33 +621,52 @@ void Engine::integrate_listed(State& s, StepTally& total) {
   const std::uint8_t* const WAKE = sleepers_.wake();
   const Vec3* const X = s.x.data();
   const double* const RAD = s.radius.data();
-#pragma omp parallel num_threads(T)
-  {
-    const int t = omp_get_thread_num();
-    const cosim::Stopwatch busy;
-    StepTally my;
-    Sleepers::ThreadNotes notes;
-    for (const std::int32_t p : sleepers_.woken(t)) notes.woke.push_back(p);
-#pragma omp for schedule(static)
-    for (std::size_t b = 0; b < nb; ++b) {
-      if (sleepers_.block_far(b)) continue;
-      const std::size_t i1 = std::min(n, (b + 1) * kBlock);
-      for (std::size_t i = b * kBlock; i < i1; ++i)
-        if (REST[i] >= S && !WAKE[i] && sleepers_.near(tools_, X[i], RAD[i]))
-          notes.woke.push_back(static_cast<std::int32_t>(i));
-    }
-    // (the barrier of the loop above: no thread changes rest_steps before every test is made)
-    for (const std::int32_t p : notes.woke) s.rest_steps[static_cast<std::size_t>(p)] = 0;
-    integrate_range<true>(s, L * t / T, L * (t + 1) / T, true, false, my, notes, A.data());
-    my.sleeping -= static_cast<std::int64_t>(notes.woke.size());
-    add_busy(section::integration, t, busy.seconds());
-#pragma omp critical(dem_integrate)
-    {
-      total.merge(my);
-      sleepers_.merge(notes, true);
-    }
+  cosim::Stopwatch busy;
+  StepTally my;
+  Sleepers::ThreadNotes notes;
+  for (const std::int32_t p : sleepers_.woken(t)) notes.woke.push_back(p);
+#pragma omp for schedule(static) nowait
+  for (std::size_t b = 0; b < nb; ++b) {
+    if (sleepers_.block_far(b)) continue;
+    const std::size_t i1 = std::min(n, (b + 1) * kBlock);
+    for (std::size_t i = b * kBlock; i < i1; ++i)
+      if (REST[i] >= S && !WAKE[i] && sleepers_.near(tools_, X[i], RAD[i]))
+        notes.woke.push_back(static_cast<std::int32_t>(i));
   }
-  total.sleeping += static_cast<std::int64_t>(n - L);
+  const double tests = busy.seconds();  // the wait at the barrier left out
+  // No thread changes rest_steps before every test is made.
+#pragma omp barrier
+  busy.restart();
+  if (boundary_.overflowed()) {
+    add_busy(section::integration, t, tests);
+    return;
+  }
+  for (const std::int32_t p : notes.woke) s.rest_steps[static_cast<std::size_t>(p)] = 0;
+  integrate_range<true>(s, L * t / T, L * (t + 1) / T, true, false, my, notes, A.data());
+  my.sleeping -= static_cast<std::int64_t>(notes.woke.size());
+  add_busy(section::integration, t, tests + busy.seconds());
+#pragma omp critical(dem_integrate)
+  {
+    total.merge(my);
+    sleepers_.merge(notes, true);
+  }
+}
+
+// Thread t's part of the integration over particles [a0, a1) (inside a parallel region), its
+// tallies merged into total.
+template <bool Sleep>
+void Engine::integrate_walk_thread(State& s, std::size_t a0, std::size_t a1, bool keep,
+                                   bool renote, StepTally& total, int t) {
+  const cosim::Stopwatch busy;
+  StepTally my;
+  Sleepers::ThreadNotes notes;
+  integrate_range<Sleep>(s, a0, a1, keep, renote, my, notes, nullptr);
+  add_busy(section::integration, t, busy.seconds());
+#pragma omp critical(dem_integrate)
+  {
+    total.merge(my);
+    if (Sleep) sleepers_.merge(notes, keep);
+  }
 }
 
 // Particles [a0, a1) of thread t: advanced (the awake ones), their displacements tallied for
@@ -693,6 +817,111 @@ void Engine::integrate_range(State& s, std::size_t a0, std::size_t a1, bool keep
     }
     awake_one(i);
   }
+}
+
+// The step after prepare() in one parallel region (EngineOptions::one_region): the same stages,
+// the same partition of the work and the same sums as pair_forces, BoundaryContacts::forces and
+// integrate, each in its own region, give. What the stages decide before their threads start
+// (the pair blocks, the sleepers' rules and awake list, the chunks of the boundary contacts,
+// the integration's plan) is made first, by this thread: none of it reads what the threads
+// write. In the region: the pair blocks; the boundary chunks (a boundary contact adds to forces
+// the pair blocks of another thread wrote: with the awake list a chunk waits for the blocks of
+// its particles, wait_for_blocks; else a barrier first); then the integration: with the awake
+// list each thread waits for every pair block (the wake tests read the wake flags they set)
+// and goes on to its share of the sleepers' wake tests, whose barrier is also the end of every
+// force (the wake tests read none), else a barrier and the particles of the blocks the thread
+// ran. With the awake list the threads wait for each other at the region's start,
+// the one barrier and its end, where the separate regions had three starts, three ends and a
+// barrier.
+// docs/performance.md, "One parallel region per DEM step".
+template <bool Sleep>
+void Engine::step_one_region(State& s) {
+  const std::size_t n = s.size();
+  const int T = threads_;
+  cosim::Stopwatch watch;
+  force_.resize(n);
+  split_pair_work(s);
+  detail::PairSleep rules;
+  awake_now_ = nullptr;
+  if (Sleep) {
+    rules = sleepers_.pair_rules(s, options_.sleeper_row_skip);
+    if (options_.awake_list) awake_now_ = &sleepers_.awake(s);
+  }
+  const BlockPass pass = begin_pair_blocks(s, pair_rows_of(s), rules);
+  timing_.lap(section::pair_forces, watch);
+  const bool boundary = boundary_.begin(s);
+  const std::uint8_t* const ghost = ghost_ ? ghost_->data() : nullptr;
+  timing_.lap(section::mesh_contacts, watch);
+  const IntegrationPlan plan = begin_integration<Sleep>(s);
+  timing_.lap(section::integration, watch);
+  StepTally total;
+  // With the awake list a thread goes from its pair blocks to the boundary chunks without a
+  // barrier: before a chunk it waits for the pair blocks that write its particles' forces.
+  BoundaryContacts::ChunkWait chunk_wait;
+  chunk_wait.fn = &Engine::wait_for_blocks;
+  chunk_wait.ctx = &pass;
+  const BoundaryContacts::ChunkWait* const wait = plan.listed ? &chunk_wait : nullptr;
+  // The sections' wall times inside the region, from its start: the pair blocks end when the
+  // last thread leaves its walk, the boundary contacts when the last thread leaves its chunks.
+  // With the awake list the two overlap (a thread runs chunks while another still runs pair
+  // blocks): the region's wall time is then shared among the three sections in proportion to
+  // the threads' working seconds in each (thread_busy, waits left out) in this step.
+  region_marks_.assign(2 * static_cast<std::size_t>(T), 0.0);
+  double busy_before[3] = {0, 0, 0};
+  const std::size_t sections[3] = {section::pair_forces, section::mesh_contacts,
+                                   section::integration};
+  for (int q = 0; q < 3; ++q)
+    for (int u = 0; u < T; ++u) busy_before[q] += thread_busy(sections[q], u);
+#pragma omp parallel num_threads(T)
+  {
+    const int t = omp_get_thread_num();
+    pair_blocks_thread<Sleep>(s, pass, t, T);
+    region_marks_[static_cast<std::size_t>(T + t)] = watch.seconds();
+    if (!wait) {
+#pragma omp barrier
+    }
+    if (boundary)
+      boundary_.run(s, tools_, force_.data(), t, T, busy_row(section::mesh_contacts), nullptr,
+                    ghost, wait);
+    region_marks_[static_cast<std::size_t>(t)] = watch.seconds();
+    if (plan.listed) {
+      // The wake tests read the wake flags the pair blocks set: every block done first.
+      if (n > 0) wait_for_blocks(&pass, 0, n - 1);
+      integrate_listed_thread(s, total, t, T);
+    } else {
+      std::size_t split[2];
+      owner_range(pass, T, t, split);
+#pragma omp barrier
+      if (!boundary_.overflowed())
+        integrate_walk_thread<Sleep>(s, split[0], split[1], plan.keep, plan.renote, total, t);
+    }
+  }
+  const double region = watch.lap();
+  double work[3] = {0, 0, 0}, all = 0;
+  for (int q = 0; q < 3; ++q) {
+    for (int u = 0; u < T; ++u) work[q] += thread_busy(sections[q], u);
+    work[q] = std::max(0.0, work[q] - busy_before[q]);
+    all += work[q];
+  }
+  if (wait && all > 0) {
+    for (int q = 0; q < 3; ++q) timing_.add(sections[q], region * work[q] / all);
+  } else {
+    const double pair_end = *std::max_element(region_marks_.begin() + T, region_marks_.end());
+    const double mesh_end =
+        std::max(pair_end, *std::max_element(region_marks_.begin(), region_marks_.begin() + T));
+    timing_.add(section::pair_forces, pair_end);
+    timing_.add(section::mesh_contacts, mesh_end - pair_end);
+    timing_.add(section::integration, region - mesh_end);
+  }
+  split_.resize(static_cast<std::size_t>(T) + 1);
+  owner_split(pass, T, split_.data());
+  if (boundary) boundary_.end(s);  // throws if a particle had too many boundary contacts
+  sum_contact_stats();
+  timing_.lap(section::mesh_contacts, watch);
+  if (plan.listed) total.sleeping += static_cast<std::int64_t>(n - awake_now_->size());
+  end_integration(s, total, plan);
+  ++one_region_steps_;
+  timing_.lap(section::integration, watch);
 }
 
 // After the threads: the state's displacements for the guard, the close pairs' tally, the step

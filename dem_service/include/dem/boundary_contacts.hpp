@@ -31,6 +31,25 @@ class BoundaryContacts {
   // no force, no wrench, no wall force, no stat.
   void forces(State& s, const ToolGeometry& tools, Vec3* force, int T, double* busy,
               Vec3* torque = nullptr, const std::uint8_t* ghost = nullptr);
+  // forces() in three parts, for a caller that runs the threads' part inside a parallel region
+  // of its own (Engine's one region per step): begin() (one thread, before; false: no wall and
+  // no tool, nothing to do), run() (every thread t of the T in the region, each once; a thread
+  // may start while another is still in run()), end() (one thread, after every run(): throws
+  // the SimulationError of a particle with too many contacts, sums the chunks' forces on the
+  // walls and tools). overflowed(): a run() found such a particle (read after every run()).
+  // wait (optional): before a chunk, run() calls wait->fn(wait->ctx, lo, hi) with the lowest and
+  // highest particle of the chunk, which returns once force[lo..hi] is complete (the seconds
+  // waited, left out of busy): a caller whose other threads may still be adding to force.
+  struct ChunkWait {
+    double (*fn)(const void* ctx, std::size_t lo, std::size_t hi) = nullptr;
+    const void* ctx = nullptr;
+  };
+  bool begin(State& s, const Vec3* torque = nullptr);
+  void run(State& s, const ToolGeometry& tools, Vec3* force, int t, int T, double* busy,
+           Vec3* torque = nullptr, const std::uint8_t* ghost = nullptr,
+           const ChunkWait* wait = nullptr);
+  void end(State& s);
+  bool overflowed() const { return overflow_ >= 0; }
 
   const std::vector<Wrench>& tool_wrenches() const { return tool_wrench_; }
   const std::vector<Vec3>& wall_forces() const { return wall_force_; }
@@ -52,6 +71,8 @@ class BoundaryContacts {
   std::vector<Vec3> chunk_wall_force_;     // per chunk and wall
   std::vector<std::int64_t> chunk_claim_;  // the pass in which a chunk was claimed
   std::int64_t chunk_pass_ = 0;
+  std::size_t chunks_ = 0;       // this step's chunk count (0: nothing to do)
+  std::int64_t overflow_ = -1;  // the lowest particle with too many contacts, or -1
   std::vector<ContactStats> thread_stats_;  // per thread
   std::vector<Wrench> tool_wrench_;
   std::vector<Vec3> wall_force_;

@@ -75,6 +75,9 @@ class Engine {
   // Steps at which the guard's bound fired but its far-mover check found the lists still
   // complete, so no broad phase ran (scene.guard: rebuild; docs/dem.md "The guard").
   std::int64_t guard_cleared() const { return guard_.cleared(); }
+  // Steps this engine made in one parallel region (EngineOptions::one_region; the others ran a
+  // region per stage: the rotating model, pair_schedule ranges, or the option off).
+  std::int64_t one_region_steps() const { return one_region_steps_; }
   // Close pairs (EngineOptions::close_margin): how often they were listed, and the share of the half
   // list's candidates the last listing kept (0 if never listed).
   std::int64_t close_builds() const { return close_.builds(); }
@@ -107,6 +110,19 @@ class Engine {
   detail::PairRows pair_rows_of(State& s);
   template <bool Sleep>
   void pair_forces_blocks(State& s, const detail::PairRows& rows, const detail::PairSleep& rules);
+  // The pair blocks in parts: the pass (one thread, before), each thread's blocks (inside a
+  // region), and the integration's ranges from the blocks' owners (all, or thread t's).
+  struct BlockPass;
+  BlockPass begin_pair_blocks(State& s, const detail::PairRows& rows, const detail::PairSleep& rules);
+  template <bool Sleep>
+  void pair_blocks_thread(State& s, const BlockPass& pass, int t, int T);
+  void owner_split(const BlockPass& pass, int T, std::size_t* out) const;
+  void owner_range(const BlockPass& pass, int T, int t, std::size_t* out) const;
+  // BoundaryContacts::ChunkWait's function (ctx: the BlockPass).
+  static double wait_for_blocks(const void* ctx, std::size_t lo, std::size_t hi);
+  // The step after prepare() in one parallel region (EngineOptions::one_region).
+  template <bool Sleep>
+  void step_one_region(State& s);
   template <bool Sleep>
   void pair_forces_ranges(State& s, const detail::PairRows& rows, const detail::PairSleep& rules);
   template <bool Sleep>
@@ -115,9 +131,17 @@ class Engine {
   // Integration: semi-implicit Euler of the awake particles, sleeping rules, and the tallies
   // the guard and close pairs read at the next step.
   struct StepTally;
+  struct IntegrationPlan;
   void integrate(State& s);
   template <bool Sleep>
   void integrate_impl(State& s);
+  template <bool Sleep>
+  IntegrationPlan begin_integration(State& s);  // before the threads
+  void end_integration(State& s, StepTally& total, const IntegrationPlan& plan);  // after
+  template <bool Sleep>
+  void integrate_walk_thread(State& s, std::size_t a0, std::size_t a1, bool keep, bool renote,
+                             StepTally& total, int t);
+  void integrate_listed_thread(State& s, StepTally& total, int t, int T);
   template <bool Sleep>
   void integrate_range(State& s, std::size_t a0, std::size_t a1, bool keep, bool renote,
                        StepTally& my, Sleepers::ThreadNotes& notes, const std::int32_t* list);
@@ -150,6 +174,9 @@ class Engine {
   std::vector<std::size_t> bounds_;  // particle ranges of the threads in pair_forces
   std::vector<std::size_t> split_;   // and the ranges the integration gives them (T + 1)
   std::vector<ContactStats> thread_stats_;  // per thread, pair forces
+  std::int64_t one_region_steps_ = 0;
+  // step_one_region: when each thread left its boundary chunks, then its pair blocks (2 T).
+  std::vector<double> region_marks_;
   // thread_busy(): section * max_threads_ + t, for the three sections with parallel loops.
   std::vector<double> busy_;
   ContactStats stats_;

@@ -59,6 +59,13 @@ struct EngineOptions {
   // walking the whole bed. Always on in the apps; off only for the tests that hold it to the
   // walk over every particle (dem_Sleep.AwakeListChangesNoBit).
   bool awake_list = true;
+  // A step in one OpenMP parallel region (pair forces, boundary contacts and integration, with
+  // waits and barriers between them) instead of one region per stage: fewer waits for threads to
+  // wake (docs/performance.md, "One parallel region per DEM step"). Taken with pair_schedule
+  // blocks and the translating model; the broad phase keeps its own regions. Always on in the
+  // apps; off only for the tests that hold it to the regions per stage
+  // (dem_OneRegion.*).
+  bool one_region = true;
 
   // The apps' spelling, from the environment: DEM_PAIR_KERNEL (vector | scalar) and
   // DEM_PAIR_CHUNKS (branch-free | branching); unset: the defaults. Throws std::invalid_argument

@@ -1,0 +1,254 @@
+// One parallel region per DEM step (EngineOptions::one_region, docs/performance.md "One parallel
+// region per DEM step"): the pair blocks, the boundary contacts and the integration run in one
+// OpenMP region instead of a region each (a boundary chunk waits for the pair blocks of its
+// particles, or all wait at a barrier; a barrier before the integration). The work is split as
+// before and every sum runs in the same order, so a run is the same bits as with a region per
+// stage, on 1 and 2 threads, with and without sleepers, with the sleepers' awake list or the
+// walk over every particle (close pairs), with a moving tool, and through a checkpoint; and a
+// particle with too many boundary contacts stops the step before anything is advanced, as before.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <random>
+#include <string>
+
+#include "dem/checkpoint.hpp"
+#include "dem_test_util.hpp"
+
+namespace {
+
+using demtest::Vec3;
+
+// A polydisperse lattice of 3000 grains (21 layers of 12 x 12) with gaps inside the skin,
+// creeping at up to 4 mm/s, one grain in 25 thrown through it at 0.5 m/s, on a floor, with a
+// plate pushed into its side (x = 27 mm to 21 mm over the run): contacts begin and end, grains
+// reach the floor and the plate, fall asleep and are woken by the thrown ones and the plate.
+constexpr int kGrains = 3000;
+constexpr int kSteps = 400;
+constexpr double kDt = 2e-5;
+
+dem::Scene lattice_scene(int threads, bool sleep) {
+  dem::Scene scene = demtest::one_species_scene(0.8e-3, 1.2e-3);
+  scene.threads = threads;
+  scene.broad_phase_interval = 1 << 30;  // when needed
+  scene.particle_particle = scene.particle_wall = demtest::law_n_per_m(500, 0.3, true, 0.5);
+  scene.dt = kDt;
+  scene.gravity = {0, 0, -9.81};
+  dem::Wall floor;
+  floor.name = "floor";
+  floor.point = {0, 0, -1.5e-3};
+  floor.normal = {0, 0, 1};
+  scene.walls.push_back(floor);
+  std::vector<Vec3> corners;
+  demtest::quad(corners, {0, -0.005, -0.002}, {0, 0.03, -0.002}, {0, 0.03, 0.1}, {0, -0.005, 0.1});
+  dem::Tool plate = demtest::static_tool("plate", corners);
+  plate.motion.keyframes = {{0, {0.027, 0, 0}, {1, 0, 0, 0}},
+                            {kSteps * kDt, {0.021, 0, 0}, {1, 0, 0, 0}}};
+  dem::validate_keyframes(plate.motion.keyframes, "test");
+  scene.tools.push_back(plate);
+  if (sleep) {
+    scene.sleep.enabled = true;
+    scene.sleep.speed = 2e-2;  // the creeping grains fall asleep, the thrown ones wake them
+    scene.sleep.steps = 20;
+    scene.sleep.neighbourhood = dem::SleepNeighbourhood::box;
+    scene.sleep.tool_distance = 1e-3;  // the plate wakes the grains it comes near
+  }
+  return scene;
+}
+
+dem::State lattice_state() {
+  dem::State st;
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> U01(0, 1);
+  const double pitch = 2.3e-3;
+  for (int k = 0; k < kGrains; ++k) {
+    const double r = 0.8e-3 + 0.4e-3 * U01(rng);
+    Vec3 v{U01(rng) - 0.5, U01(rng) - 0.5, U01(rng) - 0.5};
+    v = (4e-3 * U01(rng) / std::max(1e-9, dem::norm(v))) * v;
+    if (k % 25 == 0) v = {0.5, 0.1 * (U01(rng) - 0.5), -0.2};
+    demtest::add(st, {pitch * (k % 12), pitch * ((k / 12) % 12), pitch * (k / 144)}, v, r);
+  }
+  st.tool_pose.resize(1);
+  return st;
+}
+
+dem::EngineOptions options(bool one_region, double close_margin = 0.0) {
+  dem::EngineOptions o;
+  o.min_particles_per_thread = 100;  // every thread asked for
+  o.one_region = one_region;
+  o.close_margin = close_margin;
+  return o;
+}
+
+bool same_bits(const Vec3& a, const Vec3& b) { return std::memcmp(&a, &b, sizeof a) == 0; }
+
+// What a run gives, step by step.
+struct RegionRun {
+  dem::State state;
+  std::vector<dem::Wrench> plate;  // the tool's wrench
+  std::vector<Vec3> floor;         // the floor's force
+  std::vector<std::int64_t> sleeping, contacts;
+  std::int64_t one_region_steps = 0, woke = 0, fell = 0;
+};
+
+void step_and_record(const dem::Scene& scene, dem::Engine& e, RegionRun& r) {
+  r.state.tool_pose[0] = scene.tools[0].motion.evaluate(r.state.step * scene.dt);
+  e.step(r.state);
+  r.plate.push_back(e.tool_wrenches()[0]);
+  r.floor.push_back(e.wall_forces()[0]);
+  r.sleeping.push_back(e.sleeping());
+  r.contacts.push_back(e.contact_stats().particle_contacts + e.contact_stats().boundary_contacts);
+}
+
+RegionRun run(const dem::Scene& scene, const dem::EngineOptions& o) {
+  RegionRun r;
+  r.state = lattice_state();
+  dem::Engine e(scene, o);
+  for (int k = 0; k < kSteps; ++k) step_and_record(scene, e, r);
+  r.one_region_steps = e.one_region_steps();
+  r.woke = e.woke_total();
+  r.fell = e.fell_asleep_total();
+  return r;
+}
+
+// The first step whose recorded outputs differ, or -1.
+int first_difference(const RegionRun& a, const RegionRun& b) {
+  if (a.plate.size() != b.plate.size()) return 0;
+  for (std::size_t k = 0; k < a.plate.size(); ++k)
+    if (!same_bits(a.plate[k].force, b.plate[k].force) ||
+        !same_bits(a.plate[k].torque, b.plate[k].torque) || !same_bits(a.floor[k], b.floor[k]) ||
+        a.sleeping[k] != b.sleeping[k] || a.contacts[k] != b.contacts[k])
+      return static_cast<int>(k);
+  return -1;
+}
+
+// One region against a region per stage, on 1 and 2 threads: all awake (the walk over every
+// particle), sleeping (the awake list's integration), and sleeping with close pairs (the walk
+// over every particle with the sleeping rules).
+TEST(dem_OneRegion, SameBitsAsARegionPerStage) {
+  struct Case {
+    const char* name;
+    bool sleep;
+    double close_margin;
+  };
+  for (const Case c : {Case{"all awake", false, 0.0}, Case{"sleeping", true, 0.0},
+                       Case{"sleeping, close pairs", true, 0.1}}) {
+    for (const int threads : {1, 2}) {
+      dem::Scene scene = lattice_scene(threads, c.sleep);
+      scene.sleep.close_pairs = c.close_margin > 0;
+      const RegionRun stages = run(scene, options(false, c.close_margin));
+      const RegionRun one = run(scene, options(true, c.close_margin));
+      const std::string what = std::string(c.name) + ", " + std::to_string(threads) + " threads";
+      EXPECT_EQ(stages.one_region_steps, 0) << what;
+      EXPECT_EQ(one.one_region_steps, kSteps) << what;
+      EXPECT_EQ(dem::differing_arrays(stages.state, one.state), "") << what;
+      EXPECT_EQ(first_difference(stages, one), -1) << what;
+      EXPECT_EQ(one.woke, stages.woke) << what;
+      EXPECT_EQ(one.fell, stages.fell) << what;
+      // The run means something: contacts with the plate and the floor, and with sleeping,
+      // sleepers beside awake grains for most of it, woken and falling asleep.
+      EXPECT_GT(std::abs(one.plate.back().force.x), 0.0) << what;
+      EXPECT_GT(std::abs(one.floor.back().z), 0.0) << what;
+      if (c.sleep) {
+        std::int64_t mixed = 0;
+        for (const std::int64_t n : one.sleeping) mixed += n > 0 && n < kGrains;
+        EXPECT_GT(mixed, kSteps / 2) << what;
+        EXPECT_GT(one.woke, 100) << what;
+        EXPECT_GT(one.fell, 1000) << what;
+        std::printf("%s: %lld steps with sleepers beside awake grains, woke %lld, fell asleep "
+                    "%lld, %lld broad phases\n",
+                    what.c_str(), static_cast<long long>(mixed), static_cast<long long>(one.woke),
+                    static_cast<long long>(one.fell), static_cast<long long>(one.state.rebuilds));
+      }
+    }
+  }
+}
+
+// Two threads in one region against one thread, through a checkpoint: the 2-thread run is saved
+// half way and continued by a fresh engine from the file; every step's wrench, floor force and
+// sleeper count, and the final state, are the 1-thread run's bits.
+TEST(dem_OneRegion, TwoThreadsThroughACheckpointGiveTheBitsOfOne) {
+  for (const bool sleep : {false, true}) {
+    const std::string what = sleep ? "sleeping" : "all awake";
+    const dem::Scene one_scene = lattice_scene(1, sleep);
+    const dem::Scene two_scene = lattice_scene(2, sleep);
+    const RegionRun one = run(one_scene, options(true));
+    RegionRun two;
+    two.state = lattice_state();
+    {
+      dem::Engine e(two_scene, options(true));
+      for (int k = 0; k < kSteps / 2 + 3; ++k) step_and_record(two_scene, e, two);
+      ASSERT_EQ(e.threads(), 2) << what;
+      EXPECT_EQ(e.one_region_steps(), kSteps / 2 + 3) << what;
+    }
+    const std::string file = (std::filesystem::temp_directory_path() /
+                              ("dem_one_region_" + std::to_string(sleep) + ".h5"))
+                                 .string();
+    dem::save_checkpoint(two.state, file);
+    two.state = dem::load_checkpoint(file);
+    std::filesystem::remove(file);
+    dem::Engine e(two_scene, options(true));  // a fresh engine: nothing kept in its workspace
+    while (two.plate.size() < static_cast<std::size_t>(kSteps)) step_and_record(two_scene, e, two);
+    EXPECT_EQ(dem::differing_arrays(one.state, two.state), "") << what;
+    EXPECT_EQ(first_difference(one, two), -1) << what;
+    if (sleep) {
+      EXPECT_GT(*std::max_element(one.sleeping.begin(), one.sleeping.end()), 500) << what;
+    }
+  }
+}
+
+// A particle touching more walls than it has boundary slots (kBoundarySlots) stops the step with
+// the error that names it, before the integration: in one region as with a region per stage,
+// no particle has moved when it is thrown, on 1 and 2 threads.
+TEST(dem_OneRegion, TooManyBoundaryContactsStopTheStepBeforeAnythingMoves) {
+  for (const int threads : {1, 2}) {
+    for (const bool one_region : {false, true}) {
+      dem::Scene scene = demtest::one_species_scene(0.01, 0.01);
+      scene.threads = threads;
+      scene.particle_particle = scene.particle_wall = demtest::law_n_per_m(1e3, 0.5, true);
+      scene.dt = 1e-4;
+      scene.gravity = {0, 0, -9.81};
+      dem::State st;
+      // Two particles near the origin inside 9 planes 5 mm from it (a cage of more walls than
+      // kBoundarySlots), each on a thread of its own.
+      demtest::add(st, {0, 0, 0}, {0.1, 0, 0}, 0.01);
+      demtest::add(st, {0.001, 0, 0}, {0, 0.1, 0}, 0.01);
+      for (int w = 0; w < 9; ++w) {
+        const double a = 2 * M_PI * w / 9;
+        const Vec3 n{std::cos(a), std::sin(a), w % 2 ? 0.3 : -0.3};
+        dem::Wall wall;
+        wall.name = "w" + std::to_string(w);
+        wall.normal = (1 / dem::norm(n)) * n;
+        wall.point = -0.005 * wall.normal;
+        scene.walls.push_back(wall);
+      }
+      static_assert(dem::kBoundarySlots < 9, "the cage must hold more walls than slots");
+      dem::EngineOptions o = options(one_region);
+      o.min_particles_per_thread = 1;
+      dem::Engine e(scene, o);
+      e.prepare(st);
+      const std::vector<Vec3> x = st.x, v = st.v;
+      const std::int64_t step = st.step;
+      std::string message;
+      try {
+        e.step(st);
+      } catch (const dem::SimulationError& err) {
+        message = err.what();
+      }
+      const std::string what = std::to_string(threads) + " threads, " +
+                               (one_region ? "one region" : "a region per stage");
+      EXPECT_NE(message.find("particle id "), std::string::npos) << what << ": " << message;
+      EXPECT_NE(message.find("touches more than 8 walls"), std::string::npos) << what << ": " << message;
+      EXPECT_EQ(e.threads(), threads) << what;
+      EXPECT_EQ(st.step, step) << what;
+      EXPECT_EQ(std::memcmp(x.data(), st.x.data(), x.size() * sizeof(Vec3)), 0) << what;
+      EXPECT_EQ(std::memcmp(v.data(), st.v.data(), v.size() * sizeof(Vec3)), 0) << what;
+    }
+  }
+}
+
+}  // namespace
