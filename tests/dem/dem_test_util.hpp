@@ -1,6 +1,7 @@
 // Small builders shared by the DEM tests: programmatic scenes without YAML.
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 #include <vector>
@@ -79,6 +80,25 @@ inline void add_jittered_block(dem::State& st, double r, unsigned seed) {
         add(st, {(ix - 2) * h + 0.1 * r * U(rng), (iy - 2) * h + 0.1 * r * U(rng),
                  r + 0.001 + iz * h},
             {}, r * (0.8 + 0.2 * U(rng)));
+}
+
+// `count` grains of radius 0.8-1.2 mm on a 12 x 12 lattice of pitch 2.3 mm, each with a random
+// creep below 4 mm/s and every 25th thrown at 0.5 m/s along x and down: the scene of the pair-block
+// and one-region tests (seed 11).
+inline dem::State thrown_lattice(int count, unsigned seed = 11) {
+  dem::State st;
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> U01(0, 1);
+  const double pitch = 2.3e-3;
+  for (int k = 0; k < count; ++k) {
+    const double r = 0.8e-3 + 0.4e-3 * U01(rng);
+    Vec3 v{U01(rng) - 0.5, U01(rng) - 0.5, U01(rng) - 0.5};
+    v = (4e-3 * U01(rng) / std::max(1e-9, dem::norm(v))) * v;
+    if (k % 25 == 0) v = {0.5, 0.1 * (U01(rng) - 0.5), -0.2};
+    add(st, {pitch * (k % 12), pitch * ((k / 12) % 12), pitch * (k / 144)}, v, r);
+  }
+  st.tool_pose.resize(1);
+  return st;
 }
 
 inline std::size_t index_of(const dem::State& st, std::int64_t id) {

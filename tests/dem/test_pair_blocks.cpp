@@ -50,21 +50,7 @@ dem::Scene blocks_scene(int threads) {
   return scene;
 }
 
-dem::State blocks_state() {
-  dem::State st;
-  std::mt19937_64 rng(11);
-  std::uniform_real_distribution<double> U01(0, 1);
-  const double pitch = 2.3e-3;
-  for (int k = 0; k < 6000; ++k) {
-    const double r = 0.8e-3 + 0.4e-3 * U01(rng);
-    Vec3 v{U01(rng) - 0.5, U01(rng) - 0.5, U01(rng) - 0.5};
-    v = (4e-3 * U01(rng) / std::max(1e-9, dem::norm(v))) * v;
-    if (k % 25 == 0) v = {0.5, 0.1 * (U01(rng) - 0.5), -0.2};
-    demtest::add(st, {pitch * (k % 12), pitch * ((k / 12) % 12), pitch * (k / 144)}, v, r);
-  }
-  st.tool_pose.resize(1);
-  return st;
-}
+dem::State blocks_state() { return demtest::thrown_lattice(6000); }
 
 bool same_bits(const Vec3& a, const Vec3& b) { return std::memcmp(&a, &b, sizeof a) == 0; }
 
