@@ -82,6 +82,24 @@ inline void add_jittered_block(dem::State& st, double r, unsigned seed) {
             {}, r * (0.8 + 0.2 * U(rng)));
 }
 
+// The scene thrown_lattice() runs in: one species (r 0.8-1.2 mm), broad phase when needed, one
+// frictional law (500 N/m, e 0.3, mu 0.5) for pairs and walls, dt 2e-5 s, gravity, a floor at
+// z = -1.5 mm. The tests add their own plate.
+inline dem::Scene thrown_lattice_scene(int threads) {
+  dem::Scene scene = one_species_scene(0.8e-3, 1.2e-3);
+  scene.threads = threads;
+  scene.broad_phase_interval = 1 << 30;  // when needed
+  scene.particle_particle = scene.particle_wall = law_n_per_m(500, 0.3, true, 0.5);
+  scene.dt = 2e-5;
+  scene.gravity = {0, 0, -9.81};
+  dem::Wall floor;
+  floor.name = "floor";
+  floor.point = {0, 0, -1.5e-3};
+  floor.normal = {0, 0, 1};
+  scene.walls.push_back(floor);
+  return scene;
+}
+
 // `count` grains of radius 0.8-1.2 mm on a 12 x 12 lattice of pitch 2.3 mm, each with a random
 // creep below 4 mm/s and every 25th thrown at 0.5 m/s along x and down: the scene of the pair-block
 // and one-region tests (seed 11).

@@ -29,20 +29,10 @@ using demtest::Vec3;
 // reach the floor and the plate, fall asleep and are woken by the thrown ones and the plate.
 constexpr int kGrains = 3000;
 constexpr int kSteps = 400;
-constexpr double kDt = 2e-5;
+constexpr double kDt = 2e-5;  // the dt of demtest::thrown_lattice_scene
 
 dem::Scene lattice_scene(int threads, bool sleep) {
-  dem::Scene scene = demtest::one_species_scene(0.8e-3, 1.2e-3);
-  scene.threads = threads;
-  scene.broad_phase_interval = 1 << 30;  // when needed
-  scene.particle_particle = scene.particle_wall = demtest::law_n_per_m(500, 0.3, true, 0.5);
-  scene.dt = kDt;
-  scene.gravity = {0, 0, -9.81};
-  dem::Wall floor;
-  floor.name = "floor";
-  floor.point = {0, 0, -1.5e-3};
-  floor.normal = {0, 0, 1};
-  scene.walls.push_back(floor);
+  dem::Scene scene = demtest::thrown_lattice_scene(threads);
   std::vector<Vec3> corners;
   demtest::quad(corners, {0, -0.005, -0.002}, {0, 0.03, -0.002}, {0, 0.03, 0.1}, {0, -0.005, 0.1});
   dem::Tool plate = demtest::static_tool("plate", corners);

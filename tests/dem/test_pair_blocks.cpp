@@ -31,17 +31,7 @@ dem::EngineOptions blocks_options(double close_margin = 0.0) {
 }
 
 dem::Scene blocks_scene(int threads) {
-  dem::Scene scene = demtest::one_species_scene(0.8e-3, 1.2e-3);
-  scene.threads = threads;
-  scene.broad_phase_interval = 1 << 30;  // when needed
-  scene.particle_particle = scene.particle_wall = demtest::law_n_per_m(500, 0.3, true, 0.5);
-  scene.dt = 2e-5;
-  scene.gravity = {0, 0, -9.81};
-  dem::Wall floor;
-  floor.name = "floor";
-  floor.point = {0, 0, -1.5e-3};
-  floor.normal = {0, 0, 1};
-  scene.walls.push_back(floor);
+  dem::Scene scene = demtest::thrown_lattice_scene(threads);
   // A plate across the thrown grains' path (x = 27 mm), reached after about 200 steps.
   std::vector<Vec3> corners;
   demtest::quad(corners, {0.027, -0.005, -0.002}, {0.027, 0.03, -0.002}, {0.027, 0.03, 0.1},
