@@ -480,3 +480,76 @@ TEST(dem_BroadPhase, RunIsBitIdenticalWithScalarAndVectorRowTest) {
     EXPECT_GT(moved, 0.5 * a.size());
   }
 }
+
+// The history carried over by copying the rows that kept their particle and partners gives the
+// same bits as looking every held spring up in its new row (EngineOptions::history_same_rows):
+// a slow bed rebuilt every 5 steps, where most rows keep their partners and some particles
+// change cells, on 1 and 2 threads, through a checkpoint with a new engine, translating and
+// rotating (whose rolling springs go with the tangential ones).
+TEST(dem_BroadPhase, RunIsBitIdenticalWithHistoryCopiedOrLookedUp) {
+  auto run = [](bool same_rows, int threads, bool rotating, bool through_checkpoint,
+                std::int64_t* copied, std::int64_t* looked_up) {
+    dem::EngineOptions options = kEveryThread;
+    options.history_same_rows = same_rows;
+    auto [scene, st] = random_scene(5, 0.4, 29, 0.05);
+    scene.threads = threads;
+    scene.gravity = {0, 0, -9.81};
+    if (rotating) {
+      scene.rotation.model = dem::ParticleModel::rotating;
+      scene.rotation.rolling.kind = dem::RollingResistance::Kind::epsd;
+      scene.rotation.rolling.friction = 0.1;
+    }
+    auto engine = std::make_unique<dem::Engine>(scene, options);
+    *copied = *looked_up = 0;
+    for (int k = 0; k < 1000; ++k) {
+      if (through_checkpoint && k == 500) {
+        *copied += engine->broad_phase().history_rows_copied();
+        *looked_up += engine->broad_phase().history_rows_looked_up();
+        const std::string file = (std::filesystem::temp_directory_path() /
+                                  ("dem_history_rows_" + std::to_string(::getpid()) + ".h5"))
+                                     .string();
+        dem::save_checkpoint(st, file);
+        st = dem::load_checkpoint(file);
+        std::filesystem::remove(file);
+        engine = std::make_unique<dem::Engine>(scene, options);
+      }
+      st.tool_pose[0] = scene.tools[0].motion.evaluate(st.step * scene.dt);
+      engine->step(st);
+    }
+    *copied += engine->broad_phase().history_rows_copied();
+    *looked_up += engine->broad_phase().history_rows_looked_up();
+    return st;
+  };
+  auto same_bits = [](const std::vector<dem::Vec3>& p, const std::vector<dem::Vec3>& q) {
+    return p.size() == q.size() && std::memcmp(p.data(), q.data(), p.size() * sizeof(dem::Vec3)) == 0;
+  };
+  auto [scene0, st0] = random_scene(5, 0.4, 29, 0.05);
+  for (const bool rotating : {false, true})
+    for (int threads : {1, 2}) {
+      SCOPED_TRACE(std::string(rotating ? "rotating" : "translating") + ", threads " +
+                   std::to_string(threads));
+      std::int64_t copied_a, looked_a, copied_b, looked_b;
+      const State a = run(true, threads, rotating, true, &copied_a, &looked_a);
+      const State b = run(false, threads, rotating, false, &copied_b, &looked_b);
+      ASSERT_EQ(a.size(), b.size());
+      ASSERT_GE(a.rebuilds, 190);
+      // Both ways of carrying ran: rows copied and rows looked up (partners changed).
+      EXPECT_GT(copied_a, 10 * looked_a / 100) << looked_a;
+      EXPECT_GT(looked_a, 100) << copied_a;
+      EXPECT_EQ(copied_b, 0);
+      std::size_t held = 0;
+      for (const dem::Vec3& sp : a.pair_spring) held += dem::nonzero(sp);
+      EXPECT_GT(held, 20u);  // there was history to carry
+      EXPECT_TRUE(same_bits(a.x, b.x));
+      EXPECT_TRUE(same_bits(a.v, b.v));
+      EXPECT_TRUE(same_bits(a.pair_spring, b.pair_spring));
+      EXPECT_EQ(a.pair_j, b.pair_j);
+      if (rotating) {
+        EXPECT_TRUE(same_bits(a.w, b.w));
+        EXPECT_TRUE(same_bits(a.pair_roll, b.pair_roll));
+      }
+      double moved = 0;
+      for (std::size_t i = 0; i < a.size(); ++i) moved += dem::norm(a.x[i] - st0.x[i]) > 0;
+      EXPECT_GT(moved, 0.5 * a.size());
+    }
+}

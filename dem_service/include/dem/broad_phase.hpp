@@ -77,6 +77,13 @@ class BroadPhase {
   // Which distance test the pair list uses: the vector one where available (the default) or the
   // scalar one everywhere (EngineOptions::vector_row_test; the same lists).
   void use_vector_row_test(bool vector);
+  // How the history is carried over: rows whose new row lists the same partners (renumbered or
+  // not) copy their springs in place (the default), or every held spring is looked up in its
+  // new row (EngineOptions::history_same_rows; the same springs).
+  void use_history_same_rows(bool same_rows);
+  // Rows of the old lists whose history was copied in place / looked up, over all builds.
+  std::int64_t history_rows_copied() const { return rows_copied_; }
+  std::int64_t history_rows_looked_up() const { return rows_looked_up_; }
 
   // Wall-clock seconds per stage of build(), summed over all builds.
   const cosim::Timer& stages() const { return stages_; }
@@ -153,6 +160,8 @@ class BroadPhase {
   std::vector<std::int32_t> tri_count_;
   int threads_ = 1;
   bool vector_row_test_ = true;
+  bool history_same_rows_ = true;
+  std::int64_t rows_copied_ = 0, rows_looked_up_ = 0;
 
   // a[p0..p1) = a[order_[p]] for p in [p0, p1): the window of the order that changed.
   template <class T>

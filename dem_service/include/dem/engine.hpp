@@ -89,6 +89,7 @@ class Engine {
   // The broad phase's own stages (grid, sort, permute, ...): where section broad_phase goes.
   const cosim::Timer& broad_phase_stages() const { return broad_.stages(); }
   cosim::Timer& broad_phase_stages() { return broad_.stages(); }
+  const BroadPhase& broad_phase() const { return broad_; }
 
   // For tests and diagnostics: contacts with positive overlap found through the candidate
   // lists at the current positions (particle ids, i < j) and mesh contacts after feature

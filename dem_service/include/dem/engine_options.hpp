@@ -46,6 +46,10 @@ struct EngineOptions {
   // The broad phase's distance test: 8 candidates at a time with AVX-512 where the processor
   // has it, or the scalar test everywhere. Kept: the broad-phase test compares whole runs.
   bool vector_row_test = true;
+  // The broad phase's history: a row whose new row lists the same partners copies its springs
+  // in place; off, every held spring is looked up in its new row. Kept: the broad-phase test
+  // compares whole runs both ways (dem_BroadPhase.RunIsBitIdenticalWithHistoryCopiedOrLookedUp).
+  bool history_same_rows = true;
   // Sleeping's shortcuts: the pair loop reads a sleeper's row only when it holds an awake
   // partner, and the integration skips the tool test for a block of 64 sleepers beyond every
   // tool's neighbourhood. Settled (always on in the apps); kept as switches only for the tests
