@@ -69,6 +69,30 @@ std::pair<dem::Scene, State> random_scene(int n_interval, double skin, unsigned 
   return {scene, st};
 }
 
+// Steps st `steps` times with the tool on its motion. At step `checkpoint_at` (-1: never) the
+// state goes through a checkpoint file (named from `tag`) and a new engine takes over;
+// done(engine) is called for each engine when it is dropped (at the checkpoint and at the end).
+template <class Done>
+void run_with_tool(const dem::Scene& scene, const dem::EngineOptions& options, State& st,
+                   int steps, int checkpoint_at, const std::string& tag, Done&& done) {
+  auto engine = std::make_unique<dem::Engine>(scene, options);
+  for (int k = 0; k < steps; ++k) {
+    if (k == checkpoint_at) {
+      done(*engine);
+      const std::string file = (std::filesystem::temp_directory_path() /
+                                (tag + std::to_string(::getpid()) + ".h5"))
+                                   .string();
+      dem::save_checkpoint(st, file);
+      st = dem::load_checkpoint(file);
+      std::filesystem::remove(file);
+      engine = std::make_unique<dem::Engine>(scene, options);
+    }
+    st.tool_pose[0] = scene.tools[0].motion.evaluate(st.step * scene.dt);
+    engine->step(st);
+  }
+  done(*engine);
+}
+
 std::vector<std::pair<std::int64_t, std::int64_t>> brute_pairs(const State& s) {
   std::vector<std::pair<std::int64_t, std::int64_t>> out;
   for (std::size_t i = 0; i < s.size(); ++i)
@@ -444,20 +468,8 @@ TEST(dem_BroadPhase, RunIsBitIdenticalWithScalarAndVectorRowTest) {
     options.vector_row_test = vector;
     auto [scene, st] = random_scene(5, 0.4, 23, 0.3);
     scene.threads = threads;
-    auto engine = std::make_unique<dem::Engine>(scene, options);
-    for (int k = 0; k < 800; ++k) {
-      if (through_checkpoint && k == 400) {
-        const std::string file = (std::filesystem::temp_directory_path() /
-                                  ("dem_row_test_" + std::to_string(::getpid()) + ".h5"))
-                                     .string();
-        dem::save_checkpoint(st, file);
-        st = dem::load_checkpoint(file);
-        std::filesystem::remove(file);
-        engine = std::make_unique<dem::Engine>(scene, options);
-      }
-      st.tool_pose[0] = scene.tools[0].motion.evaluate(st.step * scene.dt);
-      engine->step(st);
-    }
+    run_with_tool(scene, options, st, 800, through_checkpoint ? 400 : -1, "dem_row_test_",
+                  [](const dem::Engine&) {});
     return st;
   };
   auto same_bits = [](const std::vector<dem::Vec3>& p, const std::vector<dem::Vec3>& q) {
@@ -499,25 +511,12 @@ TEST(dem_BroadPhase, RunIsBitIdenticalWithHistoryCopiedOrLookedUp) {
       scene.rotation.rolling.kind = dem::RollingResistance::Kind::epsd;
       scene.rotation.rolling.friction = 0.1;
     }
-    auto engine = std::make_unique<dem::Engine>(scene, options);
     *copied = *looked_up = 0;
-    for (int k = 0; k < 1000; ++k) {
-      if (through_checkpoint && k == 500) {
-        *copied += engine->broad_phase().history_rows_copied();
-        *looked_up += engine->broad_phase().history_rows_looked_up();
-        const std::string file = (std::filesystem::temp_directory_path() /
-                                  ("dem_history_rows_" + std::to_string(::getpid()) + ".h5"))
-                                     .string();
-        dem::save_checkpoint(st, file);
-        st = dem::load_checkpoint(file);
-        std::filesystem::remove(file);
-        engine = std::make_unique<dem::Engine>(scene, options);
-      }
-      st.tool_pose[0] = scene.tools[0].motion.evaluate(st.step * scene.dt);
-      engine->step(st);
-    }
-    *copied += engine->broad_phase().history_rows_copied();
-    *looked_up += engine->broad_phase().history_rows_looked_up();
+    run_with_tool(scene, options, st, 1000, through_checkpoint ? 500 : -1, "dem_history_rows_",
+                  [&](const dem::Engine& engine) {
+                    *copied += engine.broad_phase().history_rows_copied();
+                    *looked_up += engine.broad_phase().history_rows_looked_up();
+                  });
     return st;
   };
   auto same_bits = [](const std::vector<dem::Vec3>& p, const std::vector<dem::Vec3>& q) {
