@@ -11,7 +11,8 @@
 //                       [--b ...] [--steps 1000] [--block 50]
 //
 // Besides config keys, --a and --b take the engine switches engine.awake_list=true|false (the
-// sleepers' awake list, EngineOptions::awake_list) and engine.one_region=true|false (a step in
+// sleepers' awake list, EngineOptions::awake_list), engine.pair_passes=auto|one|two (the pair
+// stream in one pass or two, EngineOptions::pair_passes) and engine.one_region=true|false (a step in
 // one parallel region, EngineOptions::one_region). Beside the wall time of the blocks, the
 // process's CPU seconds (every thread's) and its voluntary context switches (threads going to
 // sleep) during each variant's blocks are printed.
@@ -145,8 +146,17 @@ int main(int argc, char** argv) {
             x.options.one_region = s == "engine.one_region=true";
             continue;
           }
+          if (s == "engine.pair_passes=one" || s == "engine.pair_passes=two" ||
+              s == "engine.pair_passes=auto") {
+            using PP = dem::EngineOptions::PairPasses;
+            x.options.pair_passes = s == "engine.pair_passes=one"   ? PP::one
+                                    : s == "engine.pair_passes=two" ? PP::two
+                                                                    : PP::automatic;
+            continue;
+          }
           std::fprintf(stderr, "engine_ab: unknown engine switch '%s' (known: "
-                               "engine.awake_list=true|false, engine.one_region=true|false)\n",
+                               "engine.awake_list=true|false, engine.one_region=true|false, "
+                               "engine.pair_passes=auto|one|two)\n",
                        s.c_str());
           return 2;
         }

@@ -372,6 +372,7 @@ int main(int argc, char** argv) {
                    kernel.c_str());
       return 2;
     }
+    g_engine_options = dem::EngineOptions::from_environment();  // DEM_PAIR_PASSES, DEM_PAIR_CHUNKS
     g_engine_options.pair_kernel = kernel == "vector" ? dem::EngineOptions::PairKernel::vector
                                                       : dem::EngineOptions::PairKernel::scalar;
     // How idle OpenMP threads wait, as dem_run and dem_service do (scene.thread_wait; may

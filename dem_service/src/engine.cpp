@@ -294,6 +294,9 @@ detail::PairRows Engine::pair_rows_of(State& s) {
       options_.pair_chunks == EngineOptions::PairChunks::processor
           ? detail::branch_free_chunks_default()
           : options_.pair_chunks == EngineOptions::PairChunks::branch_free;
+  rows.screened = options_.pair_passes == EngineOptions::PairPasses::two ||
+                  (options_.pair_passes == EngineOptions::PairPasses::automatic &&
+                   s.size() <= EngineOptions::kScreenedMaxParticles);
   if (close_pairs_on(scene_, options_)) {
     const double margin = close_distance(scene_, options_);
     if (!close_.hold(scene_, margin, s)) close_.list(scene_, margin, s, bounds_, threads_);

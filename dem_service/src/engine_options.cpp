@@ -30,6 +30,19 @@ EngineOptions EngineOptions::from_environment() {
                                   ": use branch-free or branching, or unset it (the processor "
                                   "picks)");
   }
+  if (const char* v = std::getenv("DEM_PAIR_PASSES")) {
+    if (std::strcmp(v, "auto") == 0)
+      o.pair_passes = PairPasses::automatic;
+    else if (std::strcmp(v, "one") == 0)
+      o.pair_passes = PairPasses::one;
+    else if (std::strcmp(v, "two") == 0)
+      o.pair_passes = PairPasses::two;
+    else
+      throw std::invalid_argument(std::string("environment DEM_PAIR_PASSES=") + v +
+                                  ": use auto (the default: two passes for scenes of up to " +
+                                  std::to_string(kScreenedMaxParticles) +
+                                  " particles), one or two, or unset it");
+  }
   return o;
 }
 

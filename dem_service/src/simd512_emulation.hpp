@@ -319,6 +319,20 @@ inline __m256i _mm256_load_si256(const __m256i* p) {
   return r;
 }
 inline void _mm256_store_si256(__m256i* p, __m256i a) { std::memcpy(p, a.d, 32); }
+inline void _mm256_storeu_si256(__m256i* p, __m256i a) { std::memcpy(p, a.d, 32); }
+inline __m256i _mm256_loadu_si256(const __m256i* p) {
+  __m256i r;
+  std::memcpy(r.d, p, 32);
+  return r;
+}
+// The lanes of k moved to the low lanes in order, the rest zero.
+inline __m256i _mm256_maskz_compress_epi32(__mmask8 k, __m256i a) {
+  __m256i r{};
+  int n = 0;
+  for (int l = 0; l < 8; ++l)
+    if (bit(k, l)) r.d[n++] = a.d[l];
+  return r;
+}
 inline __m256i _mm256_mmask_i32gather_epi32(__m256i src, __mmask8 k, __m256i idx,
                                             const std::int32_t* base, int scale) {
   for (int l = 0; l < 8; ++l)

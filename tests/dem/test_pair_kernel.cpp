@@ -13,11 +13,13 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <memory>
 #include <sstream>
 #include <string>
 #include <random>
 #include <vector>
 
+#include "dem/checkpoint.hpp"
 #include "dem/contact_law.hpp"
 #include "dem/pair_kernel.hpp"
 #include "dem_test_util.hpp"
@@ -174,10 +176,12 @@ PairRows start(const Rows& in, Result& out, const dem::ContactLaw& law, double d
 }
 
 Result run(const Rows& in, const dem::ContactLaw& law, double dt, std::size_t a0, std::size_t a1,
-           Kernel kernel, bool branch_free_chunks = dem::detail::branch_free_chunks_default()) {
+           Kernel kernel, bool branch_free_chunks = dem::detail::branch_free_chunks_default(),
+           bool screened = false) {
   Result out;
   PairRows p = start(in, out, law, dt);
   p.branch_free_chunks = branch_free_chunks;
+  p.screened = screened;
   dem::detail::pair_rows(p, a0, a1, out.remote, out.stats, kernel);
   return out;
 }
@@ -241,9 +245,12 @@ TEST(dem_PairKernel, VectorAndScalarGiveTheSameBits) {
         // is one of them).
         const bool branch_free = rep % 2 == 0;
         SCOPED_TRACE(branch_free ? "branch-free chunks" : "branching chunks");
-        for (const Kernel kernel : chunk_kernels()) {
-        SCOPED_TRACE(name(kernel));
-        const Result v = run(rows, law, dt, a0, a1, kernel, branch_free);
+        // The stream in one pass, or screened: the pairs past the screen queued and their
+        // contact forces 8 at a time (PairRows::screened), with queues drained mid-row.
+        for (const Kernel kernel : chunk_kernels())
+        for (const bool screened : {false, true}) {
+        SCOPED_TRACE(std::string(name(kernel)) + (screened ? ", screened" : ", one pass"));
+        const Result v = run(rows, law, dt, a0, a1, kernel, branch_free, screened);
         for (std::size_t i = 0; i < rows.x.size(); ++i)
           ASSERT_TRUE(same_bits(s.force[i], v.force[i]))
               << "force of particle " << i << " (sizes " << sizes << ")";
@@ -309,14 +316,22 @@ TEST(dem_PairKernel, WithSleepersVectorAndScalarGiveTheSameBits) {
             if (run == 16 && i >= a0 + 15 && i < a1) ++streamed_runs;
           }
         }
+        // The scalar loop, then each chunk kernel with its clean runs streamed in one pass or
+        // screened.
         std::vector<Kernel> kernels{Kernel::scalar};
-        for (const Kernel k : chunk_kernels()) kernels.push_back(k);
+        std::vector<bool> screened{false};
+        for (const Kernel k : chunk_kernels())
+          for (const bool sc : {false, true}) {
+            kernels.push_back(k);
+            screened.push_back(sc);
+          }
         std::vector<Result> res(kernels.size());
         std::vector<std::vector<std::uint8_t>> woken(kernels.size());
         for (std::size_t q = 0; q < kernels.size(); ++q) {
           Result& out = res[q];
           PairRows p = start(rows, out, law, dt);
           p.branch_free_chunks = sizes % 2 == 0;
+          p.screened = screened[q];
           woken[q].assign(n, 0);
           std::vector<std::int32_t> remote_wake;
           dem::detail::PairSleep sl;
@@ -330,7 +345,7 @@ TEST(dem_PairKernel, WithSleepersVectorAndScalarGiveTheSameBits) {
           for (const std::int32_t r : remote_wake) woken[q][r] = 1;
         }
         for (std::size_t v = 1; v < kernels.size(); ++v) {
-        SCOPED_TRACE(name(kernels[v]));
+        SCOPED_TRACE(std::string(name(kernels[v])) + (screened[v] ? ", screened" : ", one pass"));
         for (std::size_t i = 0; i < n; ++i) {
           ASSERT_TRUE(same_bits(res[0].force[i], res[v].force[i])) << "force of particle " << i;
           ASSERT_EQ(woken[0][i], woken[v][i]) << "wake of particle " << i;
@@ -362,13 +377,23 @@ TEST(dem_PairKernel, WithSleepersVectorAndScalarGiveTheSameBits) {
 // (any processor) and the AVX-512 one (where the processor has it).
 TEST(dem_PairKernel, WholeRunsAreTheSameWithEitherKernel) {
   using PK = dem::EngineOptions::PairKernel;
-  std::vector<PK> kernels{PK::scalar, PK::emulated};  // the emulated lanes run everywhere
-  if (dem::detail::pair_rows_vector_available()) kernels.push_back(PK::vector);
+  // The scalar loop; the chunk kernel's stream in one pass or screened (EngineOptions::
+  // pair_passes), emulated everywhere and on AVX-512 where the processor has it; the last
+  // variant goes through a checkpoint and a new engine halfway.
+  std::vector<PK> kernels{PK::scalar, PK::emulated, PK::emulated};
+  std::vector<bool> screened{false, false, true};
+  if (dem::detail::pair_rows_vector_available()) {
+    kernels.insert(kernels.end(), {PK::vector, PK::vector, PK::vector});
+    screened.insert(screened.end(), {false, true, true});
+  }
   for (const int threads : {1, 2}) {
     std::vector<dem::State> result(kernels.size());
     for (std::size_t q = 0; q < kernels.size(); ++q) {
       dem::EngineOptions options;
       options.pair_kernel = kernels[q];
+      options.pair_passes = screened[q] ? dem::EngineOptions::PairPasses::two
+                                        : dem::EngineOptions::PairPasses::one;
+      const bool through_checkpoint = q + 1 == kernels.size();
       dem::Scene scene = demtest::one_species_scene(0.8e-3, 1.2e-3);
       scene.threads = threads;
       scene.broad_phase_interval = 10;
@@ -387,9 +412,20 @@ TEST(dem_PairKernel, WholeRunsAreTheSameWithEitherKernel) {
             st, {1.5e-3 + 2.5e-3 * (k % 11), 2.5e-3 * ((k / 11) % 11), 1.5e-3 + 2.5e-3 * (k / 121)},
             {0.05 * (U01(rng) - 0.5), 0.05 * (U01(rng) - 0.5), -0.2}, r);
       }
-      dem::Engine engine(scene, options);
-      for (int k = 0; k < 1500; ++k) engine.step(st);
-      EXPECT_GT(engine.contact_stats().particle_contacts, 200);
+      auto engine = std::make_unique<dem::Engine>(scene, options);
+      for (int k = 0; k < 1500; ++k) {
+        if (through_checkpoint && k == 750) {
+          const std::string file = (std::filesystem::temp_directory_path() /
+                                    ("dem_pair_kernel_" + std::to_string(::getpid()) + ".h5"))
+                                       .string();
+          dem::save_checkpoint(st, file);
+          st = dem::load_checkpoint(file);
+          std::filesystem::remove(file);
+          engine = std::make_unique<dem::Engine>(scene, options);
+        }
+        engine->step(st);
+      }
+      EXPECT_GT(engine->contact_stats().particle_contacts, 200);
       result[q] = st;
     }
     for (std::size_t v = 1; v < kernels.size(); ++v) {
@@ -405,7 +441,8 @@ TEST(dem_PairKernel, WholeRunsAreTheSameWithEitherKernel) {
       });
       ASSERT_EQ(bytes, a.size() * sizeof(a[0])) << name;
       EXPECT_TRUE(bytes == 0 || std::memcmp(a.data(), other, bytes) == 0)
-          << name << " differs on " << threads << " threads, kernel " << static_cast<int>(kernels[v]);
+          << name << " differs on " << threads << " threads, kernel " << static_cast<int>(kernels[v])
+          << (screened[v] ? " screened" : " one pass");
       ++arrays;
     });
     EXPECT_GT(arrays, 20);
@@ -457,6 +494,23 @@ TEST(dem_PairKernel, BadKernelInTheEnvironmentIsRefusedAtStartUp) {
   }
   for (const char* v : {"branch-free", "branching"}) {
     const auto [code, text] = run_command(std::string("env DEM_PAIR_CHUNKS=") + v + " " +
+                                          DEM_RUN_EXE + " " + config +
+                                          " --set run.duration=0.001 --output " + out);
+    EXPECT_EQ(code, 0) << v << ": " << text;
+  }
+  // DEM_PAIR_PASSES likewise (auto, one or two).
+  {
+    const auto [code, text] = run_command("env DEM_PAIR_PASSES=three " + std::string(DEM_RUN_EXE) +
+                                          " " + config + " --set run.duration=0.001 --output " +
+                                          out);
+    EXPECT_EQ(code, 2) << text;
+    EXPECT_NE(text.find("DEM_PAIR_PASSES=three: use auto (the default: two passes for scenes of "
+                        "up to 50000 particles), one or two, or unset it"),
+              std::string::npos)
+        << text;
+  }
+  for (const char* v : {"auto", "one", "two"}) {
+    const auto [code, text] = run_command(std::string("env DEM_PAIR_PASSES=") + v + " " +
                                           DEM_RUN_EXE + " " + config +
                                           " --set run.duration=0.001 --output " + out);
     EXPECT_EQ(code, 0) << v << ": " << text;

@@ -4,6 +4,8 @@
 // Scene: the apps (dem_run, dem_service, the benches) fill it once and hand it to each Engine.
 #pragma once
 
+#include <cstddef>
+
 namespace dem {
 
 struct Scene;
@@ -70,10 +72,20 @@ struct EngineOptions {
   // apps; off only for the tests that hold it to the regions per stage
   // (dem_OneRegion.*).
   bool one_region = true;
+  // The vector stream kernel over the half list in one pass, or in two (detail::PairRows::
+  // screened): the screen of every candidate, then the contact forces of the pairs past it, 8 at
+  // a time. automatic: two passes for scenes of at most kScreenedMaxParticles particles, whose
+  // arrays stay in the caches (the main job's 10k pile: 0.95x of the step), one pass above
+  // (the 150k bed: two passes 1.02-1.06x); docs/performance.md, "The screened stream". The same
+  // bits every way; the tests run both (dem_PairKernel.*).
+  enum class PairPasses { automatic, one, two };
+  PairPasses pair_passes = PairPasses::automatic;
+  static constexpr std::size_t kScreenedMaxParticles = 50000;
 
-  // The apps' spelling, from the environment: DEM_PAIR_KERNEL (vector | scalar) and
-  // DEM_PAIR_CHUNKS (branch-free | branching); unset: the defaults. Throws std::invalid_argument
-  // naming the variable and its values for anything else.
+  // The apps' spelling, from the environment: DEM_PAIR_KERNEL (vector | scalar),
+  // DEM_PAIR_CHUNKS (branch-free | branching) and DEM_PAIR_PASSES (auto | one | two);
+  // unset: the defaults. Throws std::invalid_argument naming the variable and its values for
+  // anything else.
   static EngineOptions from_environment();
   // These options with the config's performance: section's (close_margin, pair_schedule,
   // min_particles_per_thread) in place of theirs.

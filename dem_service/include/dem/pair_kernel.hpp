@@ -62,6 +62,11 @@ struct PairRows {
   // cap in every chunk without a branch (true), or only in chunks that need them (false). The
   // same bits either way; the default follows the processor (branch_free_chunks_default()).
   bool branch_free_chunks = branch_free_chunks_default();
+  // The vector stream kernel over the half list (not close pairs) in two passes: the screen of 8
+  // consecutive pairs at a time queues those not surely apart (in pair order), and the contact
+  // force runs on 8 queued pairs at a time, so that its lanes are not spent on pairs apart
+  // (most candidates of a bed at skin 0.3-0.5). The same bits either way.
+  bool screened = false;
 };
 
 struct PairRowStats {
