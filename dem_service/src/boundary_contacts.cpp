@@ -26,11 +26,37 @@ struct Contact {
 
 constexpr int kMaxHits = 256;  // triangles touching one sphere at once, per tool
 constexpr std::size_t kBoundaryChunks = 64;  // chunks of slot blocks (see the header)
+constexpr std::size_t kPrefetch = 8;         // particles fetched ahead (BoundaryContacts::run)
+
+// Asks for the lines of particle i that the boundary contacts read or write. Always inlined:
+// GCC 12 takes a function that only prefetches for one without effects and drops its calls.
+[[gnu::always_inline]] inline void prefetch_line(const void* p, std::size_t bytes) {
+  __builtin_prefetch(p);
+  __builtin_prefetch(static_cast<const char*>(p) + bytes - 1);
+}
+[[gnu::always_inline]] inline void prefetch_particle(const State& s, const Vec3* force, const Vec3* torque,
+                              const std::uint8_t* ghost, bool sleep_on, std::size_t i) {
+  __builtin_prefetch(&s.wall_mask[i]);
+  __builtin_prefetch(&s.slot_count[i]);
+  prefetch_line(&s.tri_offset[i], 2 * sizeof(std::int32_t));
+  prefetch_line(&s.x[i], sizeof(Vec3));
+  prefetch_line(&s.u[i], sizeof(Vec3));
+  __builtin_prefetch(&s.radius[i]);
+  __builtin_prefetch(&s.mass[i]);
+  prefetch_line(&force[i], sizeof(Vec3));
+  if (sleep_on) __builtin_prefetch(&s.rest_steps[i]);
+  if (ghost) __builtin_prefetch(&ghost[i]);
+  if (torque) {
+    prefetch_line(&s.wu[i], sizeof(Vec3));
+    prefetch_line(&torque[i], sizeof(Vec3));
+  }
+}
 
 // Wall and mesh contacts of particle i after feature selection. Returns the count, or -1 if
 // more than kBoundarySlots contacts (or kMaxHits triangle hits) exist.
 // dt > 0 widens the test by the distance the contact window can reach (see contact_force);
 // dt = 0 gives the geometric contacts.
+template <bool Fast>
 int gather(const Scene& scene, const State& s, std::size_t i,
            const std::vector<std::vector<Vec3>>& tool_vertices, Contact* out, TriangleHit* hits,
            double dt) {
@@ -39,14 +65,27 @@ int gather(const Scene& scene, const State& s, std::size_t i,
   const double speed = norm(s.u[i]);
   int nc = 0;
   const std::uint32_t mask = s.wall_mask[i];
-  for (std::size_t w = 0; w < scene.walls.size(); ++w) {
-    if (w < 32 && !(mask & (1u << w))) continue;
+  const std::size_t nw = scene.walls.size();
+  // One wall: a contact if within reach.
+  auto wall_contact = [&](std::size_t w) {
     const Wall& wall = scene.walls[w];
     const double gap = dot(xi - wall.point, wall.normal);
     if (gap < r + 0.5 * dt * speed) {
-      if (nc == kBoundarySlots) return -1;
+      if (nc == kBoundarySlots) return false;
       out[nc++] = {contact_key(FeatureKind::wall, static_cast<std::uint32_t>(w), 0),
                    xi - gap * wall.normal, wall.normal, r - gap, Vec3{}};
+    }
+    return true;
+  };
+  if (Fast && nw <= 32) {
+    // The mask's bits in ascending order: the walls the loop below would test, in its order.
+    std::uint32_t m = nw == 32 ? mask : mask & ((1u << nw) - 1);
+    for (; m != 0; m &= m - 1)
+      if (!wall_contact(static_cast<std::size_t>(__builtin_ctz(m)))) return -1;
+  } else {
+    for (std::size_t w = 0; w < nw; ++w) {
+      if (w < 32 && !(mask & (1u << w))) continue;
+      if (!wall_contact(w)) return -1;
     }
   }
   const std::int32_t k0 = s.tri_offset[i], k1 = s.tri_offset[i + 1];
@@ -105,8 +144,23 @@ bool shares_vertex(const Scene& scene, std::uint64_t a, std::uint64_t b) {
 // the next face) keeps its tangential spring: the new feature inherits from an adjacent one that
 // just ended.
 // roll (the rotating model's rolling springs, else nullptr) goes with its spring.
+// Fast: when the new keys are the old ones in the same order (a resting contact, the usual
+// case), each contact keeps the spring of its own slot, which is what the matching below gives
+// (contact c finds every slot before c taken and slot c its first free match, equal keys or
+// not).
+template <bool Fast>
 void carry_springs(const Scene& scene, const State& s, std::size_t base, const Contact* cs,
                    int nc, int nold, Vec3* spring, Vec3* roll) {
+  if (Fast && nc == nold) {
+    int c = 0;
+    while (c < nc && s.slot_key[base + c] == cs[c].key) ++c;
+    if (c == nc) {
+      // The whole block, a fixed size (a copy of nc entries becomes a rep movs, slow to start).
+      std::memcpy(spring, &s.slot_spring[base], kBoundarySlots * sizeof(Vec3));
+      if (roll) std::memcpy(roll, &s.slot_roll[base], kBoundarySlots * sizeof(Vec3));
+      return;
+    }
+  }
   std::uint64_t old_key[kBoundarySlots];
   Vec3 old_spring[kBoundarySlots];
   bool used[kBoundarySlots] = {}, matched[kBoundarySlots] = {};
@@ -170,10 +224,22 @@ bool BoundaryContacts::begin(State& s, const Vec3* torque) {
   return true;
 }
 
+bool BoundaryContacts::reference_path_ = false;
+
 void BoundaryContacts::run(State& s, const ToolGeometry& tools, Vec3* force, int t, int T,
                            double* busy, Vec3* torque, const std::uint8_t* ghost,
                            const ChunkWait* wait) {
   if (chunks_ == 0) return;  // begin() found no wall and no tool
+  if (reference_path_)
+    run_chunks<false>(s, tools, force, t, T, busy, torque, ghost, wait);
+  else
+    run_chunks<true>(s, tools, force, t, T, busy, torque, ghost, wait);
+}
+
+template <bool Fast>
+void BoundaryContacts::run_chunks(State& s, const ToolGeometry& tools, Vec3* force, int t, int T,
+                                  double* busy, Vec3* torque, const std::uint8_t* ghost,
+                                  const ChunkWait* wait) {
   const ContactLaw& law = scene_.particle_wall;
   const bool per_body_laws = !scene_.boundary_laws.empty();
   const double dt = scene_.dt;
@@ -188,6 +254,13 @@ void BoundaryContacts::run(State& s, const ToolGeometry& tools, Vec3* force, int
     double waited = 0;
     Contact cs[kBoundarySlots];
     TriangleHit hits[kMaxHits];
+    // Fast: the springs of a particle's contacts, set by carry_springs before they are read
+    // (here and not in the loop: zeroing them for every particle was a tenth of the stage).
+    Vec3 spring_all[kBoundarySlots], roll_all[kBoundarySlots];
+    // Fast: the coefficients of the last particle (the same for the next of the same radius
+    // and mass: a monodisperse bed saves a square root per particle).
+    double coef_r = -1, coef_m = -1;
+    ContactCoefficients coef_last;
     std::int64_t my_overflow = -1;
     ContactStats my_stats;
     const bool sleep_on = scene_.sleep.enabled;
@@ -211,8 +284,18 @@ void BoundaryContacts::run(State& s, const ToolGeometry& tools, Vec3* force, int
         }
         waited += wait->fn(wait->ctx, lo, hi);
       }
+      // Fast: the particles of a chunk lie apart in memory (a wall's layer of a bed sorted by
+      // cell), and the work on one is too long for the processor to reach the next one's loads
+      // by itself: they are fetched kPrefetch particles ahead.
+      if (Fast)
+        for (std::size_t k = k0; k < std::min(k1, k0 + kPrefetch); ++k)
+          prefetch_particle(s, force, torque, ghost, sleep_on,
+                            static_cast<std::size_t>(s.slot_particle[k]));
       for (std::size_t k = k0; k < k1; ++k) {
         const std::size_t i = static_cast<std::size_t>(s.slot_particle[k]);
+        if (Fast && k + kPrefetch < k1)
+          prefetch_particle(s, force, torque, ghost, sleep_on,
+                            static_cast<std::size_t>(s.slot_particle[k + kPrefetch]));
         // A sleeper has no wall or mesh forces; its boundary history stays as it was.
         if (sleep_on && s.rest_steps[i] >= S) continue;
         // Another rank's particle (dem/mpi/): its owner computes its boundary contacts.
@@ -220,7 +303,7 @@ void BoundaryContacts::run(State& s, const ToolGeometry& tools, Vec3* force, int
         // Nothing near and nothing remembered.
         if (s.wall_mask[i] == 0 && s.tri_offset[i] == s.tri_offset[i + 1] && s.slot_count[i] == 0)
           continue;
-        const int nc = gather(scene_, s, i, tools.vertices, cs, hits, dt);
+        const int nc = gather<Fast>(scene_, s, i, tools.vertices, cs, hits, dt);
         if (nc < 0) {
           if (my_overflow < 0) my_overflow = static_cast<std::int64_t>(i);
           continue;
@@ -228,10 +311,17 @@ void BoundaryContacts::run(State& s, const ToolGeometry& tools, Vec3* force, int
         const int nold = s.slot_count[i];
         if (nc == 0 && nold == 0) continue;
         const std::size_t base = k * kBoundarySlots;  // this particle's block
-        Vec3 spring[kBoundarySlots], roll[kBoundarySlots];
-        carry_springs(scene_, s, base, cs, nc, nold, spring, spin ? roll : nullptr);
+        Vec3 spring_one[Fast ? 1 : kBoundarySlots], roll_one[Fast ? 1 : kBoundarySlots];
+        Vec3* const spring = Fast ? spring_all : spring_one;
+        Vec3* const roll = Fast ? roll_all : roll_one;
+        carry_springs<Fast>(scene_, s, base, cs, nc, nold, spring, spin ? roll : nullptr);
         const double ri = s.radius[i], mi = s.mass[i];
-        const ContactCoefficients coef = coefficients(law, ri, mi);
+        if (!Fast || ri != coef_r || mi != coef_m) {
+          coef_last = coefficients(law, ri, mi);
+          coef_r = ri;
+          coef_m = mi;
+        }
+        const ContactCoefficients coef = coef_last;
         Vec3 fi{}, ti{};
         int active = 0;
         for (int c = 0; c < nc; ++c) {
@@ -330,7 +420,7 @@ std::vector<BoundaryContacts::MeshContact> BoundaryContacts::mesh_contacts(
   Contact cs[kBoundarySlots];
   std::vector<TriangleHit> hits(kMaxHits);
   for (std::size_t i = 0; i + 1 < s.tri_offset.size(); ++i) {
-    const int nc = gather(scene_, s, i, tools.vertices, cs, hits.data(), 0.0);
+    const int nc = gather<true>(scene_, s, i, tools.vertices, cs, hits.data(), 0.0);
     for (int c = 0; c < nc; ++c)
       if (key_kind(cs[c].key) != FeatureKind::wall)
         out.push_back({s.id[i], static_cast<int>(key_body(cs[c].key)), cs[c].key, cs[c].point});
