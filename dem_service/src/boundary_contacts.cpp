@@ -28,27 +28,26 @@ constexpr int kMaxHits = 256;  // triangles touching one sphere at once, per too
 constexpr std::size_t kBoundaryChunks = 64;  // chunks of slot blocks (see the header)
 constexpr std::size_t kPrefetch = 8;         // particles fetched ahead (BoundaryContacts::run)
 
-// Asks for the lines of particle i that the boundary contacts read or write. Always inlined:
-// GCC 12 takes a function that only prefetches for one without effects and drops its calls.
-[[gnu::always_inline]] inline void prefetch_line(const void* p, std::size_t bytes) {
-  __builtin_prefetch(p);
-  __builtin_prefetch(static_cast<const char*>(p) + bytes - 1);
-}
-[[gnu::always_inline]] inline void prefetch_particle(const State& s, const Vec3* force, const Vec3* torque,
-                              const std::uint8_t* ghost, bool sleep_on, std::size_t i) {
+// Asks for the lines of particle i that the boundary contacts read or write (the first line
+// of each; a second line of a Vec3 that straddles two was not worth its instruction). Always
+// inlined: GCC 12 takes a function that only prefetches for one without effects and drops its
+// calls.
+[[gnu::always_inline]] inline void prefetch_particle(const State& s, const Vec3* force,
+                                                     const Vec3* torque, const std::uint8_t* ghost,
+                                                     bool sleep_on, std::size_t i) {
   __builtin_prefetch(&s.wall_mask[i]);
   __builtin_prefetch(&s.slot_count[i]);
-  prefetch_line(&s.tri_offset[i], 2 * sizeof(std::int32_t));
-  prefetch_line(&s.x[i], sizeof(Vec3));
-  prefetch_line(&s.u[i], sizeof(Vec3));
+  __builtin_prefetch(&s.tri_offset[i]);
+  __builtin_prefetch(&s.x[i]);
+  __builtin_prefetch(&s.u[i]);
   __builtin_prefetch(&s.radius[i]);
   __builtin_prefetch(&s.mass[i]);
-  prefetch_line(&force[i], sizeof(Vec3));
+  __builtin_prefetch(&force[i]);
   if (sleep_on) __builtin_prefetch(&s.rest_steps[i]);
   if (ghost) __builtin_prefetch(&ghost[i]);
   if (torque) {
-    prefetch_line(&s.wu[i], sizeof(Vec3));
-    prefetch_line(&torque[i], sizeof(Vec3));
+    __builtin_prefetch(&s.wu[i]);
+    __builtin_prefetch(&torque[i]);
   }
 }
 
@@ -56,7 +55,6 @@ constexpr std::size_t kPrefetch = 8;         // particles fetched ahead (Boundar
 // more than kBoundarySlots contacts (or kMaxHits triangle hits) exist.
 // dt > 0 widens the test by the distance the contact window can reach (see contact_force);
 // dt = 0 gives the geometric contacts.
-template <bool Fast>
 int gather(const Scene& scene, const State& s, std::size_t i,
            const std::vector<std::vector<Vec3>>& tool_vertices, Contact* out, TriangleHit* hits,
            double dt) {
@@ -65,27 +63,14 @@ int gather(const Scene& scene, const State& s, std::size_t i,
   const double speed = norm(s.u[i]);
   int nc = 0;
   const std::uint32_t mask = s.wall_mask[i];
-  const std::size_t nw = scene.walls.size();
-  // One wall: a contact if within reach.
-  auto wall_contact = [&](std::size_t w) {
+  for (std::size_t w = 0; w < scene.walls.size(); ++w) {
+    if (w < 32 && !(mask & (1u << w))) continue;
     const Wall& wall = scene.walls[w];
     const double gap = dot(xi - wall.point, wall.normal);
     if (gap < r + 0.5 * dt * speed) {
-      if (nc == kBoundarySlots) return false;
+      if (nc == kBoundarySlots) return -1;
       out[nc++] = {contact_key(FeatureKind::wall, static_cast<std::uint32_t>(w), 0),
                    xi - gap * wall.normal, wall.normal, r - gap, Vec3{}};
-    }
-    return true;
-  };
-  if (Fast && nw <= 32) {
-    // The mask's bits in ascending order: the walls the loop below would test, in its order.
-    std::uint32_t m = nw == 32 ? mask : mask & ((1u << nw) - 1);
-    for (; m != 0; m &= m - 1)
-      if (!wall_contact(static_cast<std::size_t>(__builtin_ctz(m)))) return -1;
-  } else {
-    for (std::size_t w = 0; w < nw; ++w) {
-      if (w < 32 && !(mask & (1u << w))) continue;
-      if (!wall_contact(w)) return -1;
     }
   }
   const std::int32_t k0 = s.tri_offset[i], k1 = s.tri_offset[i + 1];
@@ -257,10 +242,6 @@ void BoundaryContacts::run_chunks(State& s, const ToolGeometry& tools, Vec3* for
     // Fast: the springs of a particle's contacts, set by carry_springs before they are read
     // (here and not in the loop: zeroing them for every particle was a tenth of the stage).
     Vec3 spring_all[kBoundarySlots], roll_all[kBoundarySlots];
-    // Fast: the coefficients of the last particle (the same for the next of the same radius
-    // and mass: a monodisperse bed saves a square root per particle).
-    double coef_r = -1, coef_m = -1;
-    ContactCoefficients coef_last;
     std::int64_t my_overflow = -1;
     ContactStats my_stats;
     const bool sleep_on = scene_.sleep.enabled;
@@ -303,7 +284,7 @@ void BoundaryContacts::run_chunks(State& s, const ToolGeometry& tools, Vec3* for
         // Nothing near and nothing remembered.
         if (s.wall_mask[i] == 0 && s.tri_offset[i] == s.tri_offset[i + 1] && s.slot_count[i] == 0)
           continue;
-        const int nc = gather<Fast>(scene_, s, i, tools.vertices, cs, hits, dt);
+        const int nc = gather(scene_, s, i, tools.vertices, cs, hits, dt);
         if (nc < 0) {
           if (my_overflow < 0) my_overflow = static_cast<std::int64_t>(i);
           continue;
@@ -316,12 +297,7 @@ void BoundaryContacts::run_chunks(State& s, const ToolGeometry& tools, Vec3* for
         Vec3* const roll = Fast ? roll_all : roll_one;
         carry_springs<Fast>(scene_, s, base, cs, nc, nold, spring, spin ? roll : nullptr);
         const double ri = s.radius[i], mi = s.mass[i];
-        if (!Fast || ri != coef_r || mi != coef_m) {
-          coef_last = coefficients(law, ri, mi);
-          coef_r = ri;
-          coef_m = mi;
-        }
-        const ContactCoefficients coef = coef_last;
+        const ContactCoefficients coef = coefficients(law, ri, mi);
         Vec3 fi{}, ti{};
         int active = 0;
         for (int c = 0; c < nc; ++c) {
@@ -420,7 +396,7 @@ std::vector<BoundaryContacts::MeshContact> BoundaryContacts::mesh_contacts(
   Contact cs[kBoundarySlots];
   std::vector<TriangleHit> hits(kMaxHits);
   for (std::size_t i = 0; i + 1 < s.tri_offset.size(); ++i) {
-    const int nc = gather<true>(scene_, s, i, tools.vertices, cs, hits.data(), 0.0);
+    const int nc = gather(scene_, s, i, tools.vertices, cs, hits.data(), 0.0);
     for (int c = 0; c < nc; ++c)
       if (key_kind(cs[c].key) != FeatureKind::wall)
         out.push_back({s.id[i], static_cast<int>(key_body(cs[c].key)), cs[c].key, cs[c].point});

@@ -1,11 +1,10 @@
 // The boundary contacts' fast path (docs/performance.md "The boundary contacts"): the particles'
-// lines fetched ahead, a resting contact's spring kept without the search, the coefficients of
-// the last radius and mass reused, only the walls of a particle's mask tested. It gives the bits
-// of the reference path (BoundaryContacts::set_reference_path, the code before it): every step's
-// tool wrench, wall forces and contact statistics and the final state (springs, slot keys and
-// counts included), on 1 and 2 threads, with the translating and the rotating model, sleeping,
-// more than 32 walls, through a checkpoint, and the same error for a particle with too many
-// boundary contacts.
+// lines fetched ahead, a resting contact's spring kept without the search, the springs' scratch
+// not zeroed for every particle. It gives the bits of the reference path
+// (BoundaryContacts::set_reference_path, the code before it): every step's tool wrench, wall
+// forces and contact statistics and the final state (springs, slot keys and counts included), on
+// 1 and 2 threads, with the translating and the rotating model, sleeping, more than 32 walls,
+// through a checkpoint, and the same error for a particle with too many boundary contacts.
 #include <gtest/gtest.h>
 
 #include <cmath>

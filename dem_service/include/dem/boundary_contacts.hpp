@@ -51,9 +51,10 @@ class BoundaryContacts {
   void end(State& s);
   bool overflowed() const { return overflow_ >= 0; }
 
-  // For tests: true runs the boundary contacts as before the fast path (no fetching ahead, the
-  // springs matched by search, the coefficients computed per particle, every wall tested): the
-  // same bits, slower. Set it before an engine steps, not while one does.
+  // For tests: true runs the boundary contacts as before the fast path (no fetching ahead, a
+  // resting contact's spring matched by the search, the springs zeroed for every particle): the
+  // same bits, slower (docs/performance.md "The boundary contacts"). Set it before an engine
+  // steps, not while one does.
   static void set_reference_path(bool on) { reference_path_ = on; }
   static bool reference_path() { return reference_path_; }
 
