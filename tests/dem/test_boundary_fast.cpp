@@ -281,4 +281,57 @@ TEST(dem_BoundaryFast, TooManyBoundaryContactsGiveTheSameError) {
   }
 }
 
+// A grain of radius 10 mm resting 9 mm above a fine flat grid of n x n quads 6 mm wide: every
+// triangle is within its reach, so it has 2 n^2 triangle hits. 10 x 10 (200 hits, fewer than
+// kMaxHits = 256): the same bits on both paths for 50 steps, the grain held up by the grid; 12 x
+// 12 (288): the same error on both paths, before anything moves.
+TEST(dem_BoundaryFast, ManyTriangleHitsGiveTheSameBitsOrTheSameError) {
+  for (const int n : {10, 12}) {
+    std::string messages[2];
+    dem::State states[2];
+    dem::Wrench wrench[2];
+    for (const bool reference : {true, false}) {
+      const ReferencePath path(reference);
+      dem::Scene scene = demtest::one_species_scene(0.01, 0.01);
+      scene.particle_particle = scene.particle_wall = demtest::law_n_per_m(1e3, 0.5, true, 0.4);
+      scene.dt = 1e-4;
+      scene.gravity = {0, 0, -9.81};
+      std::vector<Vec3> corners;
+      const double h = 6e-3 / n;
+      for (int a = 0; a < n; ++a)
+        for (int b = 0; b < n; ++b) {
+          const double x = -3e-3 + a * h, y = -3e-3 + b * h;
+          demtest::quad(corners, {x, y, 0}, {x + h, y, 0}, {x + h, y + h, 0}, {x, y + h, 0});
+        }
+      scene.tools.push_back(demtest::static_tool("grid", corners));
+      dem::State st;
+      demtest::add(st, {0.2e-3, -0.1e-3, 9e-3}, {0.01, 0, 0}, 0.01);
+      st.tool_pose.resize(1);
+      dem::Engine e(scene, options());
+      e.prepare(st);
+      const std::vector<Vec3> x = st.x;
+      try {
+        for (int k = 0; k < 50; ++k) e.step(st);
+        wrench[reference] = e.tool_wrenches()[0];
+      } catch (const dem::SimulationError& err) {
+        messages[reference] = err.what();
+        EXPECT_EQ(std::memcmp(x.data(), st.x.data(), x.size() * sizeof(Vec3)), 0);
+      }
+      states[reference] = st;
+    }
+    const std::string what = std::to_string(n) + " x " + std::to_string(n) + " quads";
+    EXPECT_EQ(messages[0], messages[1]) << what;
+    EXPECT_EQ(dem::differing_arrays(states[0], states[1]), "") << what;
+    EXPECT_TRUE(same_bits(&wrench[0], &wrench[1], sizeof(dem::Wrench))) << what;
+    if (n == 10) {
+      EXPECT_EQ(messages[0], "") << what;
+      EXPECT_LT(wrench[0].force.z, 0.0) << what;  // the grain pushes the grid down
+      EXPECT_EQ(states[0].slot_count[0], 1) << what;  // one face after feature selection
+    } else {
+      EXPECT_NE(messages[0].find("touches more than 8 walls and mesh features"), std::string::npos)
+          << what << ": " << messages[0];
+    }
+  }
+}
+
 }  // namespace
