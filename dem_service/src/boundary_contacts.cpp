@@ -55,10 +55,6 @@ constexpr std::size_t kPrefetch = 8;         // particles fetched ahead (Boundar
 // more than kBoundarySlots contacts (or kMaxHits triangle hits) exist.
 // dt > 0 widens the test by the distance the contact window can reach (see contact_force);
 // dt = 0 gives the geometric contacts.
-// Fast: a triangle's hit is written whether or not it is one and counted if it is (hits holds
-// kMaxHits + 1): a branch on the distance test, taken for about one candidate in six on the
-// main job's bucket, was mispredicted.
-template <bool Fast>
 int gather(const Scene& scene, const State& s, std::size_t i,
            const std::vector<std::vector<Vec3>>& tool_vertices, Contact* out, TriangleHit* hits,
            double dt) {
@@ -88,11 +84,7 @@ int gather(const Scene& scene, const State& s, std::size_t i,
     int nh = 0;
     for (; k < k1 && s.tri_tool[k] == m; ++k) {
       const TriangleHit h = closest_on_triangle(mesh, wv, s.tri_index[k], xi);
-      if (Fast) {
-        hits[nh] = h;
-        nh += h.dist2 < reach * reach;
-        if (nh > kMaxHits) return -1;
-      } else if (h.dist2 < reach * reach) {
+      if (h.dist2 < reach * reach) {
         if (nh == kMaxHits) return -1;
         hits[nh++] = h;
       }
@@ -246,7 +238,7 @@ void BoundaryContacts::run_chunks(State& s, const ToolGeometry& tools, Vec3* for
     const cosim::Stopwatch watch;
     double waited = 0;
     Contact cs[kBoundarySlots];
-    TriangleHit hits[kMaxHits + 1];
+    TriangleHit hits[kMaxHits];
     // Fast: the springs of a particle's contacts, set by carry_springs before they are read
     // (here and not in the loop: zeroing them for every particle was a tenth of the stage).
     Vec3 spring_all[kBoundarySlots], roll_all[kBoundarySlots];
@@ -292,7 +284,7 @@ void BoundaryContacts::run_chunks(State& s, const ToolGeometry& tools, Vec3* for
         // Nothing near and nothing remembered.
         if (s.wall_mask[i] == 0 && s.tri_offset[i] == s.tri_offset[i + 1] && s.slot_count[i] == 0)
           continue;
-        const int nc = gather<Fast>(scene_, s, i, tools.vertices, cs, hits, dt);
+        const int nc = gather(scene_, s, i, tools.vertices, cs, hits, dt);
         if (nc < 0) {
           if (my_overflow < 0) my_overflow = static_cast<std::int64_t>(i);
           continue;
@@ -402,9 +394,9 @@ std::vector<BoundaryContacts::MeshContact> BoundaryContacts::mesh_contacts(
     const State& s, const ToolGeometry& tools) const {
   std::vector<MeshContact> out;
   Contact cs[kBoundarySlots];
-  std::vector<TriangleHit> hits(kMaxHits + 1);
+  std::vector<TriangleHit> hits(kMaxHits);
   for (std::size_t i = 0; i + 1 < s.tri_offset.size(); ++i) {
-    const int nc = gather<true>(scene_, s, i, tools.vertices, cs, hits.data(), 0.0);
+    const int nc = gather(scene_, s, i, tools.vertices, cs, hits.data(), 0.0);
     for (int c = 0; c < nc; ++c)
       if (key_kind(cs[c].key) != FeatureKind::wall)
         out.push_back({s.id[i], static_cast<int>(key_body(cs[c].key)), cs[c].key, cs[c].point});
