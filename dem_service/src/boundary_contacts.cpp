@@ -26,6 +26,30 @@ struct Contact {
 
 constexpr int kMaxHits = 256;  // triangles touching one sphere at once, per tool
 constexpr std::size_t kBoundaryChunks = 64;  // chunks of slot blocks (see the header)
+constexpr std::size_t kPrefetch = 8;         // particles fetched ahead (BoundaryContacts::run)
+
+// Asks for the lines of particle i that the boundary contacts read or write (the first line
+// of each; a second line of a Vec3 that straddles two was not worth its instruction). Always
+// inlined: GCC 12 takes a function that only prefetches for one without effects and drops its
+// calls.
+[[gnu::always_inline]] inline void prefetch_particle(const State& s, const Vec3* force,
+                                                     const Vec3* torque, const std::uint8_t* ghost,
+                                                     bool sleep_on, std::size_t i) {
+  __builtin_prefetch(&s.wall_mask[i]);
+  __builtin_prefetch(&s.slot_count[i]);
+  __builtin_prefetch(&s.tri_offset[i]);
+  __builtin_prefetch(&s.x[i]);
+  __builtin_prefetch(&s.u[i]);
+  __builtin_prefetch(&s.radius[i]);
+  __builtin_prefetch(&s.mass[i]);
+  __builtin_prefetch(&force[i]);
+  if (sleep_on) __builtin_prefetch(&s.rest_steps[i]);
+  if (ghost) __builtin_prefetch(&ghost[i]);
+  if (torque) {
+    __builtin_prefetch(&s.wu[i]);
+    __builtin_prefetch(&torque[i]);
+  }
+}
 
 // Wall and mesh contacts of particle i after feature selection. Returns the count, or -1 if
 // more than kBoundarySlots contacts (or kMaxHits triangle hits) exist.
@@ -105,8 +129,23 @@ bool shares_vertex(const Scene& scene, std::uint64_t a, std::uint64_t b) {
 // the next face) keeps its tangential spring: the new feature inherits from an adjacent one that
 // just ended.
 // roll (the rotating model's rolling springs, else nullptr) goes with its spring.
+// Fast: when the new keys are the old ones in the same order (a resting contact, the usual
+// case), each contact keeps the spring of its own slot, which is what the matching below gives
+// (contact c finds every slot before c taken and slot c its first free match, equal keys or
+// not).
+template <bool Fast>
 void carry_springs(const Scene& scene, const State& s, std::size_t base, const Contact* cs,
                    int nc, int nold, Vec3* spring, Vec3* roll) {
+  if (Fast && nc == nold) {
+    int c = 0;
+    while (c < nc && s.slot_key[base + c] == cs[c].key) ++c;
+    if (c == nc) {
+      // The whole block, a fixed size (a copy of nc entries becomes a rep movs, slow to start).
+      std::memcpy(spring, &s.slot_spring[base], kBoundarySlots * sizeof(Vec3));
+      if (roll) std::memcpy(roll, &s.slot_roll[base], kBoundarySlots * sizeof(Vec3));
+      return;
+    }
+  }
   std::uint64_t old_key[kBoundarySlots];
   Vec3 old_spring[kBoundarySlots];
   bool used[kBoundarySlots] = {}, matched[kBoundarySlots] = {};
@@ -170,10 +209,22 @@ bool BoundaryContacts::begin(State& s, const Vec3* torque) {
   return true;
 }
 
+bool BoundaryContacts::reference_path_ = false;
+
 void BoundaryContacts::run(State& s, const ToolGeometry& tools, Vec3* force, int t, int T,
                            double* busy, Vec3* torque, const std::uint8_t* ghost,
                            const ChunkWait* wait) {
   if (chunks_ == 0) return;  // begin() found no wall and no tool
+  if (reference_path_)
+    run_chunks<false>(s, tools, force, t, T, busy, torque, ghost, wait);
+  else
+    run_chunks<true>(s, tools, force, t, T, busy, torque, ghost, wait);
+}
+
+template <bool Fast>
+void BoundaryContacts::run_chunks(State& s, const ToolGeometry& tools, Vec3* force, int t, int T,
+                                  double* busy, Vec3* torque, const std::uint8_t* ghost,
+                                  const ChunkWait* wait) {
   const ContactLaw& law = scene_.particle_wall;
   const bool per_body_laws = !scene_.boundary_laws.empty();
   const double dt = scene_.dt;
@@ -188,6 +239,9 @@ void BoundaryContacts::run(State& s, const ToolGeometry& tools, Vec3* force, int
     double waited = 0;
     Contact cs[kBoundarySlots];
     TriangleHit hits[kMaxHits];
+    // Fast: the springs of a particle's contacts, set by carry_springs before they are read
+    // (here and not in the loop: zeroing them for every particle was a tenth of the stage).
+    Vec3 spring_all[kBoundarySlots], roll_all[kBoundarySlots];
     std::int64_t my_overflow = -1;
     ContactStats my_stats;
     const bool sleep_on = scene_.sleep.enabled;
@@ -211,8 +265,18 @@ void BoundaryContacts::run(State& s, const ToolGeometry& tools, Vec3* force, int
         }
         waited += wait->fn(wait->ctx, lo, hi);
       }
+      // Fast: the particles of a chunk lie apart in memory (a wall's layer of a bed sorted by
+      // cell), and the work on one is too long for the processor to reach the next one's loads
+      // by itself: they are fetched kPrefetch particles ahead.
+      if (Fast)
+        for (std::size_t k = k0; k < std::min(k1, k0 + kPrefetch); ++k)
+          prefetch_particle(s, force, torque, ghost, sleep_on,
+                            static_cast<std::size_t>(s.slot_particle[k]));
       for (std::size_t k = k0; k < k1; ++k) {
         const std::size_t i = static_cast<std::size_t>(s.slot_particle[k]);
+        if (Fast && k + kPrefetch < k1)
+          prefetch_particle(s, force, torque, ghost, sleep_on,
+                            static_cast<std::size_t>(s.slot_particle[k + kPrefetch]));
         // A sleeper has no wall or mesh forces; its boundary history stays as it was.
         if (sleep_on && s.rest_steps[i] >= S) continue;
         // Another rank's particle (dem/mpi/): its owner computes its boundary contacts.
@@ -228,8 +292,10 @@ void BoundaryContacts::run(State& s, const ToolGeometry& tools, Vec3* force, int
         const int nold = s.slot_count[i];
         if (nc == 0 && nold == 0) continue;
         const std::size_t base = k * kBoundarySlots;  // this particle's block
-        Vec3 spring[kBoundarySlots], roll[kBoundarySlots];
-        carry_springs(scene_, s, base, cs, nc, nold, spring, spin ? roll : nullptr);
+        Vec3 spring_one[Fast ? 1 : kBoundarySlots], roll_one[Fast ? 1 : kBoundarySlots];
+        Vec3* const spring = Fast ? spring_all : spring_one;
+        Vec3* const roll = Fast ? roll_all : roll_one;
+        carry_springs<Fast>(scene_, s, base, cs, nc, nold, spring, spin ? roll : nullptr);
         const double ri = s.radius[i], mi = s.mass[i];
         const ContactCoefficients coef = coefficients(law, ri, mi);
         Vec3 fi{}, ti{};
