@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <cmath>
 #include <random>
+#include <string>
+#include <utility>
 #include <vector>
 
 #include "dem/engine.hpp"
@@ -98,6 +100,30 @@ inline dem::Scene thrown_lattice_scene(int threads) {
   floor.normal = {0, 0, 1};
   scene.walls.push_back(floor);
   return scene;
+}
+
+// Two grains (r 1 cm) near the origin inside 9 planes 5 mm from it, a cage of more walls than
+// kBoundarySlots, so that a step stops with the boundary overflow error; dt 1e-4 s, gravity.
+inline std::pair<dem::Scene, dem::State> caged_pair_scene(int threads) {
+  dem::Scene scene = one_species_scene(0.01, 0.01);
+  scene.threads = threads;
+  scene.particle_particle = scene.particle_wall = law_n_per_m(1e3, 0.5, true);
+  scene.dt = 1e-4;
+  scene.gravity = {0, 0, -9.81};
+  dem::State st;
+  add(st, {0, 0, 0}, {0.1, 0, 0}, 0.01);
+  add(st, {0.001, 0, 0}, {0, 0.1, 0}, 0.01);
+  for (int w = 0; w < 9; ++w) {
+    const double a = 2 * M_PI * w / 9;
+    const Vec3 n{std::cos(a), std::sin(a), w % 2 ? 0.3 : -0.3};
+    dem::Wall wall;
+    wall.name = "w" + std::to_string(w);
+    wall.normal = (1 / dem::norm(n)) * n;
+    wall.point = -0.005 * wall.normal;
+    scene.walls.push_back(wall);
+  }
+  static_assert(dem::kBoundarySlots < 9, "the cage must hold more walls than slots");
+  return {scene, st};
 }
 
 // `count` grains of radius 0.8-1.2 mm on a 12 x 12 lattice of pitch 2.3 mm, each with a random

@@ -249,19 +249,7 @@ TEST(dem_BoundaryFast, TooManyBoundaryContactsGiveTheSameError) {
     std::string messages[2];
     for (const bool reference : {true, false}) {
       const ReferencePath path(reference);
-      dem::Scene scene = demtest::one_species_scene(0.01, 0.01);
-      scene.threads = threads;
-      scene.particle_particle = scene.particle_wall = demtest::law_n_per_m(1e3, 0.5, true);
-      scene.dt = 1e-4;
-      dem::State st;
-      demtest::add(st, {0, 0, 0}, {0.1, 0, 0}, 0.01);
-      demtest::add(st, {0.001, 0, 0}, {0, 0.1, 0}, 0.01);
-      for (int w = 0; w < 9; ++w) {
-        const double a = 2 * M_PI * w / 9;
-        const Vec3 n{std::cos(a), std::sin(a), w % 2 ? 0.3 : -0.3};
-        scene.walls.push_back(plane("w", -0.005 * ((1 / dem::norm(n)) * n), n));
-      }
-      static_assert(dem::kBoundarySlots < 9, "the cage must hold more walls than slots");
+      auto [scene, st] = demtest::caged_pair_scene(threads);
       dem::EngineOptions o = options();
       o.min_particles_per_thread = 1;
       dem::Engine e(scene, o);

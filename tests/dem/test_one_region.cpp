@@ -183,26 +183,9 @@ TEST(dem_OneRegion, TwoThreadsThroughACheckpointGiveTheBitsOfOne) {
 TEST(dem_OneRegion, TooManyBoundaryContactsStopTheStepBeforeAnythingMoves) {
   for (const int threads : {1, 2}) {
     for (const bool one_region : {false, true}) {
-      dem::Scene scene = demtest::one_species_scene(0.01, 0.01);
-      scene.threads = threads;
-      scene.particle_particle = scene.particle_wall = demtest::law_n_per_m(1e3, 0.5, true);
-      scene.dt = 1e-4;
-      scene.gravity = {0, 0, -9.81};
-      dem::State st;
-      // Two particles near the origin inside 9 planes 5 mm from it (a cage of more walls than
-      // kBoundarySlots), each on a thread of its own.
-      demtest::add(st, {0, 0, 0}, {0.1, 0, 0}, 0.01);
-      demtest::add(st, {0.001, 0, 0}, {0, 0.1, 0}, 0.01);
-      for (int w = 0; w < 9; ++w) {
-        const double a = 2 * M_PI * w / 9;
-        const Vec3 n{std::cos(a), std::sin(a), w % 2 ? 0.3 : -0.3};
-        dem::Wall wall;
-        wall.name = "w" + std::to_string(w);
-        wall.normal = (1 / dem::norm(n)) * n;
-        wall.point = -0.005 * wall.normal;
-        scene.walls.push_back(wall);
-      }
-      static_assert(dem::kBoundarySlots < 9, "the cage must hold more walls than slots");
+      // Two particles inside a cage of more walls than kBoundarySlots, each on a thread of its
+      // own.
+      auto [scene, st] = demtest::caged_pair_scene(threads);
       dem::EngineOptions o = options(one_region);
       o.min_particles_per_thread = 1;
       dem::Engine e(scene, o);
