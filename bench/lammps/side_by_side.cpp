@@ -1,5 +1,5 @@
 // Our side of the LAMMPS side-by-side benchmark (bench/lammps/side_by_side.sh drives it; not a
-// test). Three subcommands, all on the scenes of docs/performance.md:
+// test). Four subcommands, all on the scenes of docs/performance.md:
 //
 //   dem_side_by_side prepare --kind bed|gas --n N --dir DIR
 //       Builds the scene once and writes it for both codes: DIR/<kind>_<n>.h5 (our checkpoint:
@@ -11,6 +11,10 @@
 //       "rate <particle-steps/s> seconds <wall> rebuilds <broad phases in the timed steps>
 //       threads <used> cpu_share <process CPU time / (wall * threads)>".
 //       --interval 0 rebuilds only when needed (the skin guard), like LAMMPS `check yes`.
+//   dem_side_by_side passes --kind K --n N --dir DIR --threads T --interval I --steps S
+//       The pair stream in one pass against two (EngineOptions::pair_passes) in one process, in
+//       blocks of 20 steps taken in turn; prints the times, their ratio, the blocks two passes
+//       won and whether the final states are identical (exit 1 if not).
 //   run and trace take --thread-wait passive|brief|spin (default: scene.thread_wait's default),
 //   applied as dem_run applies scene.thread_wait (docs/dem.md); OMP_WAIT_POLICY or
 //   GOMP_SPINCOUNT in the environment win over it. --pair-kernel vector|scalar (default vector)
@@ -28,6 +32,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <cstring>
 #include <ctime>
 #include <filesystem>
 #include <fstream>
@@ -310,6 +315,47 @@ int run(const std::string& kind, long n, const std::string& dir, int threads, in
   return 0;
 }
 
+// The pair stream in one pass against two (EngineOptions::pair_passes) in one process: two
+// engines on two copies of the scene, blocks of 20 steps in turn (A B, B A, ...), so that the
+// machine's drift hits both alike. Both give the same bits (checked at the end).
+int passes(const std::string& kind, long n, const std::string& dir, int threads, int interval,
+           int steps) {
+  const Box b = read_box(base(dir, kind, n) + ".box");
+  const dem::Scene scene = make_scene(b, threads, interval);
+  dem::State st[2] = {load(dir, kind, n), load(dir, kind, n)};
+  dem::EngineOptions o[2] = {g_engine_options, g_engine_options};
+  o[0].pair_passes = dem::EngineOptions::PairPasses::one;
+  o[1].pair_passes = dem::EngineOptions::PairPasses::two;
+  dem::Engine one(scene, o[0]), two(scene, o[1]);
+  dem::Engine* engine[2] = {&one, &two};
+  for (int v = 0; v < 2; ++v)
+    for (int k = 0; k < 20; ++k) engine[v]->step(st[v]);
+  constexpr int kBlock = 20;
+  const int blocks = std::max(1, steps / kBlock);
+  double total[2] = {0, 0};
+  int two_faster = 0;
+  for (int blk = 0; blk < blocks; ++blk) {
+    double w[2];
+    for (int q = 0; q < 2; ++q) {
+      const int v = (blk % 2 == 0) ? q : 1 - q;
+      const auto t0 = std::chrono::steady_clock::now();
+      for (int k = 0; k < kBlock; ++k) engine[v]->step(st[v]);
+      w[v] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      total[v] += w[v];
+    }
+    two_faster += w[1] < w[0];
+  }
+  const bool same = st[0].x.size() == st[1].x.size() &&
+                    std::memcmp(st[0].x.data(), st[1].x.data(), st[0].x.size() * sizeof(dem::Vec3)) == 0 &&
+                    std::memcmp(st[0].pair_spring.data(), st[1].pair_spring.data(),
+                                st[0].pair_spring.size() * sizeof(dem::Vec3)) == 0;
+  std::printf("passes: %ld particles, %d threads, %d blocks of %d steps: one %.4f s, two %.4f s, "
+              "two/one %.4f, two faster in %d of %d blocks; final states %s\n",
+              n, threads, blocks, kBlock, total[0], total[1], total[1] / total[0], two_faster,
+              blocks, same ? "identical" : "DIFFER");
+  return same ? 0 : 1;
+}
+
 int trace(const std::string& kind, long n, const std::string& dir, int threads, int interval,
           double duration, double every) {
   const Box b = read_box(base(dir, kind, n) + ".box");
@@ -334,7 +380,7 @@ int trace(const std::string& kind, long n, const std::string& dir, int threads, 
 
 int main(int argc, char** argv) {
   if (argc < 2) {
-    std::fprintf(stderr, "usage: dem_side_by_side prepare|run|trace --kind bed|gas --n N "
+    std::fprintf(stderr, "usage: dem_side_by_side prepare|run|passes|trace --kind bed|gas --n N "
                          "--dir DIR [--threads T --interval I --steps S --duration D --every E]"
                          " [--thread-wait passive|brief|spin] [--pair-kernel vector|scalar]"
                          " [--close-margin M]"
@@ -384,6 +430,8 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "dem_side_by_side: idle threads wait %s\n", wait.c_str());
     const int threads = std::stoi(opt["--threads"]), interval = std::stoi(opt["--interval"]);
     if (cmd == "run") return run(kind, n, dir, threads, interval, std::stoi(opt["--steps"]));
+    if (cmd == "passes")
+      return passes(kind, n, dir, threads, interval, std::stoi(opt["--steps"]));
     if (cmd == "trace")
       return trace(kind, n, dir, threads, interval, std::stod(opt["--duration"]),
                    std::stod(opt["--every"]));
