@@ -209,16 +209,14 @@ bool BoundaryContacts::begin(State& s, const Vec3* torque) {
   return true;
 }
 
-bool BoundaryContacts::reference_path_ = false;
-
 void BoundaryContacts::run(State& s, const ToolGeometry& tools, Vec3* force, int t, int T,
                            double* busy, Vec3* torque, const std::uint8_t* ghost,
                            const ChunkWait* wait) {
   if (chunks_ == 0) return;  // begin() found no wall and no tool
-  if (reference_path_)
-    run_chunks<false>(s, tools, force, t, T, busy, torque, ghost, wait);
-  else
+  if (fast_)
     run_chunks<true>(s, tools, force, t, T, busy, torque, ghost, wait);
+  else
+    run_chunks<false>(s, tools, force, t, T, busy, torque, ghost, wait);
 }
 
 template <bool Fast>

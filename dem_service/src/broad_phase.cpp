@@ -432,16 +432,15 @@ void BroadPhase::carry_history(State& s, int T) {
         for (std::int32_t k = k0; k < k1 && same; ++k)
           same = s.pair_j[q0 + k] == new_index_[old_j_[k]];
         if (same) {
+          // The look-up's result: a pair with history (a held spring, or a rolling one) as it
+          // was, else the new list's zeros.
+          const auto kept = [](bool keep, Vec3 a) {
+            return Vec3{select(keep, a.x, 0.0), select(keep, a.y, 0.0), select(keep, a.z, 0.0)};
+          };
           for (std::int32_t k = k0; k < k1; ++k) {
-            const Vec3 sp = old_spring_[k];
-            const bool held = nonzero(sp);
-            // The look-up's result: a held spring as it was, else the new list's zero.
-            s.pair_spring[q0 + k] = {select(held, sp.x, 0.0), select(held, sp.y, 0.0),
-                                     select(held, sp.z, 0.0)};
-            if (rolls && (held || nonzero(old_roll_[k]))) {
-              s.pair_spring[q0 + k] = sp;
-              s.pair_roll[q0 + k] = old_roll_[k];
-            }
+            const bool keep = nonzero(old_spring_[k]) | (rolls && nonzero(old_roll_[k]));
+            s.pair_spring[q0 + k] = kept(keep, old_spring_[k]);
+            if (rolls) s.pair_roll[q0 + k] = kept(keep, old_roll_[k]);
           }
           ++copied;
           continue;

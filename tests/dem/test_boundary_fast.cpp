@@ -1,7 +1,7 @@
 // The boundary contacts' fast path (docs/performance.md "The boundary contacts"): the particles'
 // lines fetched ahead, a resting contact's spring kept without the search, the springs' scratch
 // not zeroed for every particle. It gives the bits of the reference path
-// (BoundaryContacts::set_reference_path, the code before it): every step's tool wrench, wall
+// (EngineOptions::boundary_fast off, the code before it): every step's tool wrench, wall
 // forces and contact statistics and the final state (springs, slot keys and counts included), on
 // 1 and 2 threads, with the translating and the rotating model, sleeping, more than 32 walls,
 // through a checkpoint, and the same error for a particle with too many boundary contacts.
@@ -26,12 +26,6 @@ using demtest::Vec3;
 constexpr int kGrains = 3000;
 constexpr int kSteps = 400;
 constexpr double kDt = 2e-5;  // the dt of demtest::thrown_lattice_scene
-
-// Sets the reference path for the life of the object (the fast path again after).
-struct ReferencePath {
-  explicit ReferencePath(bool on) { dem::BoundaryContacts::set_reference_path(on); }
-  ~ReferencePath() { dem::BoundaryContacts::set_reference_path(false); }
-};
 
 struct Variant {
   const char* name;
@@ -110,9 +104,11 @@ dem::State lattice_state() {
   return st;
 }
 
-dem::EngineOptions options() {
+// reference: the boundary contacts as before the fast path (EngineOptions::boundary_fast off).
+dem::EngineOptions options(bool reference = false) {
   dem::EngineOptions o;
   o.min_particles_per_thread = 100;  // every thread asked for
+  o.boundary_fast = !reference;
   return o;
 }
 
@@ -141,10 +137,9 @@ void step_and_record(const dem::Scene& scene, dem::Engine& e, Outputs& r) {
 }
 
 Outputs run(const dem::Scene& scene, bool reference, int steps = kSteps) {
-  const ReferencePath path(reference);
   Outputs r;
   r.state = lattice_state();
-  dem::Engine e(scene, options());
+  dem::Engine e(scene, options(reference));
   for (int k = 0; k < steps; ++k) step_and_record(scene, e, r);
   return r;
 }
@@ -248,9 +243,8 @@ TEST(dem_BoundaryFast, TooManyBoundaryContactsGiveTheSameError) {
   for (const int threads : {1, 2}) {
     std::string messages[2];
     for (const bool reference : {true, false}) {
-      const ReferencePath path(reference);
       auto [scene, st] = demtest::caged_pair_scene(threads);
-      dem::EngineOptions o = options();
+      dem::EngineOptions o = options(reference);
       o.min_particles_per_thread = 1;
       dem::Engine e(scene, o);
       e.prepare(st);
@@ -279,7 +273,6 @@ TEST(dem_BoundaryFast, ManyTriangleHitsGiveTheSameBitsOrTheSameError) {
     dem::State states[2];
     dem::Wrench wrench[2];
     for (const bool reference : {true, false}) {
-      const ReferencePath path(reference);
       dem::Scene scene = demtest::one_species_scene(0.01, 0.01);
       scene.particle_particle = scene.particle_wall = demtest::law_n_per_m(1e3, 0.5, true, 0.4);
       scene.dt = 1e-4;
@@ -295,7 +288,7 @@ TEST(dem_BoundaryFast, ManyTriangleHitsGiveTheSameBitsOrTheSameError) {
       dem::State st;
       demtest::add(st, {0.2e-3, -0.1e-3, 9e-3}, {0.01, 0, 0}, 0.01);
       st.tool_pose.resize(1);
-      dem::Engine e(scene, options());
+      dem::Engine e(scene, options(reference));
       e.prepare(st);
       const std::vector<Vec3> x = st.x;
       try {

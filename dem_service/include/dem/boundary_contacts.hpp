@@ -51,12 +51,10 @@ class BoundaryContacts {
   void end(State& s);
   bool overflowed() const { return overflow_ >= 0; }
 
-  // For tests: true runs the boundary contacts as before the fast path (no fetching ahead, a
-  // resting contact's spring matched by the search, the springs zeroed for every particle): the
-  // same bits, slower (docs/performance.md "The boundary contacts"). Set it before an engine
-  // steps, not while one does.
-  static void set_reference_path(bool on) { reference_path_ = on; }
-  static bool reference_path() { return reference_path_; }
+  // false runs the boundary contacts as before the fast path (no fetching ahead, a resting
+  // contact's spring matched by the search, the springs zeroed for every particle): the same
+  // bits, slower (EngineOptions::boundary_fast; docs/performance.md "The boundary contacts").
+  void use_fast_path(bool fast) { fast_ = fast; }
 
   const std::vector<Wrench>& tool_wrenches() const { return tool_wrench_; }
   const std::vector<Vec3>& wall_forces() const { return wall_force_; }
@@ -87,7 +85,7 @@ class BoundaryContacts {
   template <bool Fast>
   void run_chunks(State& s, const ToolGeometry& tools, Vec3* force, int t, int T, double* busy,
                   Vec3* torque, const std::uint8_t* ghost, const ChunkWait* wait);
-  static bool reference_path_;
+  bool fast_ = true;
 };
 
 }  // namespace dem

@@ -52,6 +52,10 @@ struct EngineOptions {
   // in place; off, every held spring is looked up in its new row. Kept: the broad-phase test
   // compares whole runs both ways (dem_BroadPhase.RunIsBitIdenticalWithHistoryCopiedOrLookedUp).
   bool history_same_rows = true;
+  // The boundary contacts' fast path (fetching ahead, a resting contact's springs copied, no
+  // zeroing per particle; BoundaryContacts::use_fast_path). Always on in the apps; off only for
+  // the tests that hold it to the code before it (dem_BoundaryFast.*).
+  bool boundary_fast = true;
   // Sleeping's shortcuts: the pair loop reads a sleeper's row only when it holds an awake
   // partner, and the integration skips the tool test for a block of 64 sleepers beyond every
   // tool's neighbourhood. Settled (always on in the apps); kept as switches only for the tests
