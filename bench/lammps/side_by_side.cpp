@@ -15,7 +15,7 @@
 //       The pair stream in one pass against two (EngineOptions::pair_passes) in one process, in
 //       blocks of 20 steps taken in turn; prints the times, their ratio, the blocks two passes
 //       won and whether the final states are identical (exit 1 if not).
-//   run and trace take --thread-wait passive|brief|spin (default: scene.thread_wait's default),
+//   run and trace take --thread-wait passive|brief|spin|yield (default: scene.thread_wait's default),
 //   applied as dem_run applies scene.thread_wait (docs/dem.md); OMP_WAIT_POLICY or
 //   GOMP_SPINCOUNT in the environment win over it. --pair-kernel vector|scalar (default vector)
 //   picks the pair forces' AVX-512 kernel (where the processor has it) or the scalar loop; both
@@ -100,10 +100,12 @@ Box read_box(const std::string& file) {
 
 // --close-margin: performance.close_margin of our runs (0: every candidate read, the default).
 double g_close_margin = 0;
+dem::ThreadWait g_thread_wait = dem::Scene{}.thread_wait;  // --thread-wait
 
 // interval 0: rebuild only when the skin guard fires.
 dem::Scene make_scene(const Box& b, int threads, int interval, bool friction = true) {
   dem::Scene s;
+  s.thread_wait = g_thread_wait;  // yield: the step on the engine's own threads
   dem::Species sp;
   sp.name = "grain";
   sp.density = kDensity;
@@ -382,7 +384,7 @@ int main(int argc, char** argv) {
   if (argc < 2) {
     std::fprintf(stderr, "usage: dem_side_by_side prepare|run|passes|trace --kind bed|gas --n N "
                          "--dir DIR [--threads T --interval I --steps S --duration D --every E]"
-                         " [--thread-wait passive|brief|spin] [--pair-kernel vector|scalar]"
+                         " [--thread-wait passive|brief|spin|yield] [--pair-kernel vector|scalar]"
                          " [--close-margin M]"
                          "\n(see the header of bench/lammps/side_by_side.cpp)\n");
     return 2;
@@ -425,8 +427,8 @@ int main(int argc, char** argv) {
     // execute this program again, once, with the OpenMP wait variables set).
     YAML::Node scene_node;
     scene_node["scene"]["thread_wait"] = opt["--thread-wait"];
-    const std::string wait =
-        dem::apply_thread_wait(dem::read_thread_wait(scene_node), argv);
+    g_thread_wait = dem::read_thread_wait(scene_node);
+    const std::string wait = dem::apply_thread_wait(g_thread_wait, argv);
     std::fprintf(stderr, "dem_side_by_side: idle threads wait %s\n", wait.c_str());
     const int threads = std::stoi(opt["--threads"]), interval = std::stoi(opt["--interval"]);
     if (cmd == "run") return run(kind, n, dir, threads, interval, std::stoi(opt["--steps"]));

@@ -456,6 +456,14 @@ void Engine::owner_range(const BlockPass& p, int T, int t, std::size_t* out) con
 // lo's to hi's must be done. A thread comes here after its walk over the blocks, when every
 // block is claimed: one not done is being run by another thread, which waits for no boundary
 // chunk, so the wait ends.
+void Engine::region_barrier(int t) {
+  if (region_team_) {
+    region_team_->barrier(t);
+  } else {
+#pragma omp barrier
+  }
+}
+
 double Engine::wait_for_blocks(const void* ctx, std::size_t lo, std::size_t hi) {
   const BlockPass& p = *static_cast<const BlockPass*>(ctx);
   if (p.K <= 0) return 0;
@@ -630,8 +638,11 @@ void Engine::integrate_listed_thread(State& s, StepTally& total, int t, int T) {
   StepTally my;
   Sleepers::ThreadNotes notes;
   for (const std::int32_t p : sleepers_.woken(t)) notes.woke.push_back(p);
-#pragma omp for schedule(static) nowait
-  for (std::size_t b = 0; b < nb; ++b) {
+  // An equal share of the blocks per thread (which thread tests a block changes nothing: the
+  // woken are marked after the barrier and counted once each).
+  for (std::size_t b = nb * static_cast<std::size_t>(t) / static_cast<std::size_t>(T),
+                   b1 = nb * static_cast<std::size_t>(t + 1) / static_cast<std::size_t>(T);
+       b < b1; ++b) {
     if (sleepers_.block_far(b)) continue;
     const std::size_t i1 = std::min(n, (b + 1) * kBlock);
     for (std::size_t i = b * kBlock; i < i1; ++i)
@@ -640,14 +651,14 @@ void Engine::integrate_listed_thread(State& s, StepTally& total, int t, int T) {
   }
   const double tests = busy.seconds();  // the wait at the barrier left out
   // No thread changes rest_steps before every test is made.
-#pragma omp barrier
+  region_barrier(t);
   busy.restart();
   if (boundary_.overflowed()) {
     add_busy(section::integration, t, tests);
     return;
   }
   for (const std::int32_t p : notes.woke) s.rest_steps[static_cast<std::size_t>(p)] = 0;
-  integrate_range<true>(s, L * t / T, L * (t + 1) / T, true, false, my, notes, A.data());
+  integrate_range<true>(s, L * t / T, L * (t + 1) / T, true, false, my, notes, A.data(), t);
   my.sleeping -= static_cast<std::int64_t>(notes.woke.size());
   add_busy(section::integration, t, tests + busy.seconds());
 #pragma omp critical(dem_integrate)
@@ -665,7 +676,7 @@ void Engine::integrate_walk_thread(State& s, std::size_t a0, std::size_t a1, boo
   const cosim::Stopwatch busy;
   StepTally my;
   Sleepers::ThreadNotes notes;
-  integrate_range<Sleep>(s, a0, a1, keep, renote, my, notes, nullptr);
+  integrate_range<Sleep>(s, a0, a1, keep, renote, my, notes, nullptr, t);
   add_busy(section::integration, t, busy.seconds());
 #pragma omp critical(dem_integrate)
   {
@@ -681,7 +692,7 @@ void Engine::integrate_walk_thread(State& s, std::size_t a0, std::size_t a1, boo
 template <bool Sleep>
 void Engine::integrate_range(State& s, std::size_t a0, std::size_t a1, bool keep, bool renote,
                              StepTally& my, Sleepers::ThreadNotes& notes,
-                             const std::int32_t* list) {
+                             const std::int32_t* list, int t) {
   const double dt = scene_.dt;
   const double vmax2 = scene_.stability.max_speed * scene_.stability.max_speed;
   const std::int32_t S = scene_.sleep.steps;
@@ -690,7 +701,7 @@ void Engine::integrate_range(State& s, std::size_t a0, std::size_t a1, bool keep
   const bool close = close_.in_use_for(s);
   const std::uint8_t* const FAST = close ? close_.fast() : nullptr;
   const Vec3* const X_CLOSE = close ? close_.x_at() : nullptr;
-  std::vector<std::int32_t>& my_far = guard_.thread_list(static_cast<std::size_t>(omp_get_thread_num()));
+  std::vector<std::int32_t>& my_far = guard_.thread_list(static_cast<std::size_t>(t));
   my_far.clear();
   // State's arrays as raw pointers that cannot alias: the compiler keeps their addresses and
   // the running maxima in registers (through State's vectors it reloads them after every
@@ -877,14 +888,10 @@ void Engine::step_one_region(State& s) {
                                    section::integration};
   for (int q = 0; q < 3; ++q)
     for (int u = 0; u < T; ++u) busy_before[q] += thread_busy(sections[q], u);
-#pragma omp parallel num_threads(T)
-  {
-    const int t = omp_get_thread_num();
+  auto body = [&](int t) {
     pair_blocks_thread<Sleep>(s, pass, t, T);
     region_marks_[static_cast<std::size_t>(T + t)] = watch.seconds();
-    if (!wait) {
-#pragma omp barrier
-    }
+    if (!wait) region_barrier(t);
     if (boundary)
       boundary_.run(s, tools_, force_.data(), t, T, busy_row(section::mesh_contacts), nullptr,
                     ghost, wait);
@@ -896,10 +903,24 @@ void Engine::step_one_region(State& s) {
     } else {
       std::size_t split[2];
       owner_range(pass, T, t, split);
-#pragma omp barrier
+      region_barrier(t);
       if (!boundary_.overflowed())
         integrate_walk_thread<Sleep>(s, split[0], split[1], plan.keep, plan.renote, total, t);
     }
+  };
+  if (scene_.thread_wait == ThreadWait::yield && T > 1) {
+    if (!team_ || team_->size() != T) {
+      // Each worker on the CPUs libgomp gives OpenMP's thread of its number (OMP_PROC_BIND).
+      std::vector<std::vector<int>> cpus;
+      for (const ThreadCpus& c : thread_cpus(T)) cpus.push_back(c.allowed);
+      team_ = std::make_unique<ThreadTeam>(T, cpus);
+    }
+    region_team_ = team_.get();
+    team_->run(body);
+    region_team_ = nullptr;
+  } else {
+#pragma omp parallel num_threads(T)
+    body(omp_get_thread_num());
   }
   const double region = watch.lap();
   double work[3] = {0, 0, 0}, all = 0;

@@ -1,5 +1,7 @@
 #include "dem/thread_wait.hpp"
 
+#include "dem/thread_team.hpp"
+
 #include <omp.h>
 #include <sched.h>
 #include <unistd.h>
@@ -25,6 +27,11 @@ std::string describe(ThreadWait w) {
     case ThreadWait::brief:
       return "brief (GOMP_SPINCOUNT=" + std::to_string(kBriefSpinCount) +
              ": waiting threads spin briefly, then sleep)";
+    case ThreadWait::yield:
+      return "yield (the DEM step's own threads spin, yield the core to any other runnable "
+             "thread, and sleep after " +
+             std::to_string(ThreadTeam::kYieldFor.count()) +
+             " us; OpenMP's other regions: OMP_WAIT_POLICY=PASSIVE)";
     case ThreadWait::spin:
       break;
   }
@@ -112,13 +119,15 @@ const char* thread_wait_name(ThreadWait w) {
       return "passive";
     case ThreadWait::brief:
       return "brief";
+    case ThreadWait::yield:
+      return "yield";
     case ThreadWait::spin:
       break;
   }
   return "spin";
 }
 
-const char* thread_wait_choices() { return "passive | brief | spin"; }
+const char* thread_wait_choices() { return "passive | brief | spin | yield"; }
 
 ThreadWaitPlan plan_thread_wait(ThreadWait want, const char* omp_wait_policy,
                                 const char* gomp_spincount, const char* guard) {
@@ -143,6 +152,7 @@ ThreadWaitPlan plan_thread_wait(ThreadWait want, const char* omp_wait_policy,
   p.unset = {"OMP_WAIT_POLICY", "GOMP_SPINCOUNT"};
   switch (want) {
     case ThreadWait::passive:
+    case ThreadWait::yield:
       p.set.emplace_back("OMP_WAIT_POLICY", "PASSIVE");
       break;
     case ThreadWait::brief:
@@ -182,6 +192,7 @@ std::string apply_thread_wait(ThreadWait want, char** argv) {
                thread_wait_name(want), std::strerror(err), old.c_str());
   g_in_force = {true, false, old == "passive" ? ThreadWait::passive
                              : old == "brief" ? ThreadWait::brief
+                             : old == "yield" ? ThreadWait::yield
                                               : ThreadWait::spin};
   return describe(g_in_force.policy);
 }

@@ -144,14 +144,58 @@ TEST(dem_OneRegion, SameBitsAsARegionPerStage) {
   }
 }
 
+// The engine's own threads (scene.thread_wait: yield, dem/thread_team.hpp) run the same region
+// as OpenMP's team: the same bits on 2 threads, all awake, sleeping, and sleeping with close
+// pairs; one thread makes no team.
+TEST(dem_OneRegion, OwnThreadsGiveTheBitsOfOpenMPs) {
+  struct Case {
+    const char* name;
+    bool sleep;
+    double close_margin;
+  };
+  for (const Case c : {Case{"all awake", false, 0.0}, Case{"sleeping", true, 0.0},
+                       Case{"sleeping, close pairs", true, 0.1}}) {
+    for (const int threads : {1, 2}) {
+      dem::Scene omp = lattice_scene(threads, c.sleep);
+      omp.sleep.close_pairs = c.close_margin > 0;
+      omp.thread_wait = dem::ThreadWait::passive;
+      dem::Scene own = omp;
+      own.thread_wait = dem::ThreadWait::yield;
+      const RegionRun a = run(omp, options(true, c.close_margin));
+      RegionRun b;
+      b.state = lattice_state();
+      dem::Engine e(own, options(true, c.close_margin));
+      for (int k = 0; k < kSteps; ++k) step_and_record(own, e, b);
+      const std::string what = std::string(c.name) + ", " + std::to_string(threads) + " threads";
+      EXPECT_EQ(e.one_region_steps(), kSteps) << what;
+      if (threads == 2) {
+        ASSERT_NE(e.own_threads(), nullptr) << what;
+        const dem::ThreadTeam::Waits w = e.own_threads()->waits();
+        EXPECT_GT(w.awake + w.slept, kSteps) << what;  // at least each step's end was waited for
+      } else {
+        EXPECT_EQ(e.own_threads(), nullptr) << what;
+      }
+      EXPECT_EQ(dem::differing_arrays(a.state, b.state), "") << what;
+      EXPECT_EQ(first_difference(a, b), -1) << what;
+      EXPECT_EQ(e.woke_total(), a.woke) << what;
+      EXPECT_EQ(e.fell_asleep_total(), a.fell) << what;
+      if (c.sleep) EXPECT_GT(a.woke, 100) << what;
+    }
+  }
+}
+
 // Two threads in one region against one thread, through a checkpoint: the 2-thread run is saved
 // half way and continued by a fresh engine from the file; every step's wrench, floor force and
 // sleeper count, and the final state, are the 1-thread run's bits.
+// Both with OpenMP's team and with the engine's own threads (scene.thread_wait: yield).
 TEST(dem_OneRegion, TwoThreadsThroughACheckpointGiveTheBitsOfOne) {
+  for (const dem::ThreadWait wait : {dem::ThreadWait::passive, dem::ThreadWait::yield})
   for (const bool sleep : {false, true}) {
-    const std::string what = sleep ? "sleeping" : "all awake";
+    const std::string what = std::string(sleep ? "sleeping" : "all awake") + ", thread_wait " +
+                             dem::thread_wait_name(wait);
     const dem::Scene one_scene = lattice_scene(1, sleep);
-    const dem::Scene two_scene = lattice_scene(2, sleep);
+    dem::Scene two_scene = lattice_scene(2, sleep);
+    two_scene.thread_wait = wait;
     const RegionRun one = run(one_scene, options(true));
     RegionRun two;
     two.state = lattice_state();
@@ -160,9 +204,11 @@ TEST(dem_OneRegion, TwoThreadsThroughACheckpointGiveTheBitsOfOne) {
       for (int k = 0; k < kSteps / 2 + 3; ++k) step_and_record(two_scene, e, two);
       ASSERT_EQ(e.threads(), 2) << what;
       EXPECT_EQ(e.one_region_steps(), kSteps / 2 + 3) << what;
+      EXPECT_EQ(e.own_threads() != nullptr, wait == dem::ThreadWait::yield) << what;
     }
     const std::string file = (std::filesystem::temp_directory_path() /
-                              ("dem_one_region_" + std::to_string(sleep) + ".h5"))
+                              ("dem_one_region_" + std::to_string(sleep) +
+                               dem::thread_wait_name(wait) + ".h5"))
                                  .string();
     dem::save_checkpoint(two.state, file);
     two.state = dem::load_checkpoint(file);
@@ -182,10 +228,12 @@ TEST(dem_OneRegion, TwoThreadsThroughACheckpointGiveTheBitsOfOne) {
 // no particle has moved when it is thrown, on 1 and 2 threads.
 TEST(dem_OneRegion, TooManyBoundaryContactsStopTheStepBeforeAnythingMoves) {
   for (const int threads : {1, 2}) {
-    for (const bool one_region : {false, true}) {
+    for (const int variant : {0, 1, 2}) {  // a region per stage, one region, its own threads
+      const bool one_region = variant > 0;
       // Two particles inside a cage of more walls than kBoundarySlots, each on a thread of its
       // own.
       auto [scene, st] = demtest::caged_pair_scene(threads);
+      if (variant == 2) scene.thread_wait = dem::ThreadWait::yield;
       dem::EngineOptions o = options(one_region);
       o.min_particles_per_thread = 1;
       dem::Engine e(scene, o);
@@ -199,7 +247,9 @@ TEST(dem_OneRegion, TooManyBoundaryContactsStopTheStepBeforeAnythingMoves) {
         message = err.what();
       }
       const std::string what = std::to_string(threads) + " threads, " +
-                               (one_region ? "one region" : "a region per stage");
+                               (variant == 2   ? "one region on its own threads"
+                                : one_region ? "one region"
+                                             : "a region per stage");
       EXPECT_NE(message.find("particle id "), std::string::npos) << what << ": " << message;
       EXPECT_NE(message.find("touches more than 8 walls"), std::string::npos) << what << ": " << message;
       EXPECT_EQ(e.threads(), threads) << what;

@@ -52,13 +52,13 @@ std::string error_of(const std::string& set) {
 TEST(dem_ThreadWait, ConfigKeyIsReadAndValidated) {
   YAML::Node root = YAML::Load(kConfig);
   EXPECT_EQ(dem::read_thread_wait(root), dem::Scene{}.thread_wait);
-  for (ThreadWait w : {ThreadWait::passive, ThreadWait::brief, ThreadWait::spin}) {
+  for (ThreadWait w : {ThreadWait::passive, ThreadWait::brief, ThreadWait::spin, ThreadWait::yield}) {
     cosim::config::apply_override(root, std::string("scene.thread_wait=") + dem::thread_wait_name(w));
     EXPECT_EQ(dem::read_thread_wait(root), w);
     EXPECT_EQ(dem::load_config(root, ".").scene.thread_wait, w);
   }
   const std::string msg = error_of("scene.thread_wait=sometimes");
-  for (const char* part : {"scene.thread_wait", "sometimes", "passive", "brief", "spin"})
+  for (const char* part : {"scene.thread_wait", "sometimes", "passive", "brief", "spin", "yield"})
     EXPECT_NE(msg.find(part), std::string::npos) << "message '" << msg << "' lacks '" << part << "'";
   EXPECT_NE(error_of("scene.thread_wait=[passive]"), "");
 }
@@ -74,6 +74,13 @@ TEST(dem_ThreadWait, PlanSetsTheVariablesOfThePolicyOnce) {
   const std::vector<std::pair<std::string, std::string>> brief{
       {"GOMP_SPINCOUNT", std::to_string(dem::kBriefSpinCount)}, {dem::kThreadWaitGuard, "brief"}};
   EXPECT_EQ(p.set, brief);
+  // yield: the step's own threads yield; OpenMP's other regions wait passively.
+  p = dem::plan_thread_wait(ThreadWait::yield, nullptr, nullptr, nullptr);
+  EXPECT_EQ(p.action, Action::reexec);
+  const std::vector<std::pair<std::string, std::string>> yield{
+      {"OMP_WAIT_POLICY", "PASSIVE"}, {dem::kThreadWaitGuard, "yield"}};
+  EXPECT_EQ(p.set, yield);
+  EXPECT_EQ(dem::plan_thread_wait(ThreadWait::yield, "PASSIVE", nullptr, "yield").action, Action::none);
   // libgomp's default is the spin policy: nothing to do without a variable set.
   EXPECT_EQ(dem::plan_thread_wait(ThreadWait::spin, nullptr, nullptr, nullptr).action, Action::none);
   // After the re-execution the guard names the policy: done (no loop).
@@ -88,7 +95,7 @@ TEST(dem_ThreadWait, PlanSetsTheVariablesOfThePolicyOnce) {
 }
 
 TEST(dem_ThreadWait, TheUsersEnvironmentWins) {
-  for (ThreadWait w : {ThreadWait::passive, ThreadWait::brief, ThreadWait::spin}) {
+  for (ThreadWait w : {ThreadWait::passive, ThreadWait::brief, ThreadWait::spin, ThreadWait::yield}) {
     auto p = dem::plan_thread_wait(w, "ACTIVE", nullptr, nullptr);
     EXPECT_EQ(p.action, Action::user_environment);
     EXPECT_NE(p.note.find("OMP_WAIT_POLICY=ACTIVE"), std::string::npos) << p.note;
@@ -134,6 +141,9 @@ TEST(dem_ThreadWait, DemRunRunsWithThePolicysSettings) {
   EXPECT_EQ(last_spincount(out), std::to_string(dem::kBriefSpinCount)) << out;
   out = run_dem_run("", "spin");
   EXPECT_EQ(last_spincount(out), "300000") << out;
+  out = run_dem_run("", "yield");
+  EXPECT_EQ(last_spincount(out), "0") << out;
+  EXPECT_NE(out.find("idle threads wait yield"), std::string::npos) << out;
   // The user's variable is kept whatever the config says.
   out = run_dem_run("GOMP_SPINCOUNT=777", "passive");
   EXPECT_EQ(last_spincount(out), "777") << out;

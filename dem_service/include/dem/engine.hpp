@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -21,6 +22,7 @@
 #include "dem/scene.hpp"
 #include "dem/sleepers.hpp"
 #include "dem/state.hpp"
+#include "dem/thread_team.hpp"
 #include "dem/tool_geometry.hpp"
 
 namespace dem {
@@ -78,6 +80,8 @@ class Engine {
   // Steps this engine made in one parallel region (EngineOptions::one_region; the others ran a
   // region per stage: the rotating model, pair_schedule ranges, or the option off).
   std::int64_t one_region_steps() const { return one_region_steps_; }
+  // The step's own threads (scene.thread_wait: yield) when a step ran on them, else nullptr.
+  const ThreadTeam* own_threads() const { return team_.get(); }
   // Close pairs (EngineOptions::close_margin): how often they were listed, and the share of the half
   // list's candidates the last listing kept (0 if never listed).
   std::int64_t close_builds() const { return close_.builds(); }
@@ -145,8 +149,12 @@ class Engine {
   void integrate_listed_thread(State& s, StepTally& total, int t, int T);
   template <bool Sleep>
   void integrate_range(State& s, std::size_t a0, std::size_t a1, bool keep, bool renote,
-                       StepTally& my, Sleepers::ThreadNotes& notes, const std::int32_t* list);
+                       StepTally& my, Sleepers::ThreadNotes& notes, const std::int32_t* list,
+                       int t);
   void integrate_listed(State& s, StepTally& total);  // with the awake list
+  // Inside a step's parallel region: every thread waits for all (the engine's own team's
+  // barrier where it runs the region, else OpenMP's).
+  void region_barrier(int t);
   void finish_step(State& s, const StepTally& total, int lists, bool close);
   void add_busy(std::size_t section, int t, double seconds) {
     busy_[section * static_cast<std::size_t>(max_threads_) + static_cast<std::size_t>(t)] += seconds;
@@ -176,6 +184,10 @@ class Engine {
   std::vector<std::size_t> split_;   // and the ranges the integration gives them (T + 1)
   std::vector<ContactStats> thread_stats_;  // per thread, pair forces
   std::int64_t one_region_steps_ = 0;
+  // The step's own threads (scene.thread_wait: yield, more than 1 thread; made at the first
+  // step that needs them), and the team running the current region (nullptr: OpenMP's).
+  std::unique_ptr<ThreadTeam> team_;
+  ThreadTeam* region_team_ = nullptr;
   // step_one_region: when each thread left its boundary chunks, then its pair blocks (2 T).
   std::vector<double> region_marks_;
   // thread_busy(): section * max_threads_ + t, for the three sections with parallel loops.

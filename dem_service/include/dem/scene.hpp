@@ -108,9 +108,10 @@ struct Scene {
   // How the engine computes (close pairs, the pair schedule, threads per particle count) is
   // not the scene's: EngineOptions (dem/engine_options.hpp), the config's performance: section.
   int threads = 1;
-  // How idle OpenMP threads wait (dem/thread_wait.hpp). Fixed when the program starts:
-  // dem_run, dem_service and dem_side_by_side apply it with apply_thread_wait.
-  ThreadWait thread_wait = ThreadWait::passive;
+  // How idle threads wait (dem/thread_wait.hpp). The libgomp part is fixed when the program
+  // starts: dem_run, dem_service and dem_side_by_side apply it with apply_thread_wait; with
+  // yield the engine runs each step on its own threads (dem/thread_team.hpp).
+  ThreadWait thread_wait = ThreadWait::yield;
   StabilityOptions stability;
   SleepOptions sleep;
   RegionOptions region;

@@ -27,14 +27,18 @@ enum class ThreadWait {
   passive,  // sleep at once (OMP_WAIT_POLICY=PASSIVE)
   brief,    // spin briefly, then sleep (GOMP_SPINCOUNT=kBriefSpinCount)
   spin,     // libgomp's default: spin up to 300,000 iterations, then sleep
+  // The DEM step runs on the engine's own threads (dem/thread_team.hpp), which wait by
+  // spinning, then yielding the core to any other runnable thread, and sleep after 1 ms;
+  // OpenMP's other regions wait passively (OMP_WAIT_POLICY=PASSIVE).
+  yield,
 };
 
 // Spin iterations of `brief` (libgomp's default is 300,000).
 constexpr long long kBriefSpinCount = 10000;
 
-// The config spelling: "passive", "brief", "spin".
+// The config spelling: "passive", "brief", "spin", "yield".
 const char* thread_wait_name(ThreadWait w);
-// The allowed values as the config error lists them: "passive | brief | spin".
+// The allowed values as the config error lists them: "passive | brief | spin | yield".
 const char* thread_wait_choices();
 
 // The environment variable that marks a process re-executed for a policy (its value is the
