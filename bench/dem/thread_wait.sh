@@ -4,11 +4,11 @@
 # phase when needed (0) and every 5 steps, policies interleaved within each repeat. Prints
 # particle-steps/s per run and the median per policy, and each policy's rate over spin's.
 #   bash bench/dem/thread_wait.sh [--repeats 3] [--sizes 10000,150000] [--dir results/bench_lammps]
-#                                 [--policies passive,brief,spin] [--work 1e7 particle-steps per run]
+#                                 [--policies yield,passive,brief,spin] [--work 1e7 particle-steps per run]
 # The beds come from `dem_side_by_side prepare --kind bed --n N --dir DIR` (bench/lammps).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
-repeats=3 sizes=10000,150000 dir=results/bench_lammps policies=passive,brief,spin work=10000000
+repeats=3 sizes=10000,150000 dir=results/bench_lammps policies=yield,passive,spin work=10000000
 while [ $# -gt 0 ]; do
   case "$1" in
     --repeats) repeats=$2; shift 2 ;;

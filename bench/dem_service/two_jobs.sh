@@ -6,17 +6,17 @@
 # own LCM URL and its own output files. Shortened to --end seconds of the maneuver (default 2;
 # the full job is 15 s). Repeats are interleaved (alone, pair, per policy, per repeat) and the
 # summary is the median over the repeats; the load average before each repeat is printed.
-#   bash bench/dem_service/two_jobs.sh [--end 2] [--repeats 3] [--policies passive,spin]
+#   bash bench/dem_service/two_jobs.sh [--end 2] [--repeats 3] [--policies yield,passive,spin]
 # Needs results/pile_small.h5 (dem_run configs/soil/pile_prepare.yaml; scripts/run.sh does it).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
-end=2 repeats=3 policies=passive,spin
+end=2 repeats=3 policies=yield,passive,spin
 while [ $# -gt 0 ]; do
   case "$1" in
     --end) end=$2; shift 2 ;;
     --repeats) repeats=$2; shift 2 ;;
     --policies) policies=$2; shift 2 ;;
-    *) echo "usage: $0 [--end S] [--repeats N] [--policies passive,brief,spin]" >&2; exit 2 ;;
+    *) echo "usage: $0 [--end S] [--repeats N] [--policies yield,passive,brief,spin]" >&2; exit 2 ;;
   esac
 done
 for b in cosim_master dem_service wheel_loader_adapter; do

@@ -341,7 +341,7 @@ def main():
     p.add_argument("--gas-timing", action="store_true", help="time the 10k gas too")
     p.add_argument("--skip-check", action="store_true", help="skip the physics check")
     p.add_argument("--dir", default="results/bench_lammps")
-    p.add_argument("--thread-wait", default="passive", choices=["passive", "brief", "spin"],
+    p.add_argument("--thread-wait", default="yield", choices=["yield", "passive", "brief", "spin"],
                    help="how our idle threads wait (scene.thread_wait; default: the product's)")
     p.add_argument("--close-margin", type=float, default=0.0,
                    help="performance.close_margin of our runs (fraction of r; 0: every candidate)")
