@@ -449,13 +449,6 @@ void Engine::owner_range(const BlockPass& p, int T, int t, std::size_t* out) con
   }
 }
 
-// BoundaryContacts::ChunkWait for one region per step: returns once the pair forces of
-// particles [lo, hi] are complete, the seconds waited. A particle's force is written by the
-// rows of its own block and of the block before it (a row's partners lie in its block or the
-// next; an even block starts the forces of the next one), so the blocks from the one before
-// lo's to hi's must be done. A thread comes here after its walk over the blocks, when every
-// block is claimed: one not done is being run by another thread, which waits for no boundary
-// chunk, so the wait ends.
 void Engine::region_barrier(int t) {
   if (region_team_) {
     region_team_->barrier(t);
@@ -464,6 +457,13 @@ void Engine::region_barrier(int t) {
   }
 }
 
+// BoundaryContacts::ChunkWait for one region per step: returns once the pair forces of
+// particles [lo, hi] are complete, the seconds waited. A particle's force is written by the
+// rows of its own block and of the block before it (a row's partners lie in its block or the
+// next; an even block starts the forces of the next one), so the blocks from the one before
+// lo's to hi's must be done. A thread comes here after its walk over the blocks, when every
+// block is claimed: one not done is being run by another thread, which waits for no boundary
+// chunk, so the wait ends.
 double Engine::wait_for_blocks(const void* ctx, std::size_t lo, std::size_t hi) {
   const BlockPass& p = *static_cast<const BlockPass*>(ctx);
   if (p.K <= 0) return 0;
@@ -916,8 +916,11 @@ void Engine::step_one_region(State& s) {
       team_ = std::make_unique<ThreadTeam>(T, cpus);
     }
     region_team_ = team_.get();
+    struct Reset {
+      ThreadTeam*& team;
+      ~Reset() { team = nullptr; }
+    } reset{region_team_};
     team_->run(body);
-    region_team_ = nullptr;
   } else {
 #pragma omp parallel num_threads(T)
     body(omp_get_thread_num());

@@ -76,11 +76,22 @@ void ThreadTeam::wake(std::atomic<std::uint32_t>& word) {
   if (sleepers_.load(std::memory_order_seq_cst) > 0) word.notify_all();
 }
 
+namespace {
+// Thrown at a barrier of a run where another thread failed: unwinds this thread too.
+struct Abandoned {};
+}  // namespace
+
 void ThreadTeam::run_one(int t) {
   try {
     fn_(arg_, t);
+  } catch (const Abandoned&) {
+    // Another thread's exception is the run's error.
   } catch (...) {
     errors_[static_cast<std::size_t>(t)] = std::current_exception();
+    // The threads waiting at a barrier for this one would wait forever: release them.
+    failed_.store(true, std::memory_order_seq_cst);
+    barrier_gen_.fetch_add(1, std::memory_order_seq_cst);
+    barrier_gen_.notify_all();
   }
 }
 
@@ -109,6 +120,8 @@ void ThreadTeam::run_impl(void (*fn)(void*, int), void* arg) {
   fn_ = fn;
   arg_ = arg;
   for (std::exception_ptr& e : errors_) e = nullptr;
+  failed_.store(false, std::memory_order_relaxed);
+  arrived_.store(0, std::memory_order_relaxed);
   if (threads_ > 1) {
     const std::uint32_t done0 = finished_.load(std::memory_order_acquire);
     left_.store(threads_ - 1, std::memory_order_relaxed);
@@ -126,6 +139,7 @@ void ThreadTeam::run_impl(void (*fn)(void*, int), void* arg) {
 void ThreadTeam::barrier(int /*t*/) {
   if (threads_ == 1) return;
   const std::uint32_t g = barrier_gen_.load(std::memory_order_acquire);
+  if (failed_.load(std::memory_order_acquire)) throw Abandoned{};
   if (arrived_.fetch_add(1, std::memory_order_acq_rel) + 1 == threads_) {
     arrived_.store(0, std::memory_order_relaxed);
     barrier_gen_.fetch_add(1, std::memory_order_seq_cst);
@@ -133,6 +147,7 @@ void ThreadTeam::barrier(int /*t*/) {
   } else {
     wait_while(barrier_gen_, g);
   }
+  if (failed_.load(std::memory_order_acquire)) throw Abandoned{};
 }
 
 ThreadTeam::Waits ThreadTeam::waits() const {

@@ -102,17 +102,21 @@ int first_difference(const RegionRun& a, const RegionRun& b) {
   return -1;
 }
 
+// The paths both region tests run: all awake (the walk over every particle), sleeping (the
+// awake list's integration), and sleeping with close pairs (the walk with the sleeping rules).
+struct Case {
+  const char* name;
+  bool sleep;
+  double close_margin;
+};
+constexpr Case kCases[] = {{"all awake", false, 0.0}, {"sleeping", true, 0.0},
+                           {"sleeping, close pairs", true, 0.1}};
+
 // One region against a region per stage, on 1 and 2 threads: all awake (the walk over every
 // particle), sleeping (the awake list's integration), and sleeping with close pairs (the walk
 // over every particle with the sleeping rules).
 TEST(dem_OneRegion, SameBitsAsARegionPerStage) {
-  struct Case {
-    const char* name;
-    bool sleep;
-    double close_margin;
-  };
-  for (const Case c : {Case{"all awake", false, 0.0}, Case{"sleeping", true, 0.0},
-                       Case{"sleeping, close pairs", true, 0.1}}) {
+  for (const Case& c : kCases) {
     for (const int threads : {1, 2}) {
       dem::Scene scene = lattice_scene(threads, c.sleep);
       scene.sleep.close_pairs = c.close_margin > 0;
@@ -148,13 +152,7 @@ TEST(dem_OneRegion, SameBitsAsARegionPerStage) {
 // as OpenMP's team: the same bits on 2 threads, all awake, sleeping, and sleeping with close
 // pairs; one thread makes no team.
 TEST(dem_OneRegion, OwnThreadsGiveTheBitsOfOpenMPs) {
-  struct Case {
-    const char* name;
-    bool sleep;
-    double close_margin;
-  };
-  for (const Case c : {Case{"all awake", false, 0.0}, Case{"sleeping", true, 0.0},
-                       Case{"sleeping, close pairs", true, 0.1}}) {
+  for (const Case& c : kCases) {
     for (const int threads : {1, 2}) {
       dem::Scene omp = lattice_scene(threads, c.sleep);
       omp.sleep.close_pairs = c.close_margin > 0;

@@ -75,9 +75,24 @@ TEST(dem_ThreadTeam, AnExceptionOnAnyThreadReachesTheCaller) {
       EXPECT_EQ(std::string(e.what()), "thread " + std::to_string(thrower) + " failed");
     }
   }
-  // The team still works afterwards.
+  // A thread that fails before a barrier does not leave the others waiting there.
+  for (const int thrower : {0, 1}) {
+    int after_barrier = 0;
+    auto fn = [&](int t) {
+      if (t == thrower) throw std::runtime_error("failed before the barrier");
+      team.barrier(t);
+      ++after_barrier;
+    };
+    EXPECT_THROW(team.run(fn), std::runtime_error) << "thrower " << thrower;
+    EXPECT_EQ(after_barrier, 0) << "thrower " << thrower;
+  }
+  // The team still works afterwards, barriers included.
   std::atomic<int> ran{0};
-  auto fn = [&](int) { ran.fetch_add(1); };
+  auto fn = [&](int t) {
+    team.barrier(t);
+    ran.fetch_add(1);
+    team.barrier(t);
+  };
   team.run(fn);
   EXPECT_EQ(ran.load(), 2);
   EXPECT_THROW(dem::ThreadTeam(0), std::invalid_argument);

@@ -39,7 +39,8 @@ class ThreadTeam {
   int size() const { return threads_; }
 
   // fn(t) on thread t = 0 .. size() - 1 (0 on the caller); returns when every thread is done.
-  // An exception thrown on any thread is rethrown here (the first one) after all are done.
+  // An exception thrown on any thread is rethrown here (the lowest thread's) after all are
+  // done; the other threads leave fn at their next barrier (which throws to unwind them).
   template <class F>
   void run(F& fn) {
     run_impl(&call<F>, &fn);
@@ -77,6 +78,7 @@ class ThreadTeam {
   std::atomic<std::uint32_t> barrier_gen_{0};
   std::atomic<int> sleepers_{0};
   std::atomic<bool> stop_{false};
+  std::atomic<bool> failed_{false};  // a thread of this run threw
   std::atomic<std::int64_t> waits_awake_{0}, waits_slept_{0};
   std::vector<std::exception_ptr> errors_;
   std::vector<std::thread> workers_;
