@@ -12,8 +12,10 @@
 //
 // Besides config keys, --a and --b take the engine switches engine.awake_list=true|false (the
 // sleepers' awake list, EngineOptions::awake_list), engine.pair_passes=auto|one|two (the pair
-// stream in one pass or two, EngineOptions::pair_passes) and engine.one_region=true|false (a step in
-// one parallel region, EngineOptions::one_region). Beside the wall time of the blocks, the
+// stream in one pass or two, EngineOptions::pair_passes), engine.queued_rows=true|false (with two
+// passes, the rows with sleeping rules queued too, EngineOptions::queued_rows) and
+// engine.one_region=true|false (a step in one parallel region, EngineOptions::one_region); config
+// keys include scene.thread_wait (yield: the step on the engine's own threads). Beside the wall time of the blocks, the
 // process's CPU seconds (every thread's) and its voluntary context switches (threads going to
 // sleep) during each variant's blocks are printed.
 //
@@ -146,6 +148,10 @@ int main(int argc, char** argv) {
             x.options.one_region = s == "engine.one_region=true";
             continue;
           }
+          if (s == "engine.queued_rows=true" || s == "engine.queued_rows=false") {
+            x.options.queued_rows = s == "engine.queued_rows=true";
+            continue;
+          }
           if (s == "engine.pair_passes=one" || s == "engine.pair_passes=two" ||
               s == "engine.pair_passes=auto") {
             using PP = dem::EngineOptions::PairPasses;
@@ -156,7 +162,7 @@ int main(int argc, char** argv) {
           }
           std::fprintf(stderr, "engine_ab: unknown engine switch '%s' (known: "
                                "engine.awake_list=true|false, engine.one_region=true|false, "
-                               "engine.pair_passes=auto|one|two)\n",
+                               "engine.pair_passes=auto|one|two, engine.queued_rows=true|false)\n",
                        s.c_str());
           return 2;
         }

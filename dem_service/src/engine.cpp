@@ -298,6 +298,7 @@ detail::PairRows Engine::pair_rows_of(State& s) {
   rows.screened = options_.pair_passes == EngineOptions::PairPasses::two ||
                   (options_.pair_passes == EngineOptions::PairPasses::automatic &&
                    s.size() <= EngineOptions::kScreenedMaxParticles);
+  rows.queued_rows = options_.queued_rows;
   if (close_pairs_on(scene_, options_)) {
     const double margin = close_distance(scene_, options_);
     if (!close_.hold(scene_, margin, s)) close_.list(scene_, margin, s, bounds_, threads_);

@@ -283,7 +283,9 @@ TEST(dem_PairKernel, VectorAndScalarGiveTheSameBits) {
 
 // The same with sleepers: a third of the particles asleep, the rows of some sleepers counted as
 // holding an awake partner (read), or the true counts with sleepers in blocks (runs of awake
-// rows with only awake partners streamed), over a range that starts and ends inside a 64-row word;
+// rows with only awake partners streamed), over a range that starts and ends inside a 64-row word,
+// with the rows that have sleeping rules computed a chunk per row or queued (their pairs past the
+// screen run 8 at a time across rows, the queue drained mid-row and before each streamed run);
 // forces, springs, the forces handed on, the statistics and the set of sleepers to wake
 // agree bit for bit.
 TEST(dem_PairKernel, WithSleepersVectorAndScalarGiveTheSameBits) {
@@ -318,12 +320,14 @@ TEST(dem_PairKernel, WithSleepersVectorAndScalarGiveTheSameBits) {
         }
         // The scalar loop, then each chunk kernel with its clean runs streamed in one pass or
         // screened.
+        // The rows with sleeping rules a chunk per row or queued (PairRows::queued_rows).
         std::vector<Kernel> kernels{Kernel::scalar};
-        std::vector<bool> screened{false};
+        std::vector<bool> screened{false}, queued{false};
         for (const Kernel k : chunk_kernels())
-          for (const bool sc : {false, true}) {
+          for (const int variant : {0, 1, 2}) {
             kernels.push_back(k);
-            screened.push_back(sc);
+            screened.push_back(variant == 2);
+            queued.push_back(variant > 0);
           }
         std::vector<Result> res(kernels.size());
         std::vector<std::vector<std::uint8_t>> woken(kernels.size());
@@ -332,6 +336,7 @@ TEST(dem_PairKernel, WithSleepersVectorAndScalarGiveTheSameBits) {
           PairRows p = start(rows, out, law, dt);
           p.branch_free_chunks = sizes % 2 == 0;
           p.screened = screened[q];
+          p.queued_rows = queued[q];
           woken[q].assign(n, 0);
           std::vector<std::int32_t> remote_wake;
           dem::detail::PairSleep sl;
@@ -345,7 +350,8 @@ TEST(dem_PairKernel, WithSleepersVectorAndScalarGiveTheSameBits) {
           for (const std::int32_t r : remote_wake) woken[q][r] = 1;
         }
         for (std::size_t v = 1; v < kernels.size(); ++v) {
-        SCOPED_TRACE(std::string(name(kernels[v])) + (screened[v] ? ", screened" : ", one pass"));
+        SCOPED_TRACE(std::string(name(kernels[v])) + (screened[v] ? ", screened" : ", one pass") +
+                     (queued[v] ? ", rows queued" : ", a chunk per row"));
         for (std::size_t i = 0; i < n; ++i) {
           ASSERT_TRUE(same_bits(res[0].force[i], res[v].force[i])) << "force of particle " << i;
           ASSERT_EQ(woken[0][i], woken[v][i]) << "wake of particle " << i;

@@ -85,6 +85,11 @@ struct EngineOptions {
   enum class PairPasses { automatic, one, two };
   PairPasses pair_passes = PairPasses::automatic;
   static constexpr std::size_t kScreenedMaxParticles = 50000;
+  // With two passes, the rows with sleeping rules (a sleeper's row with awake partners, an awake
+  // row with sleeping partners) queue their pairs too (detail::PairRows::queued_rows) instead of
+  // a chunk per row; docs/performance.md, "The screened stream". The same bits; off only to
+  // measure against.
+  bool queued_rows = true;
 
   // The apps' spelling, from the environment: DEM_PAIR_KERNEL (vector | scalar),
   // DEM_PAIR_CHUNKS (branch-free | branching) and DEM_PAIR_PASSES (auto | one | two);

@@ -67,6 +67,9 @@ struct PairRows {
   // force runs on 8 queued pairs at a time, so that its lanes are not spent on pairs apart
   // (most candidates of a bed at skin 0.3-0.5). The same bits either way.
   bool screened = false;
+  // With screened: the rows with sleeping rules also queue their pairs past the screen and run
+  // their contact forces 8 queued pairs at a time, instead of a chunk per row. The same bits.
+  bool queued_rows = true;
 };
 
 struct PairRowStats {
