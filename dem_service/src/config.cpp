@@ -109,7 +109,7 @@ void parse_stability(const YAML::Node& st, StabilityOptions& o) {
 ThreadWait parse_thread_wait(const YAML::Node& s, ThreadWait fallback) {
   const std::string v = cfg::get_choice(s, "scene", "thread_wait", {"passive", "brief", "spin", "yield"},
                                         thread_wait_name(fallback));
-  for (ThreadWait w : {ThreadWait::passive, ThreadWait::brief, ThreadWait::spin, ThreadWait::yield})
+  for (ThreadWait w : kThreadWaits)
     if (v == thread_wait_name(w)) return w;
   return fallback;  // not reached: get_choice refused anything else
 }

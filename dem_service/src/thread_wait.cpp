@@ -190,10 +190,10 @@ std::string apply_thread_wait(ThreadWait want, char** argv) {
                "warning: could not re-execute to make OpenMP threads wait '%s' (execv "
                "/proc/self/exe: %s); they wait as before ('%s')\n",
                thread_wait_name(want), std::strerror(err), old.c_str());
-  g_in_force = {true, false, old == "passive" ? ThreadWait::passive
-                             : old == "brief" ? ThreadWait::brief
-                             : old == "yield" ? ThreadWait::yield
-                                              : ThreadWait::spin};
+  ThreadWait loaded = ThreadWait::spin;
+  for (const ThreadWait w : kThreadWaits)
+    if (old == thread_wait_name(w)) loaded = w;
+  g_in_force = {true, false, loaded};
   return describe(g_in_force.policy);
 }
 

@@ -33,6 +33,10 @@ enum class ThreadWait {
   yield,
 };
 
+// Every policy, in the order thread_wait_choices() lists them.
+inline constexpr ThreadWait kThreadWaits[] = {ThreadWait::passive, ThreadWait::brief,
+                                              ThreadWait::spin, ThreadWait::yield};
+
 // Spin iterations of `brief` (libgomp's default is 300,000).
 constexpr long long kBriefSpinCount = 10000;
 
