@@ -80,7 +80,64 @@ __attribute__((target("avx512f,avx512vl"))) static std::int32_t row_hits_avx512(
 }
 #endif
 
-bool row_hits_vector_available() {
+#if defined(__x86_64__) && defined(__GNUC__)
+// The same test 4 candidates at a time with AVX2, for processors without AVX-512 (AMD Zen 2 and
+// 3, most Intel client parts): the same operations in the same order (no FMA in the target), the
+// hits appended in lane order through a table of the 16 masks.
+struct Compress4 {
+  std::int32_t lanes[16][4];
+  constexpr Compress4() : lanes{} {
+    for (int m = 0; m < 16; ++m) {
+      int n = 0;
+      for (int l = 0; l < 4; ++l)
+        if ((m >> l) & 1) lanes[m][n++] = l;
+    }
+  }
+};
+alignas(64) static constexpr Compress4 kCompress4{};
+
+__attribute__((target("avx2"))) static std::int32_t row_hits_avx2_impl(
+    const RowData& d, Vec3 xa, double ra, double skin, std::int32_t a,
+    const std::int32_t* row_begin, const std::int32_t* row_end, int rows, std::int32_t* out,
+    std::int32_t& touching) {
+  const __m256d ax = _mm256_set1_pd(xa.x), ay = _mm256_set1_pd(xa.y), az = _mm256_set1_pd(xa.z);
+  const __m256d vr = _mm256_set1_pd(ra), vs = _mm256_set1_pd(skin);
+  const __m256i iota = _mm256_setr_epi64x(0, 1, 2, 3);
+  std::int32_t hits = 0, touch = 0;
+  for (int q = 0; q < rows; ++q) {
+    const std::int32_t b0 = std::max(row_begin[q], a + 1), b1 = row_end[q];
+    for (std::int32_t b = b0; b < b1; b += 4) {
+      // Lanes l < left are live; the others read nothing (masked loads) and never hit.
+      const __m256i live = _mm256_cmpgt_epi64(_mm256_set1_epi64x(b1 - b), iota);
+      const __m256d bx = _mm256_maskload_pd(d.x + b, live);
+      const __m256d by = _mm256_maskload_pd(d.y + b, live);
+      const __m256d bz = _mm256_maskload_pd(d.z + b, live);
+      const __m256d br = _mm256_maskload_pd(d.r + b, live);
+      const __m256d rsum = _mm256_add_pd(vr, br), cut = _mm256_add_pd(rsum, vs);
+      const __m256d dx = _mm256_sub_pd(ax, bx), dy = _mm256_sub_pd(ay, by),
+                    dz = _mm256_sub_pd(az, bz);
+      const __m256d d2 = _mm256_add_pd(
+          _mm256_add_pd(_mm256_mul_pd(dx, dx), _mm256_mul_pd(dy, dy)), _mm256_mul_pd(dz, dz));
+      const __m256d lv = _mm256_castsi256_pd(live);
+      const int hit = _mm256_movemask_pd(
+          _mm256_and_pd(lv, _mm256_cmp_pd(d2, _mm256_mul_pd(cut, cut), _CMP_LT_OQ)));
+      const int tch = _mm256_movemask_pd(
+          _mm256_and_pd(lv, _mm256_cmp_pd(d2, _mm256_mul_pd(rsum, rsum), _CMP_LT_OQ)));
+      // 4 entries stored whole (the caller leaves kRowHitsSlack entries of room).
+      const __m128i lanes =
+          _mm_load_si128(reinterpret_cast<const __m128i*>(kCompress4.lanes[hit]));
+      _mm_storeu_si128(reinterpret_cast<__m128i*>(out + hits),
+                       _mm_add_epi32(_mm_set1_epi32(b), lanes));
+      hits += __builtin_popcount(static_cast<unsigned>(hit));
+      touch += __builtin_popcount(static_cast<unsigned>(tch));
+    }
+  }
+  touching += touch;
+  return hits;
+}
+#endif
+
+static bool has_avx512_row_test() {
 #if defined(__x86_64__) && defined(__GNUC__)
   __builtin_cpu_init();
   return __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl");
@@ -89,14 +146,37 @@ bool row_hits_vector_available() {
 #endif
 }
 
+bool row_hits_avx2_available() {
+#if defined(__x86_64__) && defined(__GNUC__)
+  __builtin_cpu_init();
+  return __builtin_cpu_supports("avx2");
+#else
+  return false;
+#endif
+}
+
+bool row_hits_vector_available() { return has_avx512_row_test() || row_hits_avx2_available(); }
+
+std::int32_t row_hits_avx2(const RowData& d, Vec3 xa, double ra, double skin, std::int32_t a,
+                           const std::int32_t* row_begin, const std::int32_t* row_end, int rows,
+                           std::int32_t* out, std::int32_t& touching) {
+#if defined(__x86_64__) && defined(__GNUC__)
+  if (row_hits_avx2_available())
+    return row_hits_avx2_impl(d, xa, ra, skin, a, row_begin, row_end, rows, out, touching);
+#endif
+  return row_hits_scalar(d, xa, ra, skin, a, row_begin, row_end, rows, out, touching);
+}
+
 using RowHits = std::int32_t (*)(const RowData&, Vec3, double, double, std::int32_t,
                                  const std::int32_t*, const std::int32_t*, int, std::int32_t*,
                                  std::int32_t&);
 
-// The one place that picks the test: the vector one when asked for and available.
+// The one place that picks the test: the vector one when asked for and available (AVX-512, else
+// AVX2).
 static RowHits choose_row_hits(bool vector) {
 #if defined(__x86_64__) && defined(__GNUC__)
-  if (vector && row_hits_vector_available()) return row_hits_avx512;
+  if (vector && has_avx512_row_test()) return row_hits_avx512;
+  if (vector && row_hits_avx2_available()) return row_hits_avx2_impl;
 #endif
   return row_hits_scalar;
 }

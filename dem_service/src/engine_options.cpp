@@ -43,6 +43,16 @@ EngineOptions EngineOptions::from_environment() {
                                   std::to_string(kScreenedMaxParticles) +
                                   " particles), one or two, or unset it");
   }
+  if (const char* v = std::getenv("DEM_ROW_TEST")) {
+    if (std::strcmp(v, "vector") == 0)
+      o.vector_row_test = true;
+    else if (std::strcmp(v, "scalar") == 0)
+      o.vector_row_test = false;
+    else
+      throw std::invalid_argument(std::string("environment DEM_ROW_TEST=") + v +
+                                  ": use vector (the default: AVX-512, else AVX2, where the "
+                                  "processor has it) or scalar, or unset it");
+  }
   return o;
 }
 

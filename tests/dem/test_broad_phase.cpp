@@ -378,13 +378,15 @@ TEST(dem_BroadPhase, StrictGuardThrowsNamingIntervalAndSkin) {
 
 }  // namespace
 
-// The pair list's distance test, 8 candidates at a time with AVX-512 where the processor has
-// it, makes exactly the scalar test's decisions: same candidates in the same order, same count
-// of touching ones, including distances that equal the cut-off or the contact distance in
-// floating point (those are not hits: both compare with <) and rows of every length 0..19.
+// The pair list's distance test, 8 candidates at a time with AVX-512 or 4 at a time with AVX2
+// (each where the processor has it), makes exactly the scalar test's decisions: same candidates
+// in the same order, same count of touching ones, including distances that equal the cut-off or
+// the contact distance in floating point (those are not hits: both compare with <) and rows of
+// every length 0..19.
 TEST(dem_BroadPhase, VectorRowTestMakesTheScalarDecisions) {
   if (!dem::detail::row_hits_vector_available())
-    GTEST_SKIP() << "this processor has no AVX-512F/VL: the pair list uses the scalar test";
+    GTEST_SKIP() << "this processor has neither AVX-512F/VL nor AVX2: the pair list uses the "
+                    "scalar test";
   std::mt19937 rng(7);
   std::uniform_real_distribution<double> u(-1, 1), ur(0.4, 0.6);
   const double skin = 0.2;
@@ -425,17 +427,26 @@ TEST(dem_BroadPhase, VectorRowTestMakesTheScalarDecisions) {
       next += len + (trial % 5);
       ++rows;
     }
-    std::vector<std::int32_t> out_s(200, -1), out_v(200, -1);
-    std::int32_t touch_s = 0, touch_v = 0;
+    std::vector<std::int32_t> out_s(200, -1);
+    std::int32_t touch_s = 0;
     const std::int32_t hs =
         dem::detail::row_hits_scalar(d, xa, ra, skin, a, begin, end, rows, out_s.data(), touch_s);
-    const std::int32_t hv =
-        dem::detail::row_hits_vector(d, xa, ra, skin, a, begin, end, rows, out_v.data(), touch_v);
-    ASSERT_EQ(hs, hv) << "trial " << trial;
-    ASSERT_EQ(touch_s, touch_v) << "trial " << trial;
-    for (std::int32_t k = 0; k < hs; ++k) {
-      ASSERT_EQ(out_s[k], out_v[k]) << "trial " << trial << " hit " << k;
-      ASSERT_GT(out_s[k], a);
+    // The processor's vector test (AVX-512, else AVX2) and the AVX2 one where it is another.
+    for (const bool avx2 : {false, true}) {
+      if (avx2 && !dem::detail::row_hits_avx2_available()) continue;
+      std::vector<std::int32_t> out_v(200, -1);
+      std::int32_t touch_v = 0;
+      const std::int32_t hv =
+          avx2 ? dem::detail::row_hits_avx2(d, xa, ra, skin, a, begin, end, rows, out_v.data(),
+                                            touch_v)
+               : dem::detail::row_hits_vector(d, xa, ra, skin, a, begin, end, rows,
+                                              out_v.data(), touch_v);
+      ASSERT_EQ(hs, hv) << "trial " << trial << (avx2 ? " avx2" : " vector");
+      ASSERT_EQ(touch_s, touch_v) << "trial " << trial << (avx2 ? " avx2" : " vector");
+      for (std::int32_t k = 0; k < hs; ++k) {
+        ASSERT_EQ(out_s[k], out_v[k]) << "trial " << trial << " hit " << k;
+        ASSERT_GT(out_s[k], a);
+      }
     }
     // The scalar decisions against the definition, for the three placed candidates.
     std::set<std::int32_t> listed(out_s.begin(), out_s.begin() + hs);
@@ -457,12 +468,14 @@ TEST(dem_BroadPhase, VectorRowTestMakesTheScalarDecisions) {
 
 // A whole run gives the same bits with the vector pair-list test as with the scalar one: the
 // claim that results do not depend on the processor (docs/dem.md, "Across processors").
-// The vector row test stores its hits as 8 lanes compressed in a register (not vpcompressd to
-// memory, which is microcode on AMD's Zen 4 and 5): the same list, so the same run, on 1 and 2
-// threads and, for the vector test, through a checkpoint with a new engine.
+// The vector row test (AVX-512, else AVX2) stores its hits as 8 or 4 lanes compressed in a
+// register (not vpcompressd to memory, which is microcode on AMD's Zen 4 and 5): the same list,
+// so the same run, on 1 and 2 threads and, for the vector test, through a checkpoint with a new
+// engine.
 TEST(dem_BroadPhase, RunIsBitIdenticalWithScalarAndVectorRowTest) {
   if (!dem::detail::row_hits_vector_available())
-    GTEST_SKIP() << "this processor has no AVX-512F/VL: only the scalar test can run here";
+    GTEST_SKIP() << "this processor has neither AVX-512F/VL nor AVX2: only the scalar test can "
+                    "run here";
   auto run = [](bool vector, int threads, bool through_checkpoint) {
     dem::EngineOptions options = kEveryThread;
     options.vector_row_test = vector;

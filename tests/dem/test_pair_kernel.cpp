@@ -521,6 +521,23 @@ TEST(dem_PairKernel, BadKernelInTheEnvironmentIsRefusedAtStartUp) {
                                           " --set run.duration=0.001 --output " + out);
     EXPECT_EQ(code, 0) << v << ": " << text;
   }
+  // DEM_ROW_TEST likewise (the broad phase's distance test: vector or scalar).
+  {
+    const auto [code, text] = run_command("env DEM_ROW_TEST=avx " + std::string(DEM_RUN_EXE) +
+                                          " " + config + " --set run.duration=0.001 --output " +
+                                          out);
+    EXPECT_EQ(code, 2) << text;
+    EXPECT_NE(text.find("DEM_ROW_TEST=avx: use vector (the default: AVX-512, else AVX2, where the "
+                        "processor has it) or scalar, or unset it"),
+              std::string::npos)
+        << text;
+  }
+  for (const char* v : {"vector", "scalar"}) {
+    const auto [code, text] = run_command(std::string("env DEM_ROW_TEST=") + v + " " +
+                                          DEM_RUN_EXE + " " + config +
+                                          " --set run.duration=0.001 --output " + out);
+    EXPECT_EQ(code, 0) << v << ": " << text;
+  }
   // The two good values run.
   for (const char* v : {"scalar", "vector"}) {
     const auto [code, text] = run_command(std::string("env DEM_PAIR_KERNEL=") + v + " " +

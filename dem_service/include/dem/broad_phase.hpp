@@ -48,10 +48,12 @@ inline void grid_cells(Vec3 lo, Vec3 hi, double max_cells, double& h, long& nx, 
 // r_a + r_b + skin, written to `out` in order; their number is returned, and those already
 // touching (distance below r_a + r_b) are added to `touching`. Positions and radii come as
 // separate arrays in cell order. row_hits_vector does it 8 candidates at a time with AVX-512
-// where the processor has it (row_hits_vector_available) and makes exactly the decisions of
-// row_hits_scalar (same operations in the same order, no contraction), so the list does not
-// depend on the processor; without AVX-512 it is row_hits_scalar. `out` must have room for
-// kRowHitsSlack entries past the candidates: the vector test stores 8 lanes at a time.
+// where the processor has it, else 4 at a time with AVX2 (row_hits_vector_available: either),
+// and makes exactly the decisions of row_hits_scalar (same operations in the same order, no
+// contraction), so the list does not depend on the processor; with neither it is
+// row_hits_scalar. row_hits_avx2 is the AVX2 test whatever else the processor has (the scalar
+// one without AVX2), for the tests. `out` must have room for kRowHitsSlack entries past the
+// candidates: the vector tests store 8 or 4 lanes at a time.
 constexpr std::size_t kRowHitsSlack = 8;
 struct RowData {
   const double* x;
@@ -66,6 +68,10 @@ std::int32_t row_hits_vector(const RowData& d, Vec3 xa, double ra, double skin, 
                              const std::int32_t* row_begin, const std::int32_t* row_end,
                              int rows, std::int32_t* out, std::int32_t& touching);
 bool row_hits_vector_available();
+std::int32_t row_hits_avx2(const RowData& d, Vec3 xa, double ra, double skin, std::int32_t a,
+                           const std::int32_t* row_begin, const std::int32_t* row_end, int rows,
+                           std::int32_t* out, std::int32_t& touching);
+bool row_hits_avx2_available();
 }  // namespace detail
 
 class BroadPhase {
