@@ -15,6 +15,9 @@
 //       The pair stream in one pass against two (EngineOptions::pair_passes) in one process, in
 //       blocks of 20 steps taken in turn; prints the times, their ratio, the blocks two passes
 //       won and whether the final states are identical (exit 1 if not).
+//   dem_side_by_side kernels (the same options as passes)
+//       The same with the scalar pair loop against the AVX2 kernel (EngineOptions::PairKernel::
+//       avx2, what the vector kernel runs all awake without AVX-512).
 //   run and trace take --thread-wait passive|brief|spin|yield (default: scene.thread_wait's default),
 //   applied as dem_run applies scene.thread_wait (docs/dem.md); OMP_WAIT_POLICY or
 //   GOMP_SPINCOUNT in the environment win over it. --pair-kernel vector|scalar (default vector)
@@ -320,14 +323,20 @@ int run(const std::string& kind, long n, const std::string& dir, int threads, in
 // The pair stream in one pass against two (EngineOptions::pair_passes) in one process: two
 // engines on two copies of the scene, blocks of 20 steps in turn (A B, B A, ...), so that the
 // machine's drift hits both alike. Both give the same bits (checked at the end).
+// kernels: the same with the scalar loop (A) against the AVX2 kernel (B, Kernel::avx2).
 int passes(const std::string& kind, long n, const std::string& dir, int threads, int interval,
-           int steps) {
+           int steps, bool kernels) {
   const Box b = read_box(base(dir, kind, n) + ".box");
   const dem::Scene scene = make_scene(b, threads, interval);
   dem::State st[2] = {load(dir, kind, n), load(dir, kind, n)};
   dem::EngineOptions o[2] = {g_engine_options, g_engine_options};
-  o[0].pair_passes = dem::EngineOptions::PairPasses::one;
-  o[1].pair_passes = dem::EngineOptions::PairPasses::two;
+  if (kernels) {
+    o[0].pair_kernel = dem::EngineOptions::PairKernel::scalar;
+    o[1].pair_kernel = dem::EngineOptions::PairKernel::avx2;
+  } else {
+    o[0].pair_passes = dem::EngineOptions::PairPasses::one;
+    o[1].pair_passes = dem::EngineOptions::PairPasses::two;
+  }
   dem::Engine one(scene, o[0]), two(scene, o[1]);
   dem::Engine* engine[2] = {&one, &two};
   for (int v = 0; v < 2; ++v)
@@ -351,10 +360,13 @@ int passes(const std::string& kind, long n, const std::string& dir, int threads,
                     std::memcmp(st[0].x.data(), st[1].x.data(), st[0].x.size() * sizeof(dem::Vec3)) == 0 &&
                     std::memcmp(st[0].pair_spring.data(), st[1].pair_spring.data(),
                                 st[0].pair_spring.size() * sizeof(dem::Vec3)) == 0;
-  std::printf("passes: %ld particles, %d threads, %d blocks of %d steps: one %.4f s, two %.4f s, "
-              "two/one %.4f, two faster in %d of %d blocks; final states %s\n",
-              n, threads, blocks, kBlock, total[0], total[1], total[1] / total[0], two_faster,
-              blocks, same ? "identical" : "DIFFER");
+  const char* a = kernels ? "scalar" : "one";
+  const char* bn = kernels ? "avx2" : "two";
+  std::printf("%s: %ld particles, %d threads, %d blocks of %d steps: %s %.4f s, %s %.4f s, "
+              "%s/%s %.4f, %s faster in %d of %d blocks; final states %s\n",
+              kernels ? "kernels" : "passes", n, threads, blocks, kBlock, a, total[0], bn,
+              total[1], bn, a, total[1] / total[0], bn, two_faster, blocks,
+              same ? "identical" : "DIFFER");
   return same ? 0 : 1;
 }
 
@@ -382,9 +394,9 @@ int trace(const std::string& kind, long n, const std::string& dir, int threads, 
 
 int main(int argc, char** argv) {
   if (argc < 2) {
-    std::fprintf(stderr, "usage: dem_side_by_side prepare|run|passes|trace --kind bed|gas --n N "
+    std::fprintf(stderr, "usage: dem_side_by_side prepare|run|passes|kernels|trace --kind bed|gas --n N "
                          "--dir DIR [--threads T --interval I --steps S --duration D --every E]"
-                         " [--thread-wait passive|brief|spin|yield] [--pair-kernel vector|scalar]"
+                         " [--thread-wait passive|brief|spin|yield] [--pair-kernel vector|avx2|scalar]"
                          " [--close-margin M]"
                          "\n(see the header of bench/lammps/side_by_side.cpp)\n");
     return 2;
@@ -415,14 +427,15 @@ int main(int argc, char** argv) {
       return 2;
     }
     const std::string kernel = opt["--pair-kernel"];
-    if (kernel != "vector" && kernel != "scalar") {
-      std::fprintf(stderr, "dem_side_by_side: --pair-kernel %s: use vector or scalar\n",
+    if (kernel != "vector" && kernel != "scalar" && kernel != "avx2") {
+      std::fprintf(stderr, "dem_side_by_side: --pair-kernel %s: use vector, avx2 or scalar\n",
                    kernel.c_str());
       return 2;
     }
     g_engine_options = dem::EngineOptions::from_environment();  // DEM_PAIR_PASSES, DEM_PAIR_CHUNKS
-    g_engine_options.pair_kernel = kernel == "vector" ? dem::EngineOptions::PairKernel::vector
-                                                      : dem::EngineOptions::PairKernel::scalar;
+    g_engine_options.pair_kernel = kernel == "vector"   ? dem::EngineOptions::PairKernel::vector
+                                   : kernel == "avx2" ? dem::EngineOptions::PairKernel::avx2
+                                                        : dem::EngineOptions::PairKernel::scalar;
     // How idle OpenMP threads wait, as dem_run and dem_service do (scene.thread_wait; may
     // execute this program again, once, with the OpenMP wait variables set).
     YAML::Node scene_node;
@@ -433,7 +446,9 @@ int main(int argc, char** argv) {
     const int threads = std::stoi(opt["--threads"]), interval = std::stoi(opt["--interval"]);
     if (cmd == "run") return run(kind, n, dir, threads, interval, std::stoi(opt["--steps"]));
     if (cmd == "passes")
-      return passes(kind, n, dir, threads, interval, std::stoi(opt["--steps"]));
+      return passes(kind, n, dir, threads, interval, std::stoi(opt["--steps"]), false);
+    if (cmd == "kernels")
+      return passes(kind, n, dir, threads, interval, std::stoi(opt["--steps"]), true);
     if (cmd == "trace")
       return trace(kind, n, dir, threads, interval, std::stod(opt["--duration"]),
                    std::stod(opt["--every"]));

@@ -255,6 +255,8 @@ detail::Kernel Engine::pair_kernel() const {
       return detail::Kernel::scalar;
     case EngineOptions::PairKernel::emulated:
       return detail::Kernel::emulated;
+    case EngineOptions::PairKernel::avx2:
+      return detail::Kernel::avx2;
     case EngineOptions::PairKernel::vector:
       break;
   }

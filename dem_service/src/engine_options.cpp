@@ -16,9 +16,11 @@ EngineOptions EngineOptions::from_environment() {
       o.pair_kernel = PairKernel::vector;
     else if (std::strcmp(v, "scalar") == 0)
       o.pair_kernel = PairKernel::scalar;
+    else if (std::strcmp(v, "avx2") == 0)
+      o.pair_kernel = PairKernel::avx2;
     else
       throw std::invalid_argument(std::string("environment DEM_PAIR_KERNEL=") + v +
-                                  ": use vector (the default) or scalar, or unset it");
+                                  ": use vector (the default), avx2 or scalar, or unset it");
   }
   if (const char* v = std::getenv("DEM_PAIR_CHUNKS")) {
     if (std::strcmp(v, "branch-free") == 0)

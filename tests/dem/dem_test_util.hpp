@@ -16,17 +16,21 @@
 namespace demtest {
 
 // The pair kernels a bit-identity test runs the engine with: the scalar loop, the AVX-512 chunk
-// kernel's source with its lanes emulated (any processor), and the AVX-512 kernel itself where
-// the processor has it. None is skipped for want of AVX-512.
+// kernel's source with its lanes emulated (any processor), the AVX-512 kernel itself where
+// the processor has it, and the AVX2 one where it has that. None is skipped for want of AVX-512.
 inline std::vector<dem::EngineOptions::PairKernel> pair_kernels() {
   using K = dem::EngineOptions::PairKernel;
   std::vector<K> k{K::scalar, K::emulated};
   if (dem::detail::pair_rows_vector_available()) k.push_back(K::vector);
+  if (dem::detail::pair_rows_avx2_available()) k.push_back(K::avx2);
   return k;
 }
 inline const char* kernel_name(dem::EngineOptions::PairKernel k) {
   using K = dem::EngineOptions::PairKernel;
-  return k == K::vector ? "vector" : k == K::emulated ? "emulated" : "scalar";
+  return k == K::vector     ? "vector"
+         : k == K::emulated ? "emulated"
+         : k == K::avx2     ? "avx2"
+                            : "scalar";
 }
 
 using dem::Vec3;

@@ -177,11 +177,12 @@ PairRows start(const Rows& in, Result& out, const dem::ContactLaw& law, double d
 
 Result run(const Rows& in, const dem::ContactLaw& law, double dt, std::size_t a0, std::size_t a1,
            Kernel kernel, bool branch_free_chunks = dem::detail::branch_free_chunks_default(),
-           bool screened = false) {
+           bool screened = false, int queue_pairs = 256) {
   Result out;
   PairRows p = start(in, out, law, dt);
   p.branch_free_chunks = branch_free_chunks;
   p.screened = screened;
+  p.queue_pairs = queue_pairs;
   dem::detail::pair_rows(p, a0, a1, out.remote, out.stats, kernel);
   return out;
 }
@@ -189,13 +190,18 @@ Result run(const Rows& in, const dem::ContactLaw& law, double dt, std::size_t a0
 // The chunk kernel's implementations held to the scalar loop's bits: its source with the lanes
 // emulated in portable code everywhere, and the AVX-512 one where the processor has it. No
 // test skips: without AVX-512 the emulated lanes still check the vector path.
+// The AVX2 kernel (all awake; the scalar loop with sleepers) where the processor has AVX2.
 std::vector<Kernel> chunk_kernels() {
   std::vector<Kernel> k{Kernel::emulated};
   if (dem::detail::pair_rows_vector_available()) k.push_back(Kernel::vector);
+  if (dem::detail::pair_rows_avx2_available()) k.push_back(Kernel::avx2);
   return k;
 }
 const char* name(Kernel k) {
-  return k == Kernel::vector ? "vector" : k == Kernel::emulated ? "emulated" : "scalar";
+  return k == Kernel::vector     ? "vector"
+         : k == Kernel::emulated ? "emulated"
+         : k == Kernel::avx2     ? "avx2"
+                                 : "scalar";
 }
 
 std::vector<dem::ContactLaw> laws() {
@@ -250,7 +256,10 @@ TEST(dem_PairKernel, VectorAndScalarGiveTheSameBits) {
         for (const Kernel kernel : chunk_kernels())
         for (const bool screened : {false, true}) {
         SCOPED_TRACE(std::string(name(kernel)) + (screened ? ", screened" : ", one pass"));
-        const Result v = run(rows, law, dt, a0, a1, kernel, branch_free, screened);
+        // The AVX2 kernel with its queue of 256 pairs, and (screened) of 8, shorter than some
+        // rows (those run through the scalar loop alone) and ending mid-row.
+        const Result v = run(rows, law, dt, a0, a1, kernel, branch_free, screened,
+                             kernel == Kernel::avx2 && screened ? 8 : 256);
         for (std::size_t i = 0; i < rows.x.size(); ++i)
           ASSERT_TRUE(same_bits(s.force[i], v.force[i]))
               << "force of particle " << i << " (sizes " << sizes << ")";
@@ -392,6 +401,10 @@ TEST(dem_PairKernel, WholeRunsAreTheSameWithEitherKernel) {
     kernels.insert(kernels.end(), {PK::vector, PK::vector, PK::vector});
     screened.insert(screened.end(), {false, true, true});
   }
+  if (dem::detail::pair_rows_avx2_available()) {  // (screened: no meaning to it; a checkpoint)
+    kernels.insert(kernels.end(), {PK::avx2, PK::avx2});
+    screened.insert(screened.end(), {false, true});
+  }
   for (const int threads : {1, 2}) {
     std::vector<dem::State> result(kernels.size());
     for (std::size_t q = 0; q < kernels.size(); ++q) {
@@ -468,7 +481,7 @@ std::pair<int, std::string> run_command(const std::string& cmd) {
   return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, ss.str()};
 }
 
-// DEM_PAIR_KERNEL picks the kernel for timing; any other value than vector or scalar stops
+// DEM_PAIR_KERNEL picks the kernel for timing; any other value than vector, avx2 or scalar stops
 // dem_run and dem_service at start-up with a message naming the variable and its values.
 TEST(dem_PairKernel, BadKernelInTheEnvironmentIsRefusedAtStartUp) {
   const std::string config = std::string(DEM_SOURCE_DIR) + "/configs/dem/drop_on_meshes.yaml";
@@ -484,7 +497,7 @@ TEST(dem_PairKernel, BadKernelInTheEnvironmentIsRefusedAtStartUp) {
                                        "udpm://239.255.76.67:7667?ttl=0";
     const auto [code, text] = run_command("env DEM_PAIR_KERNEL=avx " + std::string(exe) + " " + args);
     EXPECT_EQ(code, 2) << text;
-    EXPECT_NE(text.find("DEM_PAIR_KERNEL=avx: use vector (the default) or scalar, or unset it"),
+    EXPECT_NE(text.find("DEM_PAIR_KERNEL=avx: use vector (the default), avx2 or scalar, or unset it"),
               std::string::npos)
         << text;
   }
@@ -538,8 +551,8 @@ TEST(dem_PairKernel, BadKernelInTheEnvironmentIsRefusedAtStartUp) {
                                           " --set run.duration=0.001 --output " + out);
     EXPECT_EQ(code, 0) << v << ": " << text;
   }
-  // The two good values run.
-  for (const char* v : {"scalar", "vector"}) {
+  // The good values run.
+  for (const char* v : {"scalar", "vector", "avx2"}) {
     const auto [code, text] = run_command(std::string("env DEM_PAIR_KERNEL=") + v + " " +
                                           DEM_RUN_EXE + " " + config +
                                           " --set run.duration=0.001 --output " + out);

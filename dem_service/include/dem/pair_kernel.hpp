@@ -16,12 +16,16 @@
 
 namespace dem::detail {
 
-// Which implementation runs the rows; all three give the same bits. scalar: one candidate at a
+// Which implementation runs the rows; all four give the same bits. scalar: one candidate at a
 // time. vector: the AVX-512 chunk kernel where the processor has it (pair_rows_vector_available),
-// else the scalar loop. emulated: the chunk kernel's source with its AVX-512 lane operations
-// emulated in portable C++ (src/simd512_emulation.hpp), on any processor; slow, for the tests
-// that hold the vector path to the scalar loop's bits where CI has no AVX-512.
-enum class Kernel { scalar, vector, emulated };
+// else, all awake, the AVX2 one where it has that (pair_rows_avx2_available), else the scalar
+// loop. emulated: the chunk kernel's source with its AVX-512 lane operations emulated in
+// portable C++ (src/simd512_emulation.hpp), on any processor; slow, for the tests that hold the
+// vector path to the scalar loop's bits where CI has no AVX-512. avx2: all awake, the screen of
+// every candidate, then the contact forces of 4 pairs past it at a time on AVX2
+// (src/pair_kernel_avx2.cpp), where available, whatever else the processor has; with sleepers,
+// or without AVX2, the scalar loop.
+enum class Kernel { scalar, vector, emulated, avx2 };
 
 // The processor's choice for PairRows::branch_free_chunks: branch-free on AMD, where 512-bit
 // divisions are cheap (an AMD EPYC VM: 0.93x of the pair forces branch-free); branching where
@@ -70,6 +74,9 @@ struct PairRows {
   // With screened: the rows with sleeping rules also queue their pairs past the screen and run
   // their contact forces 8 queued pairs at a time, instead of a chunk per row. The same bits.
   bool queued_rows = true;
+  // Kernel::avx2: the pairs screened before their contact forces run (4 to 256; a row longer
+  // than this runs through the scalar loop alone). Smaller values are for the tests.
+  int queue_pairs = 256;
 };
 
 struct PairRowStats {
@@ -104,5 +111,7 @@ void pair_rows_sleep(const PairRows& p, const PairSleep& sleep, std::size_t a0, 
                      std::vector<PairRemote>& remote, PairRowStats& stats, Kernel kernel);
 
 bool pair_rows_vector_available();
+// Whether this build (GCC on x86-64) and processor have the AVX2 kernel (Kernel::avx2).
+bool pair_rows_avx2_available();
 
 }  // namespace dem::detail

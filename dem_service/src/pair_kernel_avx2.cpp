@@ -1,0 +1,305 @@
+// The pair forces of all-awake rows on processors with AVX2 but no AVX-512 (AMD Zen 2 and 3,
+// most Intel client parts), where the chunk kernel (pair_kernel_chunks.inc, written for 32
+// 512-bit registers) does not run. Two passes over blocks of whole rows:
+//   1. the screen of every candidate (surely_apart, without a branch on its outcome): the pairs
+//      not surely apart queued in pair order with their rows, the springs of ended contacts
+//      cleared;
+//   2. the contact forces of 4 queued pairs at a time, one per lane of a 4-double AVX2 register
+//      (every lane a pair past the screen), then applied by scalar code in pair order: each
+//      row's sum added to its particle once the queue has passed the row (a row without queued
+//      pairs adds its zero, as the loop does), the partners' shares, springs and statistics.
+// Every operation of the scalar loop (pair_kernel.cpp, pair_rows_scalar) on the same operands in
+// the same order: IEEE add, sub, mul, div and sqrt per lane, no fused multiply-add (the target is
+// avx2 without fma; the engine is built with -ffp-contract=off), the loop's branches as selects.
+// So the same bits (dem_PairKernel.*). Written with GCC's vector extensions; in the clang fuzz
+// build and off x86-64 it is absent and never chosen.
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <stdexcept>
+#include <vector>
+
+#include "dem/pair_kernel.hpp"
+#include "pair_kernel_parts.hpp"
+
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+#define DEM_HAVE_AVX2_PAIRS 1
+#endif
+
+namespace dem::detail {
+
+#ifdef DEM_HAVE_AVX2_PAIRS
+namespace {
+
+typedef double v4d __attribute__((vector_size(32)));
+typedef long long v4q __attribute__((vector_size(32)));
+#define DEM_AVX2 __attribute__((target("avx2")))
+#define DEM_AVX2_INLINE __attribute__((target("avx2"), always_inline)) inline
+
+DEM_AVX2_INLINE v4d splat(double a) { return v4d{a, a, a, a}; }
+DEM_AVX2_INLINE v4d vabs(v4d a) {
+  const v4q no_sign = {0x7fffffffffffffffLL, 0x7fffffffffffffffLL, 0x7fffffffffffffffLL,
+                       0x7fffffffffffffffLL};
+  return reinterpret_cast<v4d>(reinterpret_cast<v4q>(a) & no_sign);
+}
+DEM_AVX2_INLINE v4d vsqrt(v4d a) { return __builtin_ia32_sqrtpd256(a); }
+
+// The contact force of 4 queued pairs (contact_force and its caller's geometry, lane by lane):
+// pair pair[l] of row i[l] with partner j[l]. The lanes are built from scalar loads (a wide load
+// of narrow stores would stall) and leave through memory.
+struct Out4 {
+  alignas(32) double f[3][4], s[3][4], overlap[4];
+  alignas(32) long long acts[4];
+};
+struct Arrays {
+  const Vec3* x;
+  const Vec3* u;
+  const double* r;
+  const double* m;
+  const Vec3* spring;
+};
+
+DEM_AVX2_INLINE void contact4(const ContactLaw& law, double dt, const Arrays& a,
+                              const std::int32_t* i, const std::int32_t* j,
+                              const std::int32_t* pair, Out4& out) {
+  const auto store = [](double* p, v4d v) { __builtin_memcpy(p, &v, sizeof v); };
+#define DEM_LANES(expr) v4d{expr(0), expr(1), expr(2), expr(3)}
+#define DEM_XIX(l) a.x[i[l]].x
+#define DEM_XIY(l) a.x[i[l]].y
+#define DEM_XIZ(l) a.x[i[l]].z
+#define DEM_XJX(l) a.x[j[l]].x
+#define DEM_XJY(l) a.x[j[l]].y
+#define DEM_XJZ(l) a.x[j[l]].z
+#define DEM_UIX(l) a.u[i[l]].x
+#define DEM_UIY(l) a.u[i[l]].y
+#define DEM_UIZ(l) a.u[i[l]].z
+#define DEM_UJX(l) a.u[j[l]].x
+#define DEM_UJY(l) a.u[j[l]].y
+#define DEM_UJZ(l) a.u[j[l]].z
+#define DEM_SX(l) a.spring[pair[l]].x
+#define DEM_SY(l) a.spring[pair[l]].y
+#define DEM_SZ(l) a.spring[pair[l]].z
+#define DEM_RI(l) a.r[i[l]]
+#define DEM_RJ(l) a.r[j[l]]
+#define DEM_MI(l) a.m[i[l]]
+#define DEM_MJ(l) a.m[j[l]]
+  const v4d zero = splat(0.0), one = splat(1.0);
+  const v4d dx = DEM_LANES(DEM_XIX) - DEM_LANES(DEM_XJX),
+            dy = DEM_LANES(DEM_XIY) - DEM_LANES(DEM_XJY),
+            dz = DEM_LANES(DEM_XIZ) - DEM_LANES(DEM_XJZ);
+  const v4d ri = DEM_LANES(DEM_RI), rj = DEM_LANES(DEM_RJ), mi = DEM_LANES(DEM_MI),
+            mj = DEM_LANES(DEM_MJ);
+  const v4d rsum = ri + rj;
+  const v4d d2 = dx * dx + dy * dy + dz * dz;
+  const v4d ux = DEM_LANES(DEM_UIX) - DEM_LANES(DEM_UJX),
+            uy = DEM_LANES(DEM_UIY) - DEM_LANES(DEM_UJY),
+            uz = DEM_LANES(DEM_UIZ) - DEM_LANES(DEM_UJZ);
+  const v4d dist = vsqrt(d2);
+  const v4d inv = one / dist;
+  const v4q pos = dist > zero;
+  const v4d nx = pos ? inv * dx : zero, ny = pos ? inv * dy : zero, nz = pos ? inv * dz : one;
+  // coefficients(law, ri rj / rsum, mi mj / (mi + mj))
+  const v4d length = ri * rj / rsum, m_eff = mi * mj / (mi + mj);
+  const v4d k = law.stiffness_per_length ? splat(law.normal_stiffness) * length
+                                         : splat(law.normal_stiffness);
+  const v4d eta = law.damping_from_restitution ? splat(2.0 * law.zeta) * vsqrt(m_eff * k)
+                                               : splat(law.normal_damping);
+  const v4d kt = splat(law.tangential_stiffness_ratio) * k;
+  const v4d etat = splat(law.tangential_damping_ratio) * eta;
+  const v4d neg_inv_kt = kt > zero ? splat(-1.0) / kt : zero;
+  // contact_force
+  const v4d overlap = rsum - dist;
+  const v4d vn = ux * nx + uy * ny + uz * nz;
+  const v4d half = splat(0.5 * dt) * vabs(vn);
+  const v4q acts = ~(overlap <= -half);
+  const v4q full = overlap >= half;
+  const v4d w = overlap + half;
+  const v4d active = full ? one : w / (splat(2.0) * half);
+  v4d fn = full ? k * overlap : k * w * w / (splat(4.0) * half);
+  fn = fn - active * eta * vn;
+  if (law.clip_attractive) fn = fn < zero ? zero : fn;
+  const v4d vtx = ux - vn * nx, vty = uy - vn * ny, vtz = uz - vn * nz;
+  v4d sx = DEM_LANES(DEM_SX), sy = DEM_LANES(DEM_SY), sz = DEM_LANES(DEM_SZ);
+#undef DEM_LANES
+#undef DEM_XIX
+#undef DEM_XIY
+#undef DEM_XIZ
+#undef DEM_XJX
+#undef DEM_XJY
+#undef DEM_XJZ
+#undef DEM_UIX
+#undef DEM_UIY
+#undef DEM_UIZ
+#undef DEM_UJX
+#undef DEM_UJY
+#undef DEM_UJZ
+#undef DEM_SX
+#undef DEM_SY
+#undef DEM_SZ
+#undef DEM_RI
+#undef DEM_RJ
+#undef DEM_MI
+#undef DEM_MJ
+  const v4d s2 = sx * sx + sy * sy + sz * sz;
+  {  // the spring turned into the tangent plane, its length kept (where held: s2 > 0)
+    const v4d sn = sx * nx + sy * ny + sz * nz;
+    const v4d px = sx - sn * nx, py = sy - sn * ny, pz = sz - sn * nz;
+    const v4d x = sn * sn / s2;
+    const v4d f = x < splat(1e-6) ? one + splat(0.5) * x
+                                  : (x < one ? one / vsqrt(one - x) : zero);
+    const v4q held = s2 > zero;
+    sx = held ? f * px : sx;
+    sy = held ? f * py : sy;
+    sz = held ? f * pz : sz;
+  }
+  const v4d adt = active * splat(dt);
+  sx = sx + adt * vtx;
+  sy = sy + adt * vty;
+  sz = sz + adt * vtz;
+  const v4d neg_kt = -kt, aet = active * etat;
+  v4d ftx = neg_kt * sx - aet * vtx, fty = neg_kt * sy - aet * vty, ftz = neg_kt * sz - aet * vtz;
+  const v4d cap = splat(law.friction) * (fn > zero ? fn : zero);
+  const v4d ft2 = ftx * ftx + fty * fty + ftz * ftz;
+  const v4q binds = ft2 > cap * cap;
+  const v4d q = cap / vsqrt(ft2);
+  const v4d cx = q * ftx, cy = q * fty, cz = q * ftz;
+  const v4q kt_pos = kt > zero;
+  sx = binds ? (kt_pos ? neg_inv_kt * cx : zero) : sx;
+  sy = binds ? (kt_pos ? neg_inv_kt * cy : zero) : sy;
+  sz = binds ? (kt_pos ? neg_inv_kt * cz : zero) : sz;
+  ftx = binds ? cx : ftx;
+  fty = binds ? cy : fty;
+  ftz = binds ? cz : ftz;
+  store(out.f[0], fn * nx + ftx);
+  store(out.f[1], fn * ny + fty);
+  store(out.f[2], fn * nz + ftz);
+  store(out.s[0], sx);
+  store(out.s[1], sy);
+  store(out.s[2], sz);
+  store(out.overlap, overlap);
+  __builtin_memcpy(out.acts, &acts, sizeof acts);
+}
+
+DEM_AVX2 void rows_avx2(const PairRows& p, std::size_t a0, std::size_t a1, std::size_t direct,
+                        std::vector<PairRemote>& remote, PairRowStats& stats) {
+  constexpr std::int32_t kMaxQueue = 256;
+  const std::int32_t kQueue = std::clamp(p.queue_pairs, 4, kMaxQueue);
+  const ContactLaw law = p.law;
+  const double dt = p.dt;
+  const Vec3* const X = p.x;
+  const Vec3* const U = p.u;
+  const double* const R = p.radius;
+  const double* const M = p.mass;
+  const std::int32_t* const off = p.offset;
+  const std::int32_t* const J = p.partner;
+  Vec3* const spring = p.spring;
+  const std::int32_t* const SI = p.spring_index;
+  Vec3* const HOME = p.spring_home;
+  Vec3* const F = p.force;
+  std::int64_t contacts = 0;
+  double max_overlap = 0, max_overlap_ratio = 0;
+  std::int32_t queue[kMaxQueue + 4], queue_row[kMaxQueue + 4];
+  std::size_t row = a0;  // the second pass's row, and its force sum
+  Vec3 fi{};
+  std::size_t next = a0;  // the first pass's next row
+  while (next < a1) {
+    // Pass 1: whole rows while they fit in the queue; a row longer than the queue alone runs
+    // through the scalar loop.
+    std::int32_t n = 0;
+    const std::size_t first = next;
+    while (next < a1 && off[next + 1] - off[next] <= kQueue - n) {
+      const Vec3 x0 = X[next], u0 = U[next];
+      const double r0 = R[next];
+      const std::int32_t k1 = off[next + 1];
+      for (std::int32_t k = off[next]; k < k1; ++k) {
+        const std::int32_t j = J[k];
+        const Vec3 d = x0 - X[j];
+        const double rsum = r0 + R[j];
+        const double d2 = norm2(d);
+        const Vec3 urel = u0 - U[j];
+        const bool apart = surely_apart(d2, rsum, norm2(urel), dt);
+        queue[n] = k;
+        queue_row[n] = static_cast<std::int32_t>(next);
+        n += !apart;
+        if (apart && nonzero(spring[k])) {  // an ended contact: its history forgotten
+          spring[k] = Vec3{};
+          if (SI) HOME[SI[k]] = spring[k];
+        }
+      }
+      ++next;
+    }
+    if (next == first) {  // a row longer than the queue (nothing pending: rows up to it added)
+      PairRowStats one;
+      pair_rows_scalar_awake(p, next, next + 1, direct, remote, one);
+      add_stats(stats, one.contacts, one.max_overlap, one.max_overlap_ratio);
+      row = ++next;
+      continue;
+    }
+    // Pass 2: 4 queued pairs at a time (the last group padded with its last pair, not applied).
+    for (std::int32_t q = n; n > 0 && q < n + 4; ++q) {  // the padding: the last pair again
+      queue[q] = queue[n - 1];
+      queue_row[q] = queue_row[n - 1];
+    }
+    const Arrays arrays{X, U, R, M, spring};
+    for (std::int32_t e = 0; e < n; e += 4) {
+      const int lanes = std::min<std::int32_t>(4, n - e);
+      std::int32_t jj[4];
+      for (int l = 0; l < 4; ++l) jj[l] = J[queue[e + l]];
+      Out4 out;
+      contact4(law, dt, arrays, queue_row + e, jj, queue + e, out);
+      for (int l = 0; l < lanes; ++l) {
+        const std::int32_t k = queue[e + l];
+        const std::size_t i = static_cast<std::size_t>(queue_row[e + l]);
+        while (row < i) {  // rows the queue has left
+          F[row] += fi;
+          fi = Vec3{};
+          ++row;
+        }
+        Vec3& sk = spring[k];
+        if (!out.acts[l]) {
+          sk = Vec3{};
+          if (SI) HOME[SI[k]] = sk;
+          continue;
+        }
+        sk = Vec3{out.s[0][l], out.s[1][l], out.s[2][l]};
+        if (SI) HOME[SI[k]] = sk;
+        ++contacts;
+        const double ov = out.overlap[l];
+        max_overlap = std::max(max_overlap, ov);
+        max_overlap_ratio = std::max(max_overlap_ratio, ov / std::min(R[i], R[jj[l]]));
+        const Vec3 f{out.f[0][l], out.f[1][l], out.f[2][l]};
+        fi += f;
+        on_partner(F, remote, jj[l], f, direct);
+      }
+    }
+    while (row < next) {  // the rows the block ends with
+      F[row] += fi;
+      fi = Vec3{};
+      ++row;
+    }
+  }
+  add_stats(stats, contacts, max_overlap, max_overlap_ratio);
+}
+
+}  // namespace
+
+bool pair_rows_avx2_available() {
+  __builtin_cpu_init();
+  return __builtin_cpu_supports("avx2");
+}
+
+void pair_rows_avx2(const PairRows& p, std::size_t a0, std::size_t a1, std::size_t direct,
+                    std::vector<PairRemote>& remote, PairRowStats& stats) {
+  rows_avx2(p, a0, a1, direct, remote, stats);
+}
+#else
+bool pair_rows_avx2_available() { return false; }
+
+void pair_rows_avx2(const PairRows&, std::size_t, std::size_t, std::size_t,
+                    std::vector<PairRemote>&, PairRowStats&) {
+  throw std::logic_error("the AVX2 pair kernel is not built here (GCC on x86-64 only)");
+}
+#endif
+
+}  // namespace dem::detail
