@@ -14,7 +14,8 @@
 // sleepers' awake list, EngineOptions::awake_list), engine.pair_passes=auto|one|two (the pair
 // stream in one pass or two, EngineOptions::pair_passes), engine.queued_rows=true|false (with two
 // passes, the rows with sleeping rules queued too, EngineOptions::queued_rows) and
-// engine.one_region=true|false (a step in one parallel region, EngineOptions::one_region); config
+// engine.one_region=true|false (a step in one parallel region, EngineOptions::one_region),
+// engine.pair_kernel=vector|scalar|avx2 (the pair forces' kernel, EngineOptions::pair_kernel); config
 // keys include scene.thread_wait (yield: the step on the engine's own threads). Beside the wall time of the blocks, the
 // process's CPU seconds (every thread's) and its voluntary context switches (threads going to
 // sleep) during each variant's blocks are printed.
@@ -152,6 +153,14 @@ int main(int argc, char** argv) {
             x.options.queued_rows = s == "engine.queued_rows=true";
             continue;
           }
+          if (s == "engine.pair_kernel=vector" || s == "engine.pair_kernel=scalar" ||
+              s == "engine.pair_kernel=avx2") {
+            using PK = dem::EngineOptions::PairKernel;
+            x.options.pair_kernel = s == "engine.pair_kernel=vector"   ? PK::vector
+                                    : s == "engine.pair_kernel=scalar" ? PK::scalar
+                                                                       : PK::avx2;
+            continue;
+          }
           if (s == "engine.pair_passes=one" || s == "engine.pair_passes=two" ||
               s == "engine.pair_passes=auto") {
             using PP = dem::EngineOptions::PairPasses;
@@ -162,7 +171,8 @@ int main(int argc, char** argv) {
           }
           std::fprintf(stderr, "engine_ab: unknown engine switch '%s' (known: "
                                "engine.awake_list=true|false, engine.one_region=true|false, "
-                               "engine.pair_passes=auto|one|two, engine.queued_rows=true|false)\n",
+                               "engine.pair_passes=auto|one|two, engine.queued_rows=true|false, "
+                               "engine.pair_kernel=vector|scalar|avx2)\n",
                        s.c_str());
           return 2;
         }

@@ -113,6 +113,12 @@ void pair_rows_scalar_awake(const PairRows& p, std::size_t a0, std::size_t a1, s
   pair_rows_scalar<false>(p, PairSleep{}, a0, a1, direct, remote, stats);
 }
 
+void pair_rows_scalar_sleep(const PairRows& p, const PairSleep& sleep, std::size_t a0,
+                            std::size_t a1, std::size_t direct, std::vector<PairRemote>& remote,
+                            PairRowStats& stats) {
+  pair_rows_scalar<true>(p, sleep, a0, a1, direct, remote, stats);
+}
+
 bool pair_rows_vector_available() {
 #if defined(__x86_64__) && defined(__GNUC__)
   __builtin_cpu_init();
@@ -138,8 +144,8 @@ bool branch_free_chunks_default() {
 }
 
 // The one place that picks the kernel: the vector one when asked for and available, the
-// emulated one when asked for, all awake the AVX2 one when asked for (or for the vector one
-// where AVX-512 is missing) and available, else the scalar loop.
+// emulated one when asked for, the AVX2 one when asked for (or for the vector one where AVX-512
+// is missing) and available, else the scalar loop.
 template <bool Sleep>
 static void dispatch(const PairRows& p, const PairSleep& sleep, std::size_t a0, std::size_t a1,
                      std::vector<PairRemote>& remote, PairRowStats& stats, Kernel kernel) {
@@ -156,10 +162,10 @@ static void dispatch(const PairRows& p, const PairSleep& sleep, std::size_t a0, 
     return;
   }
 #endif
-  // All awake without AVX-512: 4 pairs at a time on AVX2 where the processor has it.
+  // Without AVX-512: 4 pairs at a time on AVX2 where the processor has it.
   static const bool avx2 = pair_rows_avx2_available();
-  if (!Sleep && (kernel == Kernel::vector || kernel == Kernel::avx2) && avx2) {
-    pair_rows_avx2(p, a0, a1, direct, remote, stats);
+  if ((kernel == Kernel::vector || kernel == Kernel::avx2) && avx2) {
+    pair_rows_avx2(p, Sleep ? &sleep : nullptr, a0, a1, direct, remote, stats);
     return;
   }
   pair_rows_scalar<Sleep>(p, sleep, a0, a1, direct, remote, stats);

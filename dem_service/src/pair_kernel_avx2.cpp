@@ -181,8 +181,15 @@ DEM_AVX2_INLINE void contact4(const ContactLaw& law, double dt, const Arrays& a,
   __builtin_memcpy(out.acts, &acts, sizeof acts);
 }
 
-DEM_AVX2 void rows_avx2(const PairRows& p, std::size_t a0, std::size_t a1, std::size_t direct,
-                        std::vector<PairRemote>& remote, PairRowStats& stats) {
+// Sleep: the scalar loop's sleeping rules (pair_rows_scalar<true>): a pair of two sleepers is
+// skipped, a sleeper's row with no awake partner is not read (nor is its force touched), the
+// force of a pair acts only on its awake side, and a sleeper wakes when its contact with history
+// ends (found by the screen, woken at that pair's place in the second pass, so the wakes come in
+// the loop's order) or when the partner is faster than the wake speed.
+template <bool Sleep>
+DEM_AVX2 void rows_avx2(const PairRows& p, const PairSleep& sl, std::size_t a0, std::size_t a1,
+                        std::size_t direct, std::vector<PairRemote>& remote,
+                        PairRowStats& stats) {
   constexpr std::int32_t kMaxQueue = 256;
   const std::int32_t kQueue = std::clamp(p.queue_pairs, 4, kMaxQueue);
   const ContactLaw law = p.law;
@@ -197,23 +204,48 @@ DEM_AVX2 void rows_avx2(const PairRows& p, std::size_t a0, std::size_t a1, std::
   const std::int32_t* const SI = p.spring_index;
   Vec3* const HOME = p.spring_home;
   Vec3* const F = p.force;
+  const std::int32_t* const REST = sl.rest;
+  const std::int32_t S = sl.steps;
+  const auto asleep = [&](std::size_t i) { return Sleep && REST[i] >= S; };
+  // A sleeper's row without awake partners: skipped whole, its force untouched.
+  const auto skipped = [&](std::size_t i) {
+    return Sleep && asleep(i) && sl.awake_partners && sl.awake_partners[i] == 0;
+  };
   std::int64_t contacts = 0;
   double max_overlap = 0, max_overlap_ratio = 0;
   std::int32_t queue[kMaxQueue + 4], queue_row[kMaxQueue + 4];
+  // Sleep: the ended contacts' wakes, by pair (ascending), woken in the second pass.
+  std::int32_t ended[Sleep ? kMaxQueue + 1 : 1], ended_who[Sleep ? kMaxQueue + 1 : 1];
   std::size_t row = a0;  // the second pass's row, and its force sum
   Vec3 fi{};
+  const auto add_rows_before = [&](std::size_t i) {  // rows the queue has left
+    for (; row < i; ++row) {
+      if (!skipped(row)) F[row] += fi;
+      fi = Vec3{};
+    }
+  };
   std::size_t next = a0;  // the first pass's next row
   while (next < a1) {
-    // Pass 1: whole rows while they fit in the queue; a row longer than the queue alone runs
-    // through the scalar loop.
-    std::int32_t n = 0;
+    // Pass 1: whole rows while they fit in the queue (and their ended contacts in `ended`); a row
+    // longer than the queue alone runs through the scalar loop.
+    std::int32_t n = 0, events = 0;
     const std::size_t first = next;
-    while (next < a1 && off[next + 1] - off[next] <= kQueue - n) {
+    while (next < a1 && off[next + 1] - off[next] <= kQueue - std::max(n, events)) {
+      const bool si = asleep(next);
+      if (skipped(next)) {
+        ++next;
+        continue;
+      }
       const Vec3 x0 = X[next], u0 = U[next];
       const double r0 = R[next];
       const std::int32_t k1 = off[next + 1];
       for (std::int32_t k = off[next]; k < k1; ++k) {
         const std::int32_t j = J[k];
+        bool sj = false;
+        if (Sleep) {
+          sj = asleep(static_cast<std::size_t>(j));
+          if (si && sj) continue;  // two sleepers: no force, the spring stays as it was
+        }
         const Vec3 d = x0 - X[j];
         const double rsum = r0 + R[j];
         const double d2 = norm2(d);
@@ -223,6 +255,10 @@ DEM_AVX2 void rows_avx2(const PairRows& p, std::size_t a0, std::size_t a1, std::
         queue_row[n] = static_cast<std::int32_t>(next);
         n += !apart;
         if (apart && nonzero(spring[k])) {  // an ended contact: its history forgotten
+          if (Sleep && (si || sj)) {  // and its sleeper woken (in the second pass)
+            ended[events] = k;
+            ended_who[events++] = si ? static_cast<std::int32_t>(next) : j;
+          }
           spring[k] = Vec3{};
           if (SI) HOME[SI[k]] = spring[k];
         }
@@ -231,7 +267,10 @@ DEM_AVX2 void rows_avx2(const PairRows& p, std::size_t a0, std::size_t a1, std::
     }
     if (next == first) {  // a row longer than the queue (nothing pending: rows up to it added)
       PairRowStats one;
-      pair_rows_scalar_awake(p, next, next + 1, direct, remote, one);
+      if (Sleep)
+        pair_rows_scalar_sleep(p, sl, next, next + 1, direct, remote, one);
+      else
+        pair_rows_scalar_awake(p, next, next + 1, direct, remote, one);
       add_stats(stats, one.contacts, one.max_overlap, one.max_overlap_ratio);
       row = ++next;
       continue;
@@ -241,6 +280,8 @@ DEM_AVX2 void rows_avx2(const PairRows& p, std::size_t a0, std::size_t a1, std::
       queue[q] = queue[n - 1];
       queue_row[q] = queue_row[n - 1];
     }
+    if (Sleep) ended[events] = off[a1];  // past every pair
+    std::int32_t event = 0;
     const Arrays arrays{X, U, R, M, spring};
     for (std::int32_t e = 0; e < n; e += 4) {
       const int lanes = std::min<std::int32_t>(4, n - e);
@@ -251,11 +292,9 @@ DEM_AVX2 void rows_avx2(const PairRows& p, std::size_t a0, std::size_t a1, std::
       for (int l = 0; l < lanes; ++l) {
         const std::int32_t k = queue[e + l];
         const std::size_t i = static_cast<std::size_t>(queue_row[e + l]);
-        while (row < i) {  // rows the queue has left
-          F[row] += fi;
-          fi = Vec3{};
-          ++row;
-        }
+        if (Sleep)
+          for (; ended[event] < k; ++event) wake(sl, static_cast<std::size_t>(ended_who[event]), direct);
+        add_rows_before(i);
         Vec3& sk = spring[k];
         if (!out.acts[l]) {
           sk = Vec3{};
@@ -269,15 +308,21 @@ DEM_AVX2 void rows_avx2(const PairRows& p, std::size_t a0, std::size_t a1, std::
         max_overlap = std::max(max_overlap, ov);
         max_overlap_ratio = std::max(max_overlap_ratio, ov / std::min(R[i], R[jj[l]]));
         const Vec3 f{out.f[0][l], out.f[1][l], out.f[2][l]};
-        fi += f;
-        on_partner(F, remote, jj[l], f, direct);
+        bool si = false, sj = false;
+        if (Sleep) {
+          si = asleep(i);
+          sj = asleep(static_cast<std::size_t>(jj[l]));
+          // Awake against asleep: a partner faster than the wake speed wakes the sleeper.
+          if ((si || sj) && norm2(U[i] - U[jj[l]]) > sl.wake_speed2)
+            wake(sl, si ? i : static_cast<std::size_t>(jj[l]), direct);
+        }
+        if (!Sleep || !si) fi += f;
+        if (!Sleep || !sj) on_partner(F, remote, jj[l], f, direct);
       }
     }
-    while (row < next) {  // the rows the block ends with
-      F[row] += fi;
-      fi = Vec3{};
-      ++row;
-    }
+    if (Sleep)
+      for (; event < events; ++event) wake(sl, static_cast<std::size_t>(ended_who[event]), direct);
+    add_rows_before(next);  // the rows the block ends with
   }
   add_stats(stats, contacts, max_overlap, max_overlap_ratio);
 }
@@ -289,14 +334,17 @@ bool pair_rows_avx2_available() {
   return __builtin_cpu_supports("avx2");
 }
 
-void pair_rows_avx2(const PairRows& p, std::size_t a0, std::size_t a1, std::size_t direct,
-                    std::vector<PairRemote>& remote, PairRowStats& stats) {
-  rows_avx2(p, a0, a1, direct, remote, stats);
+void pair_rows_avx2(const PairRows& p, const PairSleep* sleep, std::size_t a0, std::size_t a1,
+                    std::size_t direct, std::vector<PairRemote>& remote, PairRowStats& stats) {
+  if (sleep)
+    rows_avx2<true>(p, *sleep, a0, a1, direct, remote, stats);
+  else
+    rows_avx2<false>(p, PairSleep{}, a0, a1, direct, remote, stats);
 }
 #else
 bool pair_rows_avx2_available() { return false; }
 
-void pair_rows_avx2(const PairRows&, std::size_t, std::size_t, std::size_t,
+void pair_rows_avx2(const PairRows&, const PairSleep*, std::size_t, std::size_t, std::size_t,
                     std::vector<PairRemote>&, PairRowStats&) {
   throw std::logic_error("the AVX2 pair kernel is not built here (GCC on x86-64 only)");
 }

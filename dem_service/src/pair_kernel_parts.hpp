@@ -46,12 +46,16 @@ inline void add_stats(PairRowStats& stats, std::int64_t contacts, double max_ove
 // the sleeping rules, or nullptr for all awake.
 void pair_rows_emulated(const PairRows& p, const PairSleep* sleep, std::size_t a0, std::size_t a1,
                         std::size_t direct, std::vector<PairRemote>& remote, PairRowStats& stats);
-// All awake on AVX2 lanes (pair_kernel_avx2.cpp); only where pair_rows_avx2_available().
-void pair_rows_avx2(const PairRows& p, std::size_t a0, std::size_t a1, std::size_t direct,
-                    std::vector<PairRemote>& remote, PairRowStats& stats);
-// The scalar loop, all awake (pair_kernel.cpp): pair_rows_avx2 runs a row longer than its queue
-// through it.
+// On AVX2 lanes (pair_kernel_avx2.cpp); sleep: the sleeping rules, or nullptr for all awake.
+// Only where pair_rows_avx2_available().
+void pair_rows_avx2(const PairRows& p, const PairSleep* sleep, std::size_t a0, std::size_t a1,
+                    std::size_t direct, std::vector<PairRemote>& remote, PairRowStats& stats);
+// The scalar loop, all awake or with the sleeping rules (pair_kernel.cpp): pair_rows_avx2 runs a
+// row longer than its queue through it.
 void pair_rows_scalar_awake(const PairRows& p, std::size_t a0, std::size_t a1, std::size_t direct,
                             std::vector<PairRemote>& remote, PairRowStats& stats);
+void pair_rows_scalar_sleep(const PairRows& p, const PairSleep& sleep, std::size_t a0,
+                            std::size_t a1, std::size_t direct, std::vector<PairRemote>& remote,
+                            PairRowStats& stats);
 
 }  // namespace dem::detail

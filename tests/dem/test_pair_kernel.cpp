@@ -346,6 +346,9 @@ TEST(dem_PairKernel, WithSleepersVectorAndScalarGiveTheSameBits) {
           p.branch_free_chunks = sizes % 2 == 0;
           p.screened = screened[q];
           p.queued_rows = queued[q];
+          // The AVX2 kernel (screened: no meaning to it) with a queue of 8 pairs, shorter than
+          // some rows.
+          p.queue_pairs = kernels[q] == Kernel::avx2 && screened[q] ? 8 : 256;
           woken[q].assign(n, 0);
           std::vector<std::int32_t> remote_wake;
           dem::detail::PairSleep sl;

@@ -37,8 +37,8 @@ struct EngineOptions {
   // emulated: the vector kernel's source with its lanes emulated in portable code (any
   // processor, several times slower): for the tests that hold the vector path to the scalar
   // loop's bits where the processor has no AVX-512.
-  // avx2: all awake, the contact forces of 4 screened pairs at a time on AVX2 (what `vector` runs
-  // on a processor without AVX-512; detail::Kernel::avx2), chosen explicitly for tests and
+  // avx2: the contact forces of 4 screened pairs at a time on AVX2 (what `vector` runs on a
+  // processor without AVX-512; detail::Kernel::avx2), chosen explicitly for tests and
   // benchmarks; the scalar loop where the processor lacks AVX2.
   enum class PairKernel { vector, scalar, emulated, avx2 };
   PairKernel pair_kernel = PairKernel::vector;

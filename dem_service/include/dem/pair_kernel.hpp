@@ -18,13 +18,13 @@ namespace dem::detail {
 
 // Which implementation runs the rows; all four give the same bits. scalar: one candidate at a
 // time. vector: the AVX-512 chunk kernel where the processor has it (pair_rows_vector_available),
-// else, all awake, the AVX2 one where it has that (pair_rows_avx2_available), else the scalar
-// loop. emulated: the chunk kernel's source with its AVX-512 lane operations emulated in
-// portable C++ (src/simd512_emulation.hpp), on any processor; slow, for the tests that hold the
-// vector path to the scalar loop's bits where CI has no AVX-512. avx2: all awake, the screen of
-// every candidate, then the contact forces of 4 pairs past it at a time on AVX2
-// (src/pair_kernel_avx2.cpp), where available, whatever else the processor has; with sleepers,
-// or without AVX2, the scalar loop.
+// else the AVX2 one where it has that (pair_rows_avx2_available), else the scalar loop.
+// emulated: the chunk kernel's source with its AVX-512 lane operations emulated in portable C++
+// (src/simd512_emulation.hpp), on any processor; slow, for the tests that hold the vector path
+// to the scalar loop's bits where CI has no AVX-512. avx2: the screen of every
+// candidate, then the contact forces of 4 pairs past it at a time on AVX2
+// (src/pair_kernel_avx2.cpp), where available, whatever else the processor has; without AVX2
+// the scalar loop.
 enum class Kernel { scalar, vector, emulated, avx2 };
 
 // The processor's choice for PairRows::branch_free_chunks: branch-free on AMD, where 512-bit
