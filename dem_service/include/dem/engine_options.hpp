@@ -31,9 +31,10 @@ struct EngineOptions {
   // the barriers cost more than the work (and a lot more on a loaded machine).
   int min_particles_per_thread = 2000;
 
-  // The pair forces: the AVX-512 kernel where the processor has it (vector), or the scalar
-  // loop everywhere. Kept: the scalar loop is the reference the vector kernel's bit-equality
-  // tests compare against, and bench/dem/kernel_ab.sh times one against the other.
+  // The pair forces: the AVX-512 kernel where the processor has it, else the AVX2 one where it
+  // has that (vector), or the scalar loop everywhere. Kept: the scalar loop is the reference the
+  // vector kernels' bit-equality tests compare against, and bench/dem/kernel_ab.sh times one
+  // against the other.
   // emulated: the vector kernel's source with its lanes emulated in portable code (any
   // processor, several times slower): for the tests that hold the vector path to the scalar
   // loop's bits where the processor has no AVX-512.
