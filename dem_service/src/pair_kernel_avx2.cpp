@@ -49,7 +49,7 @@ DEM_AVX2_INLINE v4d vsqrt(v4d a) { return __builtin_ia32_sqrtpd256(a); }
 // pair pair[l] of row i[l] with partner j[l]. The lanes are built from scalar loads (a wide load
 // of narrow stores would stall) and leave through memory.
 struct Out4 {
-  alignas(32) double f[3][4], s[3][4], overlap[4];
+  alignas(32) double f[3][4], s[3][4], overlap[4], ratio[4];  // ratio: overlap / min(ri, rj)
   alignas(32) long long acts[4];
 };
 struct Arrays {
@@ -178,7 +178,68 @@ DEM_AVX2_INLINE void contact4(const ContactLaw& law, double dt, const Arrays& a,
   store(out.s[1], sy);
   store(out.s[2], sz);
   store(out.overlap, overlap);
+  store(out.ratio, overlap / (rj < ri ? rj : ri));  // std::min(ri, rj)
   __builtin_memcpy(out.acts, &acts, sizeof acts);
+}
+
+// The screen of 4 candidates of one row (surely_apart, lane by lane, the same operations in the
+// same order): the row's particle broadcast once per row.
+struct Screen4 {
+  v4d x, y, z, ux, uy, uz, r;
+};
+DEM_AVX2_INLINE Screen4 screen_setup(Vec3 x0, Vec3 u0, double r0) {
+  return {splat(x0.x), splat(x0.y), splat(x0.z), splat(u0.x), splat(u0.y), splat(u0.z), splat(r0)};
+}
+// The lanes surely apart (bit l: partner jj[l]); g2c = 0.25 dt dt as surely_apart computes it.
+DEM_AVX2_INLINE int screen4(const Screen4& sc, const Vec3* X, const Vec3* U, const double* R,
+                            const std::int32_t* jj, double g2c) {
+#define DEM_LANES(expr) v4d{expr(0), expr(1), expr(2), expr(3)}
+#define DEM_XJX(l) X[jj[l]].x
+#define DEM_XJY(l) X[jj[l]].y
+#define DEM_XJZ(l) X[jj[l]].z
+#define DEM_UJX(l) U[jj[l]].x
+#define DEM_UJY(l) U[jj[l]].y
+#define DEM_UJZ(l) U[jj[l]].z
+#define DEM_RJ(l) R[jj[l]]
+  const v4d dx = sc.x - DEM_LANES(DEM_XJX), dy = sc.y - DEM_LANES(DEM_XJY),
+            dz = sc.z - DEM_LANES(DEM_XJZ);
+  const v4d rsum = sc.r + DEM_LANES(DEM_RJ);
+  const v4d ux = sc.ux - DEM_LANES(DEM_UJX), uy = sc.uy - DEM_LANES(DEM_UJY),
+            uz = sc.uz - DEM_LANES(DEM_UJZ);
+#undef DEM_LANES
+#undef DEM_XJX
+#undef DEM_XJY
+#undef DEM_XJZ
+#undef DEM_UJX
+#undef DEM_UJY
+#undef DEM_UJZ
+#undef DEM_RJ
+  const v4d d2 = dx * dx + dy * dy + dz * dz;
+  const v4d u2 = ux * ux + uy * uy + uz * uz;
+  const v4d rs2 = rsum * rsum;
+  const v4d g2 = splat(g2c) * u2;
+  const v4d q = d2 - rs2 - g2;
+  const v4d rhs = splat(4.0) * rsum * rsum * g2;
+  const v4q apart = ~(d2 < rs2) & (q >= splat(0.0)) & (q * q >= rhs);
+  return __builtin_ia32_movmskpd256(reinterpret_cast<v4d>(apart));
+}
+// The lanes of pairs k.. k + 3 whose spring is held (nonzero: NaN counts, -0 does not), the
+// lanes past k1 clear.
+DEM_AVX2_INLINE int springs_held(const Vec3* spring, std::int32_t k, std::int32_t k1) {
+  if (k1 - k >= 4) {  // 12 doubles in a row: 3 loads, bit 3 l + c is component c of lane l
+    v4d a, b, c;
+    __builtin_memcpy(&a, &spring[k], sizeof a);
+    __builtin_memcpy(&b, reinterpret_cast<const double*>(&spring[k]) + 4, sizeof b);
+    __builtin_memcpy(&c, reinterpret_cast<const double*>(&spring[k]) + 8, sizeof c);
+    const v4d zero = splat(0.0);
+    const unsigned m = static_cast<unsigned>(__builtin_ia32_movmskpd256(reinterpret_cast<v4d>(a != zero))) |
+                       static_cast<unsigned>(__builtin_ia32_movmskpd256(reinterpret_cast<v4d>(b != zero))) << 4 |
+                       static_cast<unsigned>(__builtin_ia32_movmskpd256(reinterpret_cast<v4d>(c != zero))) << 8;
+    return ((m & 7) != 0) | ((m >> 3 & 7) != 0) << 1 | ((m >> 6 & 7) != 0) << 2 | ((m >> 9 & 7) != 0) << 3;
+  }
+  int held = 0;
+  for (std::int32_t l = 0; l < k1 - k; ++l) held |= nonzero(spring[k + l]) << l;
+  return held;
 }
 
 // Sleep: the scalar loop's sleeping rules (pair_rows_scalar<true>): a pair of two sleepers is
@@ -194,6 +255,7 @@ DEM_AVX2 void rows_avx2(const PairRows& p, const PairSleep& sl, std::size_t a0, 
   const std::int32_t kQueue = std::clamp(p.queue_pairs, 4, kMaxQueue);
   const ContactLaw law = p.law;
   const double dt = p.dt;
+  const double dt_g2 = 0.25 * dt * dt;  // surely_apart's factor of the relative speed squared
   const Vec3* const X = p.x;
   const Vec3* const U = p.u;
   const double* const R = p.radius;
@@ -236,31 +298,40 @@ DEM_AVX2 void rows_avx2(const PairRows& p, const PairSleep& sl, std::size_t a0, 
         ++next;
         continue;
       }
-      const Vec3 x0 = X[next], u0 = U[next];
-      const double r0 = R[next];
       const std::int32_t k1 = off[next + 1];
-      for (std::int32_t k = off[next]; k < k1; ++k) {
-        const std::int32_t j = J[k];
-        bool sj = false;
-        if (Sleep) {
-          sj = asleep(static_cast<std::size_t>(j));
-          if (si && sj) continue;  // two sleepers: no force, the spring stays as it was
+      const std::int32_t row32 = static_cast<std::int32_t>(next);
+      const Screen4 sc = screen_setup(X[next], U[next], R[next]);
+      for (std::int32_t k = off[next]; k < k1; k += 4) {
+        // 4 candidates at a time: the lanes past the row repeat its last pair and are masked.
+        const std::int32_t last = k1 - 1;
+        std::int32_t jj[4];
+        for (int l = 0; l < 4; ++l) jj[l] = J[std::min(k + l, last)];
+        const int valid = k1 - k >= 4 ? 0xF : (1 << (k1 - k)) - 1;
+        int skip = 0;  // two sleepers: no force, the spring stays as it was
+        if (Sleep && si)
+          for (int l = 0; l < 4; ++l) skip |= (REST[jj[l]] >= S) << l;
+        const int apart = screen4(sc, X, U, R, jj, dt_g2);
+        const int keep = valid & ~skip & ~apart;
+        for (int l = 0; l < 4; ++l) {  // the kept pairs queued in pair order, without a branch
+          queue[n] = k + l;
+          queue_row[n] = row32;
+          n += (keep >> l) & 1;
         }
-        const Vec3 d = x0 - X[j];
-        const double rsum = r0 + R[j];
-        const double d2 = norm2(d);
-        const Vec3 urel = u0 - U[j];
-        const bool apart = surely_apart(d2, rsum, norm2(urel), dt);
-        queue[n] = k;
-        queue_row[n] = static_cast<std::int32_t>(next);
-        n += !apart;
-        if (apart && nonzero(spring[k])) {  // an ended contact: its history forgotten
-          if (Sleep && (si || sj)) {  // and its sleeper woken (in the second pass)
-            ended[events] = k;
-            ended_who[events++] = si ? static_cast<std::int32_t>(next) : j;
+        // The ended contacts among the pairs apart: their history forgotten (rare: one branch).
+        int ended_here = valid & ~skip & apart & springs_held(spring, k, k1);
+        while (ended_here) {
+          const int l = __builtin_ctz(static_cast<unsigned>(ended_here));
+          ended_here &= ended_here - 1;
+          const std::int32_t kk = k + l;
+          if (Sleep) {  // and its sleeper woken (in the second pass)
+            const bool sj = asleep(static_cast<std::size_t>(jj[l]));
+            if (si || sj) {
+              ended[events] = kk;
+              ended_who[events++] = si ? row32 : jj[l];
+            }
           }
-          spring[k] = Vec3{};
-          if (SI) HOME[SI[k]] = spring[k];
+          spring[kk] = Vec3{};
+          if (SI) HOME[SI[kk]] = spring[kk];
         }
       }
       ++next;
@@ -306,7 +377,7 @@ DEM_AVX2 void rows_avx2(const PairRows& p, const PairSleep& sl, std::size_t a0, 
         ++contacts;
         const double ov = out.overlap[l];
         max_overlap = std::max(max_overlap, ov);
-        max_overlap_ratio = std::max(max_overlap_ratio, ov / std::min(R[i], R[jj[l]]));
+        max_overlap_ratio = std::max(max_overlap_ratio, out.ratio[l]);
         const Vec3 f{out.f[0][l], out.f[1][l], out.f[2][l]};
         bool si = false, sj = false;
         if (Sleep) {
