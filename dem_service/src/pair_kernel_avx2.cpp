@@ -308,8 +308,10 @@ DEM_AVX2 void rows_avx2(const PairRows& p, const PairSleep& sl, std::size_t a0, 
         for (int l = 0; l < 4; ++l) jj[l] = J[std::min(k + l, last)];
         const int valid = k1 - k >= 4 ? 0xF : (1 << (k1 - k)) - 1;
         int skip = 0;  // two sleepers: no force, the spring stays as it was
-        if (Sleep && si)
+        if (Sleep && si) {
           for (int l = 0; l < 4; ++l) skip |= (REST[jj[l]] >= S) << l;
+          if ((valid & ~skip) == 0) continue;  // 4 sleeping partners of a sleeper: nothing to do
+        }
         const int apart = screen4(sc, X, U, R, jj, dt_g2);
         const int keep = valid & ~skip & ~apart;
         for (int l = 0; l < 4; ++l) {  // the kept pairs queued in pair order, without a branch
