@@ -1,9 +1,9 @@
 // The pair forces of all-awake rows on processors with AVX2 but no AVX-512 (AMD Zen 2 and 3,
 // most Intel client parts), where the chunk kernel (pair_kernel_chunks.inc, written for 32
 // 512-bit registers) does not run. Two passes over blocks of whole rows:
-//   1. the screen of every candidate (surely_apart, without a branch on its outcome): the pairs
-//      not surely apart queued in pair order with their rows, the springs of ended contacts
-//      cleared;
+//   1. the screen of every candidate (surely_apart on 4 candidates of a row at a time, in the
+//      lanes of a 4-double register, without a branch on its outcome): the pairs not surely
+//      apart queued in pair order with their rows, the springs of ended contacts cleared;
 //   2. the contact forces of 4 queued pairs at a time, one per lane of a 4-double AVX2 register
 //      (every lane a pair past the screen), then applied by scalar code in pair order: each
 //      row's sum added to its particle once the queue has passed the row (a row without queued
