@@ -93,6 +93,39 @@ struct Variant {
   double switches = 0;
 };
 
+// The engine's switches that are no config key (engine.NAME=VALUE), each setting one of
+// dem::EngineOptions.
+struct EngineSwitch {
+  const char* text;
+  void (*set)(dem::EngineOptions&);
+};
+using PK = dem::EngineOptions::PairKernel;
+using PP = dem::EngineOptions::PairPasses;
+const EngineSwitch kEngineSwitches[] = {
+    {"engine.awake_list=true", [](dem::EngineOptions& o) { o.awake_list = true; }},
+    {"engine.awake_list=false", [](dem::EngineOptions& o) { o.awake_list = false; }},
+    {"engine.one_region=true", [](dem::EngineOptions& o) { o.one_region = true; }},
+    {"engine.one_region=false", [](dem::EngineOptions& o) { o.one_region = false; }},
+    {"engine.queued_rows=true", [](dem::EngineOptions& o) { o.queued_rows = true; }},
+    {"engine.queued_rows=false", [](dem::EngineOptions& o) { o.queued_rows = false; }},
+    {"engine.pair_kernel=vector", [](dem::EngineOptions& o) { o.pair_kernel = PK::vector; }},
+    {"engine.pair_kernel=scalar", [](dem::EngineOptions& o) { o.pair_kernel = PK::scalar; }},
+    {"engine.pair_kernel=avx2", [](dem::EngineOptions& o) { o.pair_kernel = PK::avx2; }},
+    {"engine.pair_passes=auto", [](dem::EngineOptions& o) { o.pair_passes = PP::automatic; }},
+    {"engine.pair_passes=one", [](dem::EngineOptions& o) { o.pair_passes = PP::one; }},
+    {"engine.pair_passes=two", [](dem::EngineOptions& o) { o.pair_passes = PP::two; }},
+};
+
+// Sets the switch `s` names; false if it names none.
+bool apply_engine_switch(const std::string& s, dem::EngineOptions& o) {
+  for (const EngineSwitch& e : kEngineSwitches)
+    if (s == e.text) {
+      e.set(o);
+      return true;
+    }
+  return false;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -138,42 +171,13 @@ int main(int argc, char** argv) {
       x.options = bench_engine_options();
       for (const auto& s : common) cosim::config::apply_override(root, s);
       for (const auto& s : x.sets) {
-        // The engine's switches that are no config key: engine.awake_list=true|false,
-        // engine.one_region=true|false.
         if (s.rfind("engine.", 0) == 0) {
-          if (s == "engine.awake_list=true" || s == "engine.awake_list=false") {
-            x.options.awake_list = s == "engine.awake_list=true";
-            continue;
-          }
-          if (s == "engine.one_region=true" || s == "engine.one_region=false") {
-            x.options.one_region = s == "engine.one_region=true";
-            continue;
-          }
-          if (s == "engine.queued_rows=true" || s == "engine.queued_rows=false") {
-            x.options.queued_rows = s == "engine.queued_rows=true";
-            continue;
-          }
-          if (s == "engine.pair_kernel=vector" || s == "engine.pair_kernel=scalar" ||
-              s == "engine.pair_kernel=avx2") {
-            using PK = dem::EngineOptions::PairKernel;
-            x.options.pair_kernel = s == "engine.pair_kernel=vector"   ? PK::vector
-                                    : s == "engine.pair_kernel=scalar" ? PK::scalar
-                                                                       : PK::avx2;
-            continue;
-          }
-          if (s == "engine.pair_passes=one" || s == "engine.pair_passes=two" ||
-              s == "engine.pair_passes=auto") {
-            using PP = dem::EngineOptions::PairPasses;
-            x.options.pair_passes = s == "engine.pair_passes=one"   ? PP::one
-                                    : s == "engine.pair_passes=two" ? PP::two
-                                                                    : PP::automatic;
-            continue;
-          }
-          std::fprintf(stderr, "engine_ab: unknown engine switch '%s' (known: "
-                               "engine.awake_list=true|false, engine.one_region=true|false, "
-                               "engine.pair_passes=auto|one|two, engine.queued_rows=true|false, "
-                               "engine.pair_kernel=vector|scalar|avx2)\n",
-                       s.c_str());
+          if (apply_engine_switch(s, x.options)) continue;
+          std::string known;
+          for (const EngineSwitch& e : kEngineSwitches)
+            known += std::string(known.empty() ? "" : ", ") + e.text;
+          std::fprintf(stderr, "engine_ab: unknown engine switch '%s' (known: %s)\n", s.c_str(),
+                       known.c_str());
           return 2;
         }
         cosim::config::apply_override(root, s);

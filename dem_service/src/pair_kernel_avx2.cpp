@@ -1,5 +1,5 @@
-// The pair forces of all-awake rows on processors with AVX2 but no AVX-512 (AMD Zen 2 and 3,
-// most Intel client parts), where the chunk kernel (pair_kernel_chunks.inc, written for 32
+// The pair forces, all awake or with the sleeping rules, on processors with AVX2 but no
+// AVX-512 (AMD Zen 2 and 3, most Intel client parts), where the chunk kernel (pair_kernel_chunks.inc, written for 32
 // 512-bit registers) does not run. Two passes over blocks of whole rows:
 //   1. the screen of every candidate (surely_apart on 4 candidates of a row at a time, in the
 //      lanes of a 4-double register, without a branch on its outcome): the pairs not surely
@@ -44,6 +44,8 @@ DEM_AVX2_INLINE v4d vabs(v4d a) {
   return reinterpret_cast<v4d>(reinterpret_cast<v4q>(a) & no_sign);
 }
 DEM_AVX2_INLINE v4d vsqrt(v4d a) { return __builtin_ia32_sqrtpd256(a); }
+// Bit l set where lane l of the comparison's result is true.
+DEM_AVX2_INLINE int lanes_of(v4q m) { return __builtin_ia32_movmskpd256(reinterpret_cast<v4d>(m)); }
 
 // The contact force of 4 queued pairs (contact_force and its caller's geometry, lane by lane):
 // pair pair[l] of row i[l] with partner j[l]. The lanes are built from scalar loads (a wide load
@@ -220,22 +222,23 @@ DEM_AVX2_INLINE int screen4(const Screen4& sc, const Vec3* X, const Vec3* U, con
   const v4d g2 = splat(g2c) * u2;
   const v4d q = d2 - rs2 - g2;
   const v4d rhs = splat(4.0) * rsum * rsum * g2;
-  const v4q apart = ~(d2 < rs2) & (q >= splat(0.0)) & (q * q >= rhs);
-  return __builtin_ia32_movmskpd256(reinterpret_cast<v4d>(apart));
+  return lanes_of(~(d2 < rs2) & (q >= splat(0.0)) & (q * q >= rhs));
 }
 // The lanes of pairs k.. k + 3 whose spring is held (nonzero: NaN counts, -0 does not), the
 // lanes past k1 clear.
 DEM_AVX2_INLINE int springs_held(const Vec3* spring, std::int32_t k, std::int32_t k1) {
   if (k1 - k >= 4) {  // 12 doubles in a row: 3 loads, bit 3 l + c is component c of lane l
+    const double* d = &spring[k].x;
     v4d a, b, c;
-    __builtin_memcpy(&a, &spring[k], sizeof a);
-    __builtin_memcpy(&b, reinterpret_cast<const double*>(&spring[k]) + 4, sizeof b);
-    __builtin_memcpy(&c, reinterpret_cast<const double*>(&spring[k]) + 8, sizeof c);
+    __builtin_memcpy(&a, d, sizeof a);
+    __builtin_memcpy(&b, d + 4, sizeof b);
+    __builtin_memcpy(&c, d + 8, sizeof c);
     const v4d zero = splat(0.0);
-    const unsigned m = static_cast<unsigned>(__builtin_ia32_movmskpd256(reinterpret_cast<v4d>(a != zero))) |
-                       static_cast<unsigned>(__builtin_ia32_movmskpd256(reinterpret_cast<v4d>(b != zero))) << 4 |
-                       static_cast<unsigned>(__builtin_ia32_movmskpd256(reinterpret_cast<v4d>(c != zero))) << 8;
-    return ((m & 7) != 0) | ((m >> 3 & 7) != 0) << 1 | ((m >> 6 & 7) != 0) << 2 | ((m >> 9 & 7) != 0) << 3;
+    const unsigned m = static_cast<unsigned>(lanes_of(a != zero) | lanes_of(b != zero) << 4 |
+                                             lanes_of(c != zero) << 8);
+    int held = 0;
+    for (int l = 0; l < 4; ++l) held |= ((m >> (3 * l) & 7) != 0) << l;
+    return held;
   }
   int held = 0;
   for (std::int32_t l = 0; l < k1 - k; ++l) held |= nonzero(spring[k + l]) << l;
@@ -301,9 +304,9 @@ DEM_AVX2 void rows_avx2(const PairRows& p, const PairSleep& sl, std::size_t a0, 
       const std::int32_t k1 = off[next + 1];
       const std::int32_t row32 = static_cast<std::int32_t>(next);
       const Screen4 sc = screen_setup(X[next], U[next], R[next]);
+      const std::int32_t last = k1 - 1;
       for (std::int32_t k = off[next]; k < k1; k += 4) {
         // 4 candidates at a time: the lanes past the row repeat its last pair and are masked.
-        const std::int32_t last = k1 - 1;
         std::int32_t jj[4];
         for (int l = 0; l < 4; ++l) jj[l] = J[std::min(k + l, last)];
         const int valid = k1 - k >= 4 ? 0xF : (1 << (k1 - k)) - 1;
@@ -366,7 +369,8 @@ DEM_AVX2 void rows_avx2(const PairRows& p, const PairSleep& sl, std::size_t a0, 
         const std::int32_t k = queue[e + l];
         const std::size_t i = static_cast<std::size_t>(queue_row[e + l]);
         if (Sleep)
-          for (; ended[event] < k; ++event) wake(sl, static_cast<std::size_t>(ended_who[event]), direct);
+          for (; ended[event] < k; ++event)
+            wake(sl, static_cast<std::size_t>(ended_who[event]), direct);
         add_rows_before(i);
         Vec3& sk = spring[k];
         if (!out.acts[l]) {
