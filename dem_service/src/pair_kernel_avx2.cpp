@@ -109,16 +109,20 @@ DEM_AVX2_INLINE void contact4(const ContactLaw& law, double dt, const Arrays& a,
                                                : splat(law.normal_damping);
   const v4d kt = splat(law.tangential_stiffness_ratio) * k;
   const v4d etat = splat(law.tangential_damping_ratio) * eta;
-  const v4d neg_inv_kt = kt > zero ? splat(-1.0) / kt : zero;
   // contact_force
   const v4d overlap = rsum - dist;
   const v4d vn = ux * nx + uy * ny + uz * nz;
   const v4d half = splat(0.5 * dt) * vabs(vn);
   const v4q acts = ~(overlap <= -half);
   const v4q full = overlap >= half;
-  const v4d w = overlap + half;
-  const v4d active = full ? one : w / (splat(2.0) * half);
-  v4d fn = full ? k * overlap : k * w * w / (splat(4.0) * half);
+  // The divisions below run only where a lane acting needs them (a lane not acting leaves with
+  // its spring cleared and nothing else read, so its other values do not matter).
+  v4d active = one, fn = k * overlap;
+  if (lanes_of(acts & ~full)) {  // a contact within half a step's approach of its first touch
+    const v4d w = overlap + half;
+    active = full ? one : w / (splat(2.0) * half);
+    fn = full ? fn : k * w * w / (splat(4.0) * half);
+  }
   fn = fn - active * eta * vn;
   if (law.clip_attractive) fn = fn < zero ? zero : fn;
   const v4d vtx = ux - vn * nx, vty = uy - vn * ny, vtz = uz - vn * nz;
@@ -148,9 +152,10 @@ DEM_AVX2_INLINE void contact4(const ContactLaw& law, double dt, const Arrays& a,
     const v4d sn = sx * nx + sy * ny + sz * nz;
     const v4d px = sx - sn * nx, py = sy - sn * ny, pz = sz - sn * nz;
     const v4d x = sn * sn / s2;
-    const v4d f = x < splat(1e-6) ? one + splat(0.5) * x
-                                  : (x < one ? one / vsqrt(one - x) : zero);
     const v4q held = s2 > zero;
+    const v4q small = x < splat(1e-6);
+    v4d f = one + splat(0.5) * x;
+    if (lanes_of(held & ~small)) f = small ? f : (x < one ? one / vsqrt(one - x) : zero);
     sx = held ? f * px : sx;
     sy = held ? f * py : sy;
     sz = held ? f * pz : sz;
@@ -164,15 +169,18 @@ DEM_AVX2_INLINE void contact4(const ContactLaw& law, double dt, const Arrays& a,
   const v4d cap = splat(law.friction) * (fn > zero ? fn : zero);
   const v4d ft2 = ftx * ftx + fty * fty + ftz * ftz;
   const v4q binds = ft2 > cap * cap;
-  const v4d q = cap / vsqrt(ft2);
-  const v4d cx = q * ftx, cy = q * fty, cz = q * ftz;
-  const v4q kt_pos = kt > zero;
-  sx = binds ? (kt_pos ? neg_inv_kt * cx : zero) : sx;
-  sy = binds ? (kt_pos ? neg_inv_kt * cy : zero) : sy;
-  sz = binds ? (kt_pos ? neg_inv_kt * cz : zero) : sz;
-  ftx = binds ? cx : ftx;
-  fty = binds ? cy : fty;
-  ftz = binds ? cz : ftz;
+  if (lanes_of(binds & acts)) {  // a contact sliding: the force on the cap, the spring behind it
+    const v4d q = cap / vsqrt(ft2);
+    const v4d cx = q * ftx, cy = q * fty, cz = q * ftz;
+    const v4q kt_pos = kt > zero;
+    const v4d neg_inv_kt = kt_pos ? splat(-1.0) / kt : zero;
+    sx = binds ? (kt_pos ? neg_inv_kt * cx : zero) : sx;
+    sy = binds ? (kt_pos ? neg_inv_kt * cy : zero) : sy;
+    sz = binds ? (kt_pos ? neg_inv_kt * cz : zero) : sz;
+    ftx = binds ? cx : ftx;
+    fty = binds ? cy : fty;
+    ftz = binds ? cz : ftz;
+  }
   store(out.f[0], fn * nx + ftx);
   store(out.f[1], fn * ny + fty);
   store(out.f[2], fn * nz + ftz);
