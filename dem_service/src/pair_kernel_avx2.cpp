@@ -224,6 +224,12 @@ DEM_AVX2_INLINE int screen4(const Screen4& sc, const Vec3* X, const Vec3* U, con
   const v4d rhs = splat(4.0) * rsum * rsum * g2;
   return lanes_of(~(d2 < rs2) & (q >= splat(0.0)) & (q * q >= rhs));
 }
+// The lanes set in a 4-bit mask, in order (the rest 0): the queue's entries of a screened group.
+typedef std::int32_t v4si __attribute__((vector_size(16)));
+alignas(16) constexpr std::int32_t kKeptLanes[16][4] = {
+    {0, 0, 0, 0}, {0, 0, 0, 0}, {1, 0, 0, 0}, {0, 1, 0, 0}, {2, 0, 0, 0}, {0, 2, 0, 0},
+    {1, 2, 0, 0}, {0, 1, 2, 0}, {3, 0, 0, 0}, {0, 3, 0, 0}, {1, 3, 0, 0}, {0, 1, 3, 0},
+    {2, 3, 0, 0}, {0, 2, 3, 0}, {1, 2, 3, 0}, {0, 1, 2, 3}};
 // The lanes of pairs k.. k + 3 whose spring is held (nonzero: NaN counts, -0 does not), the
 // lanes past k1 clear.
 DEM_AVX2_INLINE int springs_held(const Vec3* spring, std::int32_t k, std::int32_t k1) {
@@ -308,8 +314,12 @@ DEM_AVX2 void rows_avx2(const PairRows& p, const PairSleep& sl, std::size_t a0, 
       for (std::int32_t k = off[next]; k < k1; k += 4) {
         // 4 candidates at a time: the lanes past the row repeat its last pair and are masked.
         std::int32_t jj[4];
-        for (int l = 0; l < 4; ++l) jj[l] = J[std::min(k + l, last)];
-        const int valid = k1 - k >= 4 ? 0xF : (1 << (k1 - k)) - 1;
+        const bool whole = k1 - k >= 4;
+        if (whole)
+          __builtin_memcpy(jj, J + k, sizeof jj);
+        else
+          for (int l = 0; l < 4; ++l) jj[l] = J[std::min(k + l, last)];
+        const int valid = whole ? 0xF : (1 << (k1 - k)) - 1;
         int skip = 0;  // two sleepers: no force, the spring stays as it was
         if (Sleep && si) {
           for (int l = 0; l < 4; ++l) skip |= (REST[jj[l]] >= S) << l;
@@ -317,10 +327,15 @@ DEM_AVX2 void rows_avx2(const PairRows& p, const PairSleep& sl, std::size_t a0, 
         }
         const int apart = screen4(sc, X, U, R, jj, dt_g2);
         const int keep = valid & ~skip & ~apart;
-        for (int l = 0; l < 4; ++l) {  // the kept pairs queued in pair order, without a branch
-          queue[n] = k + l;
-          queue_row[n] = row32;
-          n += (keep >> l) & 1;
+        {  // the kept pairs queued in pair order, without a branch: 4 entries written, the
+           // first popcount(keep) of them kept
+          v4si kept;
+          __builtin_memcpy(&kept, kKeptLanes[keep], sizeof kept);
+          kept += v4si{k, k, k, k};
+          const v4si rows = {row32, row32, row32, row32};
+          __builtin_memcpy(queue + n, &kept, sizeof kept);
+          __builtin_memcpy(queue_row + n, &rows, sizeof rows);
+          n += __builtin_popcount(static_cast<unsigned>(keep));
         }
         // The ended contacts among the pairs apart: their history forgotten (rare: one branch).
         int ended_here = valid & ~skip & apart & springs_held(spring, k, k1);
