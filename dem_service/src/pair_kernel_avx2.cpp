@@ -230,6 +230,9 @@ alignas(16) constexpr std::int32_t kKeptLanes[16][4] = {
     {0, 0, 0, 0}, {0, 0, 0, 0}, {1, 0, 0, 0}, {0, 1, 0, 0}, {2, 0, 0, 0}, {0, 2, 0, 0},
     {1, 2, 0, 0}, {0, 1, 2, 0}, {3, 0, 0, 0}, {0, 3, 0, 0}, {1, 3, 0, 0}, {0, 1, 3, 0},
     {2, 3, 0, 0}, {0, 2, 3, 0}, {1, 2, 3, 0}, {0, 1, 2, 3}};
+// Lanes 0 .. n - 1 all ones (n = 0 .. 4).
+constexpr v4q kFirstLanes[5] = {{0, 0, 0, 0}, {-1, 0, 0, 0}, {-1, -1, 0, 0}, {-1, -1, -1, 0},
+                                {-1, -1, -1, -1}};
 // The lanes of pairs k.. k + 3 whose spring is held (nonzero: NaN counts, -0 does not), the
 // lanes past k1 clear.
 DEM_AVX2_INLINE int springs_held(const Vec3* spring, std::int32_t k, std::int32_t k1) {
@@ -242,9 +245,8 @@ DEM_AVX2_INLINE int springs_held(const Vec3* spring, std::int32_t k, std::int32_
     const v4d zero = splat(0.0);
     const unsigned m = static_cast<unsigned>(lanes_of(a != zero) | lanes_of(b != zero) << 4 |
                                              lanes_of(c != zero) << 8);
-    int held = 0;
-    for (int l = 0; l < 4; ++l) held |= ((m >> (3 * l) & 7) != 0) << l;
-    return held;
+    const unsigned any = m | m >> 1 | m >> 2;  // bit 3 l: a component of lane l nonzero
+    return static_cast<int>((any & 1) | (any >> 2 & 2) | (any >> 4 & 4) | (any >> 6 & 8));
   }
   int held = 0;
   for (std::int32_t l = 0; l < k1 - k; ++l) held |= nonzero(spring[k + l]) << l;
@@ -283,7 +285,9 @@ DEM_AVX2 void rows_avx2(const PairRows& p, const PairSleep& sl, std::size_t a0, 
     return Sleep && asleep(i) && sl.awake_partners && sl.awake_partners[i] == 0;
   };
   std::int64_t contacts = 0;
-  double max_overlap = 0, max_overlap_ratio = 0;
+  // The statistics' maxima lane by lane, as std::max takes them in pair order: a value enters
+  // only above the lane's maximum, so the largest of the lanes' is the loop's.
+  v4d max_overlap = splat(0.0), max_overlap_ratio = splat(0.0);
   std::int32_t queue[kMaxQueue + 4], queue_row[kMaxQueue + 4];
   // Sleep: the ended contacts' wakes, by pair (ascending), woken in the second pass.
   std::int32_t ended[Sleep ? kMaxQueue + 1 : 1], ended_who[Sleep ? kMaxQueue + 1 : 1];
@@ -380,6 +384,17 @@ DEM_AVX2 void rows_avx2(const PairRows& p, const PairSleep& sl, std::size_t a0, 
       for (int l = 0; l < 4; ++l) jj[l] = J[queue[e + l]];
       Out4 out;
       contact4(law, dt, arrays, queue_row + e, jj, queue + e, out);
+      {
+        v4q acting, overlap, ratio;
+        __builtin_memcpy(&acting, out.acts, sizeof acting);
+        __builtin_memcpy(&overlap, out.overlap, sizeof overlap);
+        __builtin_memcpy(&ratio, out.ratio, sizeof ratio);
+        acting &= kFirstLanes[lanes];
+        contacts += __builtin_popcount(static_cast<unsigned>(lanes_of(acting)));
+        const v4d ov = reinterpret_cast<v4d>(overlap), ra = reinterpret_cast<v4d>(ratio);
+        max_overlap = acting & (max_overlap < ov) ? ov : max_overlap;
+        max_overlap_ratio = acting & (max_overlap_ratio < ra) ? ra : max_overlap_ratio;
+      }
       for (int l = 0; l < lanes; ++l) {
         const std::int32_t k = queue[e + l];
         const std::size_t i = static_cast<std::size_t>(queue_row[e + l]);
@@ -395,10 +410,6 @@ DEM_AVX2 void rows_avx2(const PairRows& p, const PairSleep& sl, std::size_t a0, 
         }
         sk = Vec3{out.s[0][l], out.s[1][l], out.s[2][l]};
         if (SI) HOME[SI[k]] = sk;
-        ++contacts;
-        const double ov = out.overlap[l];
-        max_overlap = std::max(max_overlap, ov);
-        max_overlap_ratio = std::max(max_overlap_ratio, out.ratio[l]);
         const Vec3 f{out.f[0][l], out.f[1][l], out.f[2][l]};
         bool si = false, sj = false;
         if (Sleep) {
@@ -416,7 +427,12 @@ DEM_AVX2 void rows_avx2(const PairRows& p, const PairSleep& sl, std::size_t a0, 
       for (; event < events; ++event) wake(sl, static_cast<std::size_t>(ended_who[event]), direct);
     add_rows_before(next);  // the rows the block ends with
   }
-  add_stats(stats, contacts, max_overlap, max_overlap_ratio);
+  double mo = 0, mr = 0;
+  for (int l = 0; l < 4; ++l) {
+    mo = std::max(mo, max_overlap[l]);
+    mr = std::max(mr, max_overlap_ratio[l]);
+  }
+  add_stats(stats, contacts, mo, mr);
 }
 
 }  // namespace
