@@ -7,10 +7,13 @@
 //   2. the contact forces of 4 queued pairs at a time, one per lane of a 4-double AVX2 register
 //      (every lane a pair past the screen), then applied by scalar code in pair order: each
 //      row's sum added to its particle once the queue has passed the row (a row without queued
-//      pairs adds its zero, as the loop does), the partners' shares, springs and statistics.
+//      pairs adds its zero, as the loop does), the partners' shares and springs; the statistics
+//      in lanes.
 // Every operation of the scalar loop (pair_kernel.cpp, pair_rows_scalar) on the same operands in
 // the same order: IEEE add, sub, mul, div and sqrt per lane, no fused multiply-add (the target is
-// avx2 without fma; the engine is built with -ffp-contract=off), the loop's branches as selects.
+// avx2 without fma; the engine is built with -ffp-contract=off), the loop's branches as selects;
+// the divisions of the rarer branches (a first touch's ramp, a spring turned far, the friction
+// cap) only when a lane acting takes them.
 // So the same bits (dem_PairKernel.*). Written with GCC's vector extensions; in the clang fuzz
 // build and off x86-64 it is absent and never chosen.
 #include <algorithm>
