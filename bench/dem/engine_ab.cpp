@@ -114,6 +114,10 @@ const EngineSwitch kEngineSwitches[] = {
     {"engine.pair_passes=auto", [](dem::EngineOptions& o) { o.pair_passes = PP::automatic; }},
     {"engine.pair_passes=one", [](dem::EngineOptions& o) { o.pair_passes = PP::one; }},
     {"engine.pair_passes=two", [](dem::EngineOptions& o) { o.pair_passes = PP::two; }},
+    {"engine.vector_triangle_test=true",
+     [](dem::EngineOptions& o) { o.vector_triangle_test = true; }},
+    {"engine.vector_triangle_test=false",
+     [](dem::EngineOptions& o) { o.vector_triangle_test = false; }},
 };
 
 // Sets the switch `s` names; false if it names none.

@@ -77,6 +77,7 @@ Engine::Engine(const Scene& scene, const EngineOptions& options)
   broad_.use_vector_row_test(options.vector_row_test);
   broad_.use_history_same_rows(options.history_same_rows);
   boundary_.use_fast_path(options.boundary_fast);
+  boundary_.use_triangle_lanes(options.vector_triangle_test);
   reset_thread_busy();
   validate_rotation(scene);  // the rotating model's rules (ranges)
 }

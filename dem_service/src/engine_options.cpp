@@ -55,6 +55,16 @@ EngineOptions EngineOptions::from_environment() {
                                   ": use vector (the default: AVX-512, else AVX2, where the "
                                   "processor has it) or scalar, or unset it");
   }
+  if (const char* v = std::getenv("DEM_TRIANGLE_TEST")) {
+    if (std::strcmp(v, "vector") == 0)
+      o.vector_triangle_test = true;
+    else if (std::strcmp(v, "scalar") == 0)
+      o.vector_triangle_test = false;
+    else
+      throw std::invalid_argument(std::string("environment DEM_TRIANGLE_TEST=") + v +
+                                  ": use vector (the default: 4 triangles at a time with AVX2 "
+                                  "where the processor has it) or scalar, or unset it");
+  }
   return o;
 }
 

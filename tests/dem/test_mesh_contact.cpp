@@ -2,6 +2,10 @@
 // with the force of the true distance to the surface: continuous, never double counted.
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <cstdio>
+#include <random>
+
 #include "dem/mesh_contact.hpp"
 #include "dem_test_util.hpp"
 
@@ -155,6 +159,74 @@ TEST(dem_MeshContact, ClosestFeatureClassification) {
   EXPECT_EQ(kind({-0.1, -0.1, 0}), dem::FeatureKind::vertex);
   EXPECT_EQ(kind({1.5, -0.1, 0}), dem::FeatureKind::vertex);
   EXPECT_NEAR(dem::closest_on_triangle(mesh, wv, 0, {0.8, 0.8, 0}).dist2, 2 * 0.3 * 0.3, 1e-15);
+}
+
+// triangles_within (4 triangles at a time in lanes where the processor has AVX2) decides as
+// closest_on_triangle(...).dist2 < reach2 does, bit for bit: on a crumpled sheet of 8 x 8 quads
+// (random heights, triangles of every shape and orientation, each edge with its lower vertex
+// first in the mesh) against points around a triangle and its neighbours (every region: the
+// face, each edge, each vertex), for groups of 1 to 4 triangles, with reach2 set
+// exactly to one triangle's squared distance (below is false), one ulp above it (true) and
+// random. A one-ulp difference in any region's distance flips a decision.
+TEST(dem_MeshContact, TrianglesWithinDecideAsTheClosestPoint) {
+  std::mt19937_64 rng(2026);
+  std::uniform_real_distribution<double> u01(0.0, 1.0);
+  constexpr int kN = 8;
+  double height[kN + 1][kN + 1];
+  for (auto& row : height)
+    for (double& h : row) h = 0.3 * u01(rng);
+  std::vector<Vec3> corners;
+  for (int i = 0; i < kN; ++i)
+    for (int j = 0; j < kN; ++j) {
+      const Vec3 p00{double(i), double(j), height[i][j]}, p10{double(i + 1), double(j), height[i + 1][j]},
+          p01{double(i), double(j + 1), height[i][j + 1]},
+          p11{double(i + 1), double(j + 1), height[i + 1][j + 1]};
+      const bool flip = (i + j) % 3 == 0;  // diagonals both ways, and triangles turned about
+      for (const Vec3& q : flip ? std::vector<Vec3>{p00, p10, p11, p00, p11, p01}
+                                : std::vector<Vec3>{p10, p01, p00, p11, p01, p10})
+        corners.push_back(q);
+    }
+  const dem::Mesh mesh = dem::build_mesh(corners, "crumpled sheet");
+  const Vec3* wv = mesh.vertices.data();
+  const int nt = static_cast<int>(mesh.triangles.size());
+  std::uniform_int_distribution<int> pick(0, nt - 1), count(1, 4);
+  int kinds[4] = {0, 0, 0, 0}, hits = 0, misses = 0, groups = 0;
+  for (int trial = 0; trial < 20000; ++trial) {
+    const int n = count(rng);
+    std::int32_t tri[4];
+    // Mostly neighbours (a sphere's candidates), sometimes the same triangle twice.
+    const int t0 = pick(rng);
+    for (int l = 0; l < n; ++l)
+      tri[l] = u01(rng) < 0.2 ? t0 : std::clamp(t0 + static_cast<int>(u01(rng) * 5) - 2, 0, nt - 1);
+    // A point around t0: barycentric coordinates from -0.4 to 1.2, up to half a side off.
+    const auto& T = mesh.triangles[static_cast<std::size_t>(t0)];
+    const double b1 = -0.4 + 1.6 * u01(rng), b2 = -0.4 + 1.6 * u01(rng);
+    const Vec3 c = (1 - b1 - b2) * wv[T[0]] + b1 * wv[T[1]] + b2 * wv[T[2]] +
+                   Vec3{0, 0, -0.5 + u01(rng)};
+    double d2[4];
+    for (int l = 0; l < n; ++l) {
+      const dem::TriangleHit h = dem::closest_on_triangle(mesh, wv, tri[l], c);
+      d2[l] = h.dist2;
+      ++kinds[static_cast<int>(h.kind)];
+    }
+    const int at = static_cast<int>(u01(rng) * n);
+    for (const double reach2 : {d2[at], std::nextafter(d2[at], 1e300), 0.5 * u01(rng)}) {
+      int expected = 0;
+      for (int l = 0; l < n; ++l) expected |= (d2[l] < reach2) << l;
+      ASSERT_EQ(dem::triangles_within(mesh, wv, tri, n, c, reach2), expected)
+          << "trial " << trial << ", " << n << " triangles, reach2 " << reach2;
+      hits += __builtin_popcount(static_cast<unsigned>(expected));
+      misses += n - __builtin_popcount(static_cast<unsigned>(expected));
+      ++groups;
+    }
+  }
+  std::printf("%d groups (lanes %s): %d within, %d not; closest features: %d faces, %d edges, "
+              "%d vertices\n",
+              groups, dem::triangles_within_lanes_available() ? "AVX2" : "absent", hits, misses,
+              kinds[1], kinds[2], kinds[3]);
+  EXPECT_GT(kinds[static_cast<int>(dem::FeatureKind::face)], 5000);
+  EXPECT_GT(kinds[static_cast<int>(dem::FeatureKind::edge)], 5000);
+  EXPECT_GT(kinds[static_cast<int>(dem::FeatureKind::vertex)], 5000);
 }
 
 }  // namespace

@@ -554,6 +554,23 @@ TEST(dem_PairKernel, BadKernelInTheEnvironmentIsRefusedAtStartUp) {
                                           " --set run.duration=0.001 --output " + out);
     EXPECT_EQ(code, 0) << v << ": " << text;
   }
+  // DEM_TRIANGLE_TEST likewise (the boundary contacts' triangle test: vector or scalar).
+  {
+    const auto [code, text] = run_command("env DEM_TRIANGLE_TEST=4 " +
+                                          std::string(DEM_RUN_EXE) + " " + config +
+                                          " --set run.duration=0.001 --output " + out);
+    EXPECT_EQ(code, 2) << text;
+    EXPECT_NE(text.find("DEM_TRIANGLE_TEST=4: use vector (the default: 4 triangles at a time "
+                        "with AVX2 where the processor has it) or scalar, or unset it"),
+              std::string::npos)
+        << text;
+  }
+  for (const char* v : {"vector", "scalar"}) {
+    const auto [code, text] = run_command(std::string("env DEM_TRIANGLE_TEST=") + v + " " +
+                                          DEM_RUN_EXE + " " + config +
+                                          " --set run.duration=0.001 --output " + out);
+    EXPECT_EQ(code, 0) << v << ": " << text;
+  }
   // The good values run.
   for (const char* v : {"scalar", "vector", "avx2"}) {
     const auto [code, text] = run_command(std::string("env DEM_PAIR_KERNEL=") + v + " " +

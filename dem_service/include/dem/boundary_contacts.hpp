@@ -55,6 +55,10 @@ class BoundaryContacts {
   // contact's spring matched by the search, the springs zeroed for every particle): the same
   // bits, slower (EngineOptions::boundary_fast; docs/performance.md "The boundary contacts").
   void use_fast_path(bool fast) { fast_ = fast; }
+  // true (the default) lets the fast path test a sphere's candidate triangles 4 at a time where
+  // the processor can (triangles_within; the same decisions), false one at a time
+  // (EngineOptions::vector_triangle_test).
+  void use_triangle_lanes(bool lanes) { triangle_lanes_ = lanes && triangles_within_lanes_available(); }
 
   const std::vector<Wrench>& tool_wrenches() const { return tool_wrench_; }
   const std::vector<Vec3>& wall_forces() const { return wall_force_; }
@@ -86,6 +90,7 @@ class BoundaryContacts {
   void run_chunks(State& s, const ToolGeometry& tools, Vec3* force, int t, int T, double* busy,
                   Vec3* torque, const std::uint8_t* ghost, const ChunkWait* wait);
   bool fast_ = true;
+  bool triangle_lanes_ = triangles_within_lanes_available();
 };
 
 }  // namespace dem

@@ -60,6 +60,10 @@ struct EngineOptions {
   // zeroing per particle; BoundaryContacts::use_fast_path). Always on in the apps; off only for
   // the tests that hold it to the code before it (dem_BoundaryFast.*).
   bool boundary_fast = true;
+  // The fast path's triangle test: a sphere's candidate triangles 4 at a time with AVX2 where
+  // the processor has it (dem::triangles_within, the same decisions as the closest point), or
+  // one at a time. Kept: the tests compare whole runs both ways (dem_BoundaryFast.*).
+  bool vector_triangle_test = true;
   // Sleeping's shortcuts: the pair loop reads a sleeper's row only when it holds an awake
   // partner, and the integration skips the tool test for a block of 64 sleepers beyond every
   // tool's neighbourhood. Settled (always on in the apps); kept as switches only for the tests

@@ -25,6 +25,14 @@ struct TriangleHit {
 // triangles that share a feature report bit-identical points for it.
 TriangleHit closest_on_triangle(const Mesh& mesh, const Vec3* wv, std::int32_t tri, Vec3 c);
 
+// Bit l set where triangle tri[l] (l < n, 1 <= n <= 4) has its closest point to c at a squared
+// distance below reach2, decided as closest_on_triangle(...).dist2 < reach2 decides it, bit for
+// bit: with AVX2 on 4 triangles at a time (mesh_contact_avx2.cpp), else one by one.
+int triangles_within(const Mesh& mesh, const Vec3* wv, const std::int32_t* tri, int n, Vec3 c,
+                     double reach2);
+// Whether triangles_within runs in lanes here (AVX2 and a GCC build on x86-64).
+bool triangles_within_lanes_available();
+
 // hits: the triangles of ONE mesh within contact distance of one sphere. Keeps a face hit
 // always; keeps an edge or vertex hit only if every triangle sharing that feature reported
 // the same feature (otherwise a neighbouring face or edge is closer and carries the contact),
