@@ -8,6 +8,24 @@
 #include <string>
 
 namespace dem {
+namespace {
+
+// A vector-or-scalar switch from the environment variable `name` (unset: left as it is), any
+// other value refused with the variable, the two values and what vector means.
+void vector_or_scalar(const char* name, const char* vector_means, bool& vector) {
+  const char* v = std::getenv(name);
+  if (!v) return;
+  if (std::strcmp(v, "vector") == 0)
+    vector = true;
+  else if (std::strcmp(v, "scalar") == 0)
+    vector = false;
+  else
+    throw std::invalid_argument(std::string("environment ") + name + "=" + v +
+                                ": use vector (the default: " + vector_means +
+                                ") or scalar, or unset it");
+}
+
+}  // namespace
 
 EngineOptions EngineOptions::from_environment() {
   EngineOptions o;
@@ -45,26 +63,11 @@ EngineOptions EngineOptions::from_environment() {
                                   std::to_string(kScreenedMaxParticles) +
                                   " particles), one or two, or unset it");
   }
-  if (const char* v = std::getenv("DEM_ROW_TEST")) {
-    if (std::strcmp(v, "vector") == 0)
-      o.vector_row_test = true;
-    else if (std::strcmp(v, "scalar") == 0)
-      o.vector_row_test = false;
-    else
-      throw std::invalid_argument(std::string("environment DEM_ROW_TEST=") + v +
-                                  ": use vector (the default: AVX-512, else AVX2, where the "
-                                  "processor has it) or scalar, or unset it");
-  }
-  if (const char* v = std::getenv("DEM_TRIANGLE_TEST")) {
-    if (std::strcmp(v, "vector") == 0)
-      o.vector_triangle_test = true;
-    else if (std::strcmp(v, "scalar") == 0)
-      o.vector_triangle_test = false;
-    else
-      throw std::invalid_argument(std::string("environment DEM_TRIANGLE_TEST=") + v +
-                                  ": use vector (the default: 4 triangles at a time with AVX2 "
-                                  "where the processor has it) or scalar, or unset it");
-  }
+  vector_or_scalar("DEM_ROW_TEST", "AVX-512, else AVX2, where the processor has it",
+                   o.vector_row_test);
+  vector_or_scalar("DEM_TRIANGLE_TEST",
+                   "4 triangles at a time with AVX2 where the processor has it",
+                   o.vector_triangle_test);
   return o;
 }
 

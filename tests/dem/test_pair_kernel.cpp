@@ -537,39 +537,28 @@ TEST(dem_PairKernel, BadKernelInTheEnvironmentIsRefusedAtStartUp) {
                                           " --set run.duration=0.001 --output " + out);
     EXPECT_EQ(code, 0) << v << ": " << text;
   }
-  // DEM_ROW_TEST likewise (the broad phase's distance test: vector or scalar).
-  {
-    const auto [code, text] = run_command("env DEM_ROW_TEST=avx " + std::string(DEM_RUN_EXE) +
-                                          " " + config + " --set run.duration=0.001 --output " +
-                                          out);
+  // DEM_ROW_TEST (the broad phase's distance test) and DEM_TRIANGLE_TEST (the boundary
+  // contacts' triangle test) likewise: vector or scalar.
+  struct Switch {
+    const char* set;       // a bad setting
+    const char* message;   // what it must say
+  };
+  for (const Switch& sw :
+       {Switch{"DEM_ROW_TEST=avx", "DEM_ROW_TEST=avx: use vector (the default: AVX-512, else "
+                                   "AVX2, where the processor has it) or scalar, or unset it"},
+        Switch{"DEM_TRIANGLE_TEST=4",
+               "DEM_TRIANGLE_TEST=4: use vector (the default: 4 triangles at a time with AVX2 "
+               "where the processor has it) or scalar, or unset it"}}) {
+    const auto [code, text] = run_command(std::string("env ") + sw.set + " " + DEM_RUN_EXE + " " +
+                                          config + " --set run.duration=0.001 --output " + out);
     EXPECT_EQ(code, 2) << text;
-    EXPECT_NE(text.find("DEM_ROW_TEST=avx: use vector (the default: AVX-512, else AVX2, where the "
-                        "processor has it) or scalar, or unset it"),
-              std::string::npos)
-        << text;
-  }
-  for (const char* v : {"vector", "scalar"}) {
-    const auto [code, text] = run_command(std::string("env DEM_ROW_TEST=") + v + " " +
-                                          DEM_RUN_EXE + " " + config +
-                                          " --set run.duration=0.001 --output " + out);
-    EXPECT_EQ(code, 0) << v << ": " << text;
-  }
-  // DEM_TRIANGLE_TEST likewise (the boundary contacts' triangle test: vector or scalar).
-  {
-    const auto [code, text] = run_command("env DEM_TRIANGLE_TEST=4 " +
-                                          std::string(DEM_RUN_EXE) + " " + config +
-                                          " --set run.duration=0.001 --output " + out);
-    EXPECT_EQ(code, 2) << text;
-    EXPECT_NE(text.find("DEM_TRIANGLE_TEST=4: use vector (the default: 4 triangles at a time "
-                        "with AVX2 where the processor has it) or scalar, or unset it"),
-              std::string::npos)
-        << text;
-  }
-  for (const char* v : {"vector", "scalar"}) {
-    const auto [code, text] = run_command(std::string("env DEM_TRIANGLE_TEST=") + v + " " +
-                                          DEM_RUN_EXE + " " + config +
-                                          " --set run.duration=0.001 --output " + out);
-    EXPECT_EQ(code, 0) << v << ": " << text;
+    EXPECT_NE(text.find(sw.message), std::string::npos) << text;
+    const std::string name = std::string(sw.set).substr(0, std::string(sw.set).find('='));
+    for (const char* v : {"vector", "scalar"}) {
+      const auto [ok, said] = run_command("env " + name + "=" + v + " " + DEM_RUN_EXE + " " +
+                                          config + " --set run.duration=0.001 --output " + out);
+      EXPECT_EQ(ok, 0) << name << "=" << v << ": " << said;
+    }
   }
   // The good values run.
   for (const char* v : {"scalar", "vector", "avx2"}) {
