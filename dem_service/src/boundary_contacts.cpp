@@ -299,7 +299,8 @@ void BoundaryContacts::run_chunks(State& s, const ToolGeometry& tools, Vec3* for
         // Nothing near and nothing remembered.
         if (s.wall_mask[i] == 0 && s.tri_offset[i] == s.tri_offset[i + 1] && s.slot_count[i] == 0)
           continue;
-        const int nc = gather(scene_, s, i, tools.vertices, cs, hits, dt, Fast && triangle_lanes_);
+        const int nc =
+            gather(scene_, s, i, tools.vertices, cs, hits, dt, Fast && triangle_lanes_);
         if (nc < 0) {
           if (my_overflow < 0) my_overflow = static_cast<std::int64_t>(i);
           continue;

@@ -68,8 +68,9 @@ DEM_AVX2_INLINE void xy_lanes(const Vec3& p0, const Vec3& p1, const Vec3& p2, co
 }
 
 // The contact force of 4 queued pairs (contact_force and its caller's geometry, lane by lane):
-// pair pair[l] of row i[l] with partner j[l]. The lanes are built from scalar loads (a wide load
-// of narrow stores would stall) and leave through memory.
+// pair pair[l] of row i[l] with partner j[l]. The lanes are built from 16-byte loads of x and y
+// (xy_lanes) and scalar loads of the rest, not from whole 32-byte Vec3 reads (a Vec3 is 24 bytes,
+// and a wide load of narrow stores would stall), and leave through memory.
 struct Out4 {
   alignas(32) double f[3][4], s[3][4], overlap[4], ratio[4];  // ratio: overlap / min(ri, rj)
   alignas(32) long long acts[4];

@@ -178,9 +178,9 @@ TEST(dem_MeshContact, TrianglesWithinDecideAsTheClosestPoint) {
   std::vector<Vec3> corners;
   for (int i = 0; i < kN; ++i)
     for (int j = 0; j < kN; ++j) {
-      const Vec3 p00{double(i), double(j), height[i][j]}, p10{double(i + 1), double(j), height[i + 1][j]},
-          p01{double(i), double(j + 1), height[i][j + 1]},
-          p11{double(i + 1), double(j + 1), height[i + 1][j + 1]};
+      const double x0 = i, x1 = i + 1, y0 = j, y1 = j + 1;
+      const Vec3 p00{x0, y0, height[i][j]}, p10{x1, y0, height[i + 1][j]},
+          p01{x0, y1, height[i][j + 1]}, p11{x1, y1, height[i + 1][j + 1]};
       const bool flip = (i + j) % 3 == 0;  // diagonals both ways, and triangles turned about
       for (const Vec3& q : flip ? std::vector<Vec3>{p00, p10, p11, p00, p11, p01}
                                 : std::vector<Vec3>{p10, p01, p00, p11, p01, p10})
@@ -197,7 +197,8 @@ TEST(dem_MeshContact, TrianglesWithinDecideAsTheClosestPoint) {
     // Mostly neighbours (a sphere's candidates), sometimes the same triangle twice.
     const int t0 = pick(rng);
     for (int l = 0; l < n; ++l)
-      tri[l] = u01(rng) < 0.2 ? t0 : std::clamp(t0 + static_cast<int>(u01(rng) * 5) - 2, 0, nt - 1);
+      tri[l] = u01(rng) < 0.2 ? t0
+                              : std::clamp(t0 + static_cast<int>(u01(rng) * 5) - 2, 0, nt - 1);
     // A point around t0: barycentric coordinates from -0.4 to 1.2, up to half a side off.
     const auto& T = mesh.triangles[static_cast<std::size_t>(t0)];
     const double b1 = -0.4 + 1.6 * u01(rng), b2 = -0.4 + 1.6 * u01(rng);

@@ -177,7 +177,9 @@ TEST(dem_OneRegion, OwnThreadsGiveTheBitsOfOpenMPs) {
       EXPECT_EQ(first_difference(a, b), -1) << what;
       EXPECT_EQ(e.woke_total(), a.woke) << what;
       EXPECT_EQ(e.fell_asleep_total(), a.fell) << what;
-      if (c.sleep) EXPECT_GT(a.woke, 100) << what;
+      if (c.sleep) {
+        EXPECT_GT(a.woke, 100) << what;
+      }
     }
   }
 }

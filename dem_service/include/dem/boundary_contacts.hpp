@@ -58,7 +58,9 @@ class BoundaryContacts {
   // true (the default) lets the fast path test a sphere's candidate triangles 4 at a time where
   // the processor can (triangles_within; the same decisions), false one at a time
   // (EngineOptions::vector_triangle_test).
-  void use_triangle_lanes(bool lanes) { triangle_lanes_ = lanes && triangles_within_lanes_available(); }
+  void use_triangle_lanes(bool lanes) {
+    triangle_lanes_ = lanes && triangles_within_lanes_available();
+  }
 
   const std::vector<Wrench>& tool_wrenches() const { return tool_wrench_; }
   const std::vector<Vec3>& wall_forces() const { return wall_force_; }
