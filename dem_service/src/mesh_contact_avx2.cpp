@@ -43,6 +43,13 @@ DEM_AVX2_INLINE V4 select(v4q m, V4 a, V4 b) {
   return {m ? a.x : b.x, m ? a.y : b.y, m ? a.z : b.z};
 }
 
+// The lanes of `open` that pass `test` (their region), no longer open after it.
+DEM_AVX2_INLINE v4q take_region(v4q& open, v4q test) {
+  const v4q taken = open & test;
+  open &= ~test;
+  return taken;
+}
+
 __attribute__((target("avx2"))) int within_avx2(const Mesh& mesh, const Vec3* wv,
                                                 const std::int32_t* tri, int n, Vec3 c,
                                                 double reach2) {
@@ -58,29 +65,24 @@ __attribute__((target("avx2"))) int within_avx2(const Mesh& mesh, const Vec3* wv
   const V4 a = lanes(wv, va_), b = lanes(wv, vb_), cc = lanes(wv, vc_);
   const V4 ab = sub(b, a), ac = sub(cc, a);
   const v4d zero = splat(0.0), one = splat(1.0);
-  // The regions in closest_on_triangle's order; `open`: no region taken yet.
+  // The regions in closest_on_triangle's order: a lane takes the first whose test it passes.
+  v4q open = ~v4q{};  // the lanes no region has taken yet
   const V4 ap = sub(C, a);
   const v4d d1 = dot(ab, ap), d2 = dot(ac, ap);
-  v4q open = ~v4q{};
-  const v4q in_a = (d1 <= zero) & (d2 <= zero);
-  open &= ~in_a;
+  const v4q in_a = take_region(open, (d1 <= zero) & (d2 <= zero));
   const V4 bp = sub(C, b);
   const v4d d3 = dot(ab, bp), d4 = dot(ac, bp);
-  const v4q in_b = open & (d3 >= zero) & (d4 <= d3);
-  open &= ~in_b;
+  const v4q in_b = take_region(open, (d3 >= zero) & (d4 <= d3));
   const v4d vc = d1 * d4 - d3 * d2;
-  const v4q in_ab = open & (vc <= zero) & (d1 >= zero) & (d3 <= zero);
-  open &= ~in_ab;
+  const v4q in_ab = take_region(open, (vc <= zero) & (d1 >= zero) & (d3 <= zero));
   const V4 cp = sub(C, cc);
   const v4d d5 = dot(ab, cp), d6 = dot(ac, cp);
-  const v4q in_c = open & (d6 >= zero) & (d5 <= d6);
-  open &= ~in_c;
+  const v4q in_c = take_region(open, (d6 >= zero) & (d5 <= d6));
   const v4d vb = d5 * d2 - d1 * d6;
-  const v4q in_ca = open & (vb <= zero) & (d2 >= zero) & (d6 <= zero);
-  open &= ~in_ca;
+  const v4q in_ca = take_region(open, (vb <= zero) & (d2 >= zero) & (d6 <= zero));
   const v4d va = d3 * d6 - d5 * d4;
-  const v4q in_bc = open & (va <= zero) & ((d4 - d3) >= zero) & ((d5 - d6) >= zero);
-  const v4q in_face = open & ~in_bc;
+  const v4q in_bc = take_region(open, (va <= zero) & ((d4 - d3) >= zero) & ((d5 - d6) >= zero));
+  const v4q in_face = open;
   // A vertex's distance: the vertex itself is the point (vertex_hit).
   v4d dist2 = in_a ? dot(ap, ap) : zero;
   dist2 = in_b ? dot(bp, bp) : dist2;
