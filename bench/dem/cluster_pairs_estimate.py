@@ -71,20 +71,25 @@ def main():
                  "(make the bed with: build/bin/dem_side_by_side prepare --kind bed --n 150000 "
                  "--dir results/bench_lammps)")
     n = len(x)
+    if n < 4:
+        sys.exit(f"cluster_pairs_estimate: {args.bed} holds {n} particles; a cluster needs 4")
+    if args.skin is not None and not args.skin >= 0:
+        sys.exit(f"cluster_pairs_estimate: --skin {args.skin}: give a distance of 0 m or more")
     skin = args.skin if args.skin is not None else 0.5 * r.max()
     pairs = candidate_pairs(x, r, skin)
     print(f"{args.bed}: {n} particles, r {r.min():.4g}-{r.max():.4g} m, skin {skin:.4g} m")
     # Today's screen: each row (the pairs of a particle with the later ones in cell order) in
     # groups of 4 candidates of that row.
+    by_cell = cell_order(x, 2 * r.max() + skin)
     rank = np.empty(n, dtype=np.int64)
-    rank[cell_order(x, 2 * r.max() + skin)] = np.arange(n)
+    rank[by_cell] = np.arange(n)
     rows = np.bincount(np.minimum(rank[pairs[:, 0]], rank[pairs[:, 1]]), minlength=n)
     groups = np.sum((rows + 3) // 4)
     print(f"candidates (half list): {len(pairs) / n:.2f} per particle, screened in "
           f"{groups / n:.2f} 4-lane groups per particle ({len(pairs) / groups:.2f} of 4 lanes filled)")
     volume_per_particle = np.prod(x.max(axis=0) - x.min(axis=0)) / n
     for name, order in (
-            ("4 consecutive in cell order", cell_order(x, 2 * r.max() + skin)),
+            ("4 consecutive in cell order", by_cell),
             ("columns of 4 particles' volume, by z", column_order(x, (4 * volume_per_particle) ** (1 / 3)))):
         cluster_of = np.empty(n, dtype=np.int64)
         cluster_of[order] = np.arange(n) // 4

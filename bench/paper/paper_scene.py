@@ -136,6 +136,9 @@ if args.repeats < 1:
     parser.error(f"--repeats {args.repeats}: give at least 1")
 if args.window <= 0:
     parser.error(f"--window {args.window}: give a positive number of simulated seconds")
+if not os.path.isfile(args.pile):
+    parser.error(f"--pile {args.pile}: no such file (prepare one with bench/paper/prepare_pile.sh; "
+                 "--compact gives results/pile_paper_compacted.h5)")
 policies = args.policies.split(",")
 for p in policies:
     if p not in POLICIES:

@@ -16,24 +16,17 @@ root="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
 cd "$root"
 build="${BUILD_DIR:-build}"
 prepare=0
-pile=results/pile_paper.h5
+own_pile=0  # --pile FILE: paper_scene.py checks that file; else the default pile must be there
 args=()
-next_is_pile=0
 for a in "$@"; do
-  if [ "$next_is_pile" = 1 ]; then pile="$a"; next_is_pile=0; fi
-  if [ "$a" = "--pile" ]; then next_is_pile=1; fi
+  case "$a" in --pile | --pile=*) own_pile=1 ;; esac
   if [ "$a" = "--prepare" ]; then prepare=1; else args+=("$a"); fi
 done
-if [ "$pile" != results/pile_paper.h5 ] && [ ! -f "$pile" ]; then
-  echo "paper_scene: --pile $pile: no such file (prepare one with bench/paper/prepare_pile.sh;" \
-       "--compact gives results/pile_paper_compacted.h5)" >&2
-  exit 2
-fi
 if [ ! -f "$build/CMakeCache.txt" ]; then
   cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=Release >/dev/null
 fi
 cmake --build "$build" -j2 --target dem_run wheel_loader_meshes >/dev/null
-if [ "$pile" = results/pile_paper.h5 ] && [ ! -f results/pile_paper.h5 ]; then
+if [ "$own_pile" = 0 ] && [ ! -f results/pile_paper.h5 ]; then
   if [ "$prepare" = 1 ]; then
     bash bench/paper/prepare_pile.sh
   else
