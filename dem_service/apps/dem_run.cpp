@@ -8,7 +8,6 @@
 #include <filesystem>
 #include <iostream>
 #include <memory>
-#include <new>
 #include <optional>
 #include <string>
 #include <vector>
@@ -19,6 +18,7 @@
 #include "cosim/yaml_config.hpp"
 #include "dem/bed.hpp"
 #include "dem/checkpoint.hpp"
+#include "dem/app_main.hpp"
 #include "dem/config.hpp"
 #include "dem/engine.hpp"
 #include "dem/mpi/decomposed.hpp"
@@ -435,26 +435,4 @@ int run(int argc, char** argv) {
 
 }  // namespace
 
-int main(int argc, char** argv) {
-  // Several processes share one log: a line must reach it in one write, not one per <<.
-  std::setvbuf(stderr, nullptr, _IOLBF, 1 << 14);
-  try {
-    return run(argc, argv);
-  } catch (const cosim::config::ConfigError& e) {
-    std::cerr << "dem_run: config error: " << e.what() << "\n";
-    return 2;
-  } catch (const std::invalid_argument& e) {
-    std::cerr << "dem_run: refused: " << e.what() << "\n";
-    return 2;
-  } catch (const dem::SimulationError& e) {
-    std::cerr << "dem_run: stopped: " << e.what() << "\n";
-    return 3;
-  } catch (const std::bad_alloc&) {  // memory ran out after the checks (docs/dem.md#memory)
-    std::cerr << "dem_run: out of memory (std::bad_alloc): the scene needs more memory than this "
-                 "process may use; lower particles.fill counts or run where more memory is free\n";
-    return 1;
-  } catch (const std::exception& e) {
-    std::cerr << "dem_run: error: " << e.what() << "\n";
-    return 1;
-  }
-}
+int main(int argc, char** argv) { return dem::app_main("dem_run", argc, argv, run); }

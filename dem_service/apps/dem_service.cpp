@@ -7,12 +7,12 @@
 #include <cstdio>
 #include <iostream>
 #include <memory>
-#include <new>
 #include <optional>
 #include <stdexcept>
 #include <string>
 
 #include "cosim/yaml_config.hpp"
+#include "dem/app_main.hpp"
 #include "dem/config.hpp"
 #include "dem/engine.hpp"
 #include "dem/mpi/decomposed.hpp"
@@ -110,26 +110,4 @@ int run(int argc, char** argv) {
 
 }  // namespace
 
-int main(int argc, char** argv) {
-  // Several processes share one log: a line must reach it in one write, not one per <<.
-  std::setvbuf(stderr, nullptr, _IOLBF, 1 << 14);
-  try {
-    return run(argc, argv);
-  } catch (const cosim::config::ConfigError& e) {
-    std::cerr << "dem_service: config error: " << e.what() << "\n";
-    return 2;
-  } catch (const std::invalid_argument& e) {
-    std::cerr << "dem_service: refused: " << e.what() << "\n";
-    return 2;
-  } catch (const dem::SimulationError& e) {
-    std::cerr << "dem_service: stopped: " << e.what() << "\n";
-    return 3;
-  } catch (const std::bad_alloc&) {  // memory ran out after the checks (docs/dem.md#memory)
-    std::cerr << "dem_service: out of memory (std::bad_alloc): the scene needs more memory than this "
-                 "process may use; lower particles.fill counts or run where more memory is free\n";
-    return 1;
-  } catch (const std::exception& e) {
-    std::cerr << "dem_service: error: " << e.what() << "\n";
-    return 1;
-  }
-}
+int main(int argc, char** argv) { return dem::app_main("dem_service", argc, argv, run); }
